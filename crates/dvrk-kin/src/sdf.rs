@@ -1,0 +1,1 @@
+//! SDF export with loop-closing joints. Written by a helper.

@@ -1,0 +1,267 @@
+//! The model file format (TOML), as written by people: units in comments, sources beside numbers,
+//! DH entries as the paper prints them. [`crate::Model::compile`] turns a spec into a model.
+
+use crate::error::{KinError, Result};
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// DH convention of a model: where `a` and `alpha` sit relative to the joint motion.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum Convention {
+    /// Craig's modified DH: `T = Rx(alpha) Tx(a) Rz(theta) Tz(d)` (the paper, PSM/ECM/SUJ).
+    #[default]
+    Modified,
+    /// Classic DH: `T = Rz(theta) Tz(d) Tx(a) Rx(alpha)` (the dVRK MTM files).
+    Standard,
+}
+
+/// A number, or an affine expression of parameters and joints (`"-q2 + beta1 + pi/2"`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum Value {
+    Number(f64),
+    Expr(String),
+}
+
+impl Default for Value {
+    fn default() -> Self {
+        Value::Number(0.0)
+    }
+}
+
+impl From<f64> for Value {
+    fn from(x: f64) -> Self {
+        Value::Number(x)
+    }
+}
+
+/// A frame or joint reference: the paper's frame number or a name.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum FrameRef {
+    Index(i64),
+    Name(String),
+}
+
+impl std::fmt::Display for FrameRef {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            FrameRef::Index(i) => write!(f, "{i}"),
+            FrameRef::Name(s) => write!(f, "{s}"),
+        }
+    }
+}
+
+/// Kind of an actuated joint.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum JointType {
+    /// Rotation, position in rad.
+    Revolute,
+    /// Translation, position in m.
+    Prismatic,
+}
+
+/// Motion type of a frame (the paper's "Joint" column).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum FrameJoint {
+    /// `theta` varies (R).
+    Revolute,
+    /// `d` varies (P).
+    Prismatic,
+    /// Nothing varies (`-`).
+    Fixed,
+}
+
+/// A named constant with its unit and provenance.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ParameterSpec {
+    /// Value in SI units (rad, m, or unitless).
+    pub value: f64,
+    #[serde(default)]
+    pub unit: String,
+    #[serde(default)]
+    pub source: String,
+}
+
+/// An actuated joint (a coordinate of `q`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct JointSpec {
+    /// The dVRK's name (`outer_yaw`, ...).
+    pub name: String,
+    #[serde(rename = "type")]
+    pub kind: JointType,
+    /// Lower limit (rad or m).
+    pub lower: f64,
+    /// Upper limit (rad or m).
+    pub upper: f64,
+    /// Effort limit (N·m or N); 0 when unknown.
+    #[serde(default)]
+    pub effort_limit: f64,
+    /// Home position (rad or m); 0 clamped into the limits when absent.
+    #[serde(default)]
+    pub home: Option<f64>,
+    #[serde(default)]
+    pub source: String,
+}
+
+/// A frame of the tree: DH entries, or a fixed 4x4 transform.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FrameSpec {
+    /// The paper's frame number (PSM/ECM), or a running number.
+    #[serde(default)]
+    pub index: Option<i64>,
+    pub name: String,
+    /// Predecessor: a frame number or name; `0` or `"base"` for the base frame.
+    pub parent: FrameRef,
+    /// Rigid part this frame belongs to (frames that move as one are one body).
+    #[serde(default)]
+    pub body: Option<String>,
+    /// The paper's "Joint" column: which DH entry varies.
+    #[serde(default = "fixed")]
+    pub joint: FrameJoint,
+    /// m
+    #[serde(default)]
+    pub a: Value,
+    /// rad
+    #[serde(default)]
+    pub alpha: Value,
+    /// m
+    #[serde(default)]
+    pub d: Value,
+    /// rad
+    #[serde(default)]
+    pub theta: Value,
+    /// Fixed transform from the parent (row-major 4x4, m), used instead of DH entries.
+    #[serde(default)]
+    pub transform: Option<[[f64; 4]; 4]>,
+    #[serde(default)]
+    pub source: String,
+}
+
+fn fixed() -> FrameJoint {
+    FrameJoint::Fixed
+}
+
+/// A loop-closure point: a point of one link that must coincide with a point of another.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ClosureSpec {
+    pub name: String,
+    /// The link whose end is the closure point.
+    pub frame: FrameRef,
+    /// The point in `frame` (m).
+    pub point: [f64; 3],
+    /// The link it closes on.
+    pub partner: FrameRef,
+    /// The same point in `partner` (m); computed at the home configuration when absent.
+    #[serde(default)]
+    pub partner_point: Option<[f64; 3]>,
+    #[serde(default)]
+    pub source: String,
+}
+
+/// Remote centre of motion: a frame whose z axis always passes through one fixed point.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RcmSpec {
+    pub frame: FrameRef,
+}
+
+/// The serial dVRK chain this closed-loop model must reproduce.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SerialSpec {
+    /// Built-in name or path (relative to this file) of the serial model.
+    pub model: String,
+    /// Pairs `[closed-loop frame, serial frame]` that must agree up to one constant base transform.
+    pub pairs: Vec<[FrameRef; 2]>,
+}
+
+/// Which model entries a dVRK tool file sets (see [`crate::dvrk_json::apply_tool`]).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ToolSpec {
+    /// The tool these defaults come from.
+    pub name: String,
+    #[serde(default)]
+    pub source: String,
+    /// Parameter set from the tool's roll `D` (m).
+    pub length_parameter: String,
+    /// Parameter set from the tool's wrist-yaw `A` (m).
+    pub jaw_offset_parameter: String,
+    /// Joints set from the tool's DH joints and `jaw`, in order (roll, wrist pitch, wrist yaw, jaw).
+    pub joints: Vec<String>,
+    /// Fixed frame set from `tooltip_offset`.
+    pub tooltip_frame: String,
+    /// ActuatorToJointPosition of the tool (rows and columns over `joints`).
+    #[serde(default)]
+    pub coupling: Option<Vec<Vec<f64>>>,
+}
+
+/// A whole model file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ModelSpec {
+    pub name: String,
+    #[serde(default)]
+    pub title: String,
+    #[serde(default)]
+    pub convention: Convention,
+    #[serde(default)]
+    pub source: String,
+    #[serde(default)]
+    pub notes: String,
+    /// Named constants used in expressions.
+    #[serde(default)]
+    pub parameters: BTreeMap<String, ParameterSpec>,
+    pub joints: Vec<JointSpec>,
+    pub frames: Vec<FrameSpec>,
+    #[serde(default)]
+    pub closures: Vec<ClosureSpec>,
+    #[serde(default)]
+    pub rcm: Option<RcmSpec>,
+    /// The tool-tip frame (default: the last frame).
+    #[serde(default)]
+    pub tip: Option<FrameRef>,
+    #[serde(default)]
+    pub serial_equivalent: Option<SerialSpec>,
+    #[serde(default)]
+    pub tool: Option<ToolSpec>,
+    /// ActuatorToJointPosition (rows: joints, columns: actuators), as in dVRK files.
+    #[serde(default)]
+    pub coupling: Option<Vec<Vec<f64>>>,
+}
+
+impl ModelSpec {
+    /// Parse a TOML model file's text; `path` names it in errors.
+    pub fn from_toml(text: &str, path: &Path) -> Result<Self> {
+        toml::from_str(text).map_err(|e| toml_error(&e, text, path))
+    }
+
+    /// Write as TOML.
+    pub fn to_toml(&self) -> Result<String> {
+        toml::to_string_pretty(self).map_err(|e| KinError::field("model", e.to_string()))
+    }
+}
+
+/// A one-line error from a TOML error: file, line, field and the value as written.
+pub(crate) fn toml_error(e: &toml::de::Error, text: &str, path: &Path) -> KinError {
+    let message = e.message().trim().replace('\n', " ");
+    let Some(span) = e.span() else {
+        return KinError::File { path: path.into(), message };
+    };
+    let line_no = text[..span.start.min(text.len())].matches('\n').count() + 1;
+    let line = text.lines().nth(line_no - 1).unwrap_or("").trim();
+    let detail = match line.split_once('=') {
+        Some((key, value)) => format!("field `{}` = {}: {message}", key.trim(), value.trim()),
+        None => format!("`{line}`: {message}"),
+    };
+    KinError::File { path: path.into(), message: format!("line {line_no}: {detail}") }
+}
