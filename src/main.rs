@@ -1,1 +1,43 @@
-fn main() {}
+//! `dvrk`: inspect, check, evaluate and export dVRK closed-loop models.
+//!
+//! `main` only turns [`run`] into an exit status and prints the error chain:
+//! 0 success, 1 bad input (files, values), 2 bad command line (clap), 3 a check found problems.
+
+mod cli;
+mod commands;
+mod io;
+
+use clap::Parser;
+use std::process::ExitCode;
+
+/// A check ran and found problems (its report was printed): exit status 3.
+#[derive(Debug)]
+pub struct CheckFailed;
+
+impl std::fmt::Display for CheckFailed {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "the check found problems (see the report above)")
+    }
+}
+
+impl std::error::Error for CheckFailed {}
+
+fn main() -> ExitCode {
+    let args = cli::Cli::parse();
+    match commands::run(args) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) if e.is::<CheckFailed>() => {
+            eprintln!("error: {e}");
+            ExitCode::from(3)
+        }
+        Err(e) => {
+            let top = e.to_string();
+            eprintln!("error: {top}");
+            // Causes whose text the message already quotes are not repeated.
+            for cause in e.chain().skip(1).map(|c| c.to_string()).filter(|c| !top.contains(c.as_str())) {
+                eprintln!("  caused by: {cause}");
+            }
+            ExitCode::from(1)
+        }
+    }
+}

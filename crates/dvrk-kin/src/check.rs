@@ -149,6 +149,5 @@ fn serial_check(model: &Model, configs: &[Vec<f64>]) -> Result<Option<SerialChec
 
 /// Angle of a rotation (rad), accurate near zero (acos of the trace is not: it floors at 1e-8).
 pub fn rotation_angle(r: &nalgebra::Rotation3<f64>) -> f64 {
-    let f = (r.matrix() - nalgebra::Matrix3::identity()).norm();
-    2.0 * (f / (2.0 * std::f64::consts::SQRT_2)).min(1.0).asin()
+    crate::so3::angle(r)
 }

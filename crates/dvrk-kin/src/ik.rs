@@ -46,7 +46,7 @@ pub struct IkSolution {
 
 fn pose_error(target: &Pose, current: &Pose) -> (Vector3<f64>, Vector3<f64>) {
     let ep = target.translation.vector - current.translation.vector;
-    let eo = (target.rotation * current.rotation.inverse()).scaled_axis();
+    let eo = crate::so3::log(&(target.rotation * current.rotation.inverse()));
     (ep, eo)
 }
 
@@ -144,8 +144,11 @@ fn newton(
                 (dq[i].abs() / cap).max(1.0)
             })
             .fold(1.0, f64::max);
+        // Projected Newton: stay inside the joint limits so the iteration finds the branch the
+        // arm can reach (wrist solutions come in pairs, one often outside the range).
         for (i, &k) in active.iter().enumerate() {
-            q[k] += dq[i] / scale;
+            let j = &model.joints[k];
+            q[k] = (q[k] + dq[i] / scale).clamp(j.lower, j.upper);
         }
     }
     compute_frame_placements(model, data, &q);

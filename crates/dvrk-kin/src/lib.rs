@@ -33,6 +33,7 @@ pub mod load;
 mod model;
 pub mod rcm;
 pub mod sdf;
+pub mod so3;
 pub mod spec;
 pub mod urdf;
 

@@ -389,7 +389,16 @@ impl Model {
                         if !theta.is_constant() {
                             return Err(KinError::field(field("theta"), "a prismatic frame's theta must not depend on a joint"));
                         }
-                        Motion::Prismatic
+                        if d.is_constant() {
+                            // Locked prismatic: as for revolute frames with a constant angle.
+                            let mut p = pre * rz(theta.offset) * tz(d.offset);
+                            if let Some(post) = &post {
+                                p *= post;
+                            }
+                            Motion::Fixed(p)
+                        } else {
+                            Motion::Prismatic
+                        }
                     }
                 };
                 let pre = match motion {

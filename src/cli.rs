@@ -1,0 +1,122 @@
+//! Command-line flags (clap). Raw flags only: `commands` validates and converts them.
+
+use clap::{Args, Parser, Subcommand, ValueEnum};
+use std::path::PathBuf;
+
+/// Closed-loop models of the da Vinci Research Kit manipulators.
+///
+/// MODEL is a built-in name (psm, ecm, suj-psm1, suj-psm2, suj-psm3, suj-ecm, cart, mtml, mtmr,
+/// psm-serial, ecm-serial) or a path to a model file (.toml), a dVRK JSON file or a URDF.
+/// Units: m, rad.
+#[derive(Debug, Parser)]
+#[command(name = "dvrk", version, about, long_about = None)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// List, show and check models.
+    Model {
+        #[command(subcommand)]
+        command: ModelCommand,
+    },
+    /// Forward kinematics of every frame (one configuration) or of one frame (a CSV of many).
+    Fk(FkArgs),
+    /// Inverse kinematics of the tool tip.
+    Ik(IkArgs),
+    /// Write a model as URDF (tree + mimic joints) or SDF (with the loop-closing joints).
+    Export(ExportArgs),
+}
+
+#[derive(Debug, Subcommand)]
+pub enum ModelCommand {
+    /// List the built-in models.
+    List,
+    /// Print a model's DH table, joints, bodies and closures, as the paper prints them.
+    Show(ModelArgs),
+    /// Closure residual, RCM, closure conditioning over the joint range, serial equivalence.
+    Check(CheckArgs),
+}
+
+/// A model and an optional tool.
+#[derive(Debug, Args)]
+pub struct ModelArgs {
+    /// Built-in name or file.
+    pub model: String,
+    /// dVRK tool file (JSON) for models with a tool (psm, psm-serial, PSM.json).
+    #[arg(long)]
+    pub tool: Option<PathBuf>,
+}
+
+#[derive(Debug, Args)]
+pub struct CheckArgs {
+    #[command(flatten)]
+    pub model: ModelArgs,
+    /// Print the report as one JSON object.
+    #[arg(long)]
+    pub json: bool,
+    /// Configurations sampled over the joint range.
+    #[arg(long, default_value_t = 10_000)]
+    pub samples: usize,
+}
+
+#[derive(Debug, Args)]
+pub struct FkArgs {
+    #[command(flatten)]
+    pub model: ModelArgs,
+    /// Joint positions, comma-separated (rad, m); the model's home when absent.
+    #[arg(long, allow_hyphen_values = true)]
+    pub q: Option<String>,
+    /// Print every frame as JSON.
+    #[arg(long)]
+    pub json: bool,
+    /// CSV of configurations (header with columns q1..qN; other columns are ignored).
+    #[arg(long, requires = "output")]
+    pub input: Option<PathBuf>,
+    /// CSV of poses x,y,z,qx,qy,qz,qw (m) of `--frame`, one row per input row.
+    #[arg(long, requires = "input")]
+    pub output: Option<PathBuf>,
+    /// Frame name or paper frame number for `--output` (default: the tool tip).
+    #[arg(long)]
+    pub frame: Option<String>,
+}
+
+#[derive(Debug, Args)]
+pub struct IkArgs {
+    #[command(flatten)]
+    pub model: ModelArgs,
+    /// Target pose of the tip in the model's base frame: x,y,z (m), qx,qy,qz,qw.
+    #[arg(long, allow_hyphen_values = true)]
+    pub pose: String,
+    /// Start configuration, comma-separated (default: home).
+    #[arg(long, allow_hyphen_values = true)]
+    pub seed: Option<String>,
+    /// Frame to place (default: the tool tip).
+    #[arg(long)]
+    pub frame: Option<String>,
+    /// Print the solution as JSON.
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum ExportFormat {
+    Urdf,
+    Sdf,
+}
+
+#[derive(Debug, Args)]
+pub struct ExportArgs {
+    /// urdf or sdf.
+    pub format: ExportFormat,
+    #[command(flatten)]
+    pub model: ModelArgs,
+    /// Output file (written whole or not at all).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Configuration the SDF link poses are written at (default: home).
+    #[arg(long, allow_hyphen_values = true)]
+    pub q: Option<String>,
+}

@@ -1,0 +1,106 @@
+//! `dvrk fk`: every frame at one configuration (table or JSON), or one frame over a CSV.
+
+use crate::cli::FkArgs;
+use anyhow::{anyhow, bail, Context, Result};
+use dvrk_kin::{compute_frame_placements, pose_to_rows, Data, Model};
+use serde_json::json;
+
+pub fn run(args: &FkArgs) -> Result<()> {
+    let m = super::load(&args.model)?;
+    if let (Some(input), Some(output)) = (&args.input, &args.output) {
+        if args.q.is_some() {
+            bail!("--q: give either --q or --input, not both");
+        }
+        let frame = match &args.frame {
+            Some(f) => super::frame_arg(&m, "--frame", f)?,
+            None => m.tip,
+        };
+        return batch(&m, input, output, frame);
+    }
+    let q = super::q_arg(&m, "--q", args.q.as_deref())?;
+    let mut data = Data::new(&m);
+    dvrk_kin::forward_kinematics(&m, &mut data, &q)?;
+    let parent_index = |p: Option<usize>| p.map_or(0, |p| m.frames[p].index);
+    if args.json {
+        let frames: Vec<_> = m
+            .frames
+            .iter()
+            .zip(&data.frames)
+            .map(|(f, t)| json!({"index": f.index, "name": f.name, "parent": parent_index(f.parent), "T": pose_to_rows(t)}))
+            .collect();
+        let closures: Vec<_> = m
+            .closures
+            .iter()
+            .map(|c| {
+                let a = data.frames[c.frame] * nalgebra::Point3::from(c.point);
+                let b = data.frames[c.partner] * nalgebra::Point3::from(c.partner_point);
+                json!({
+                    "name": c.name,
+                    "frame": m.frames[c.frame].index,
+                    "partner": m.frames[c.partner].index,
+                    "point": [a.x, a.y, a.z],
+                    "partner_point": [b.x, b.y, b.z],
+                    "gap_m": (a - b).norm(),
+                })
+            })
+            .collect();
+        let mut out = json!({
+            "model": m.name,
+            "joint_names": m.joints.iter().map(|j| j.name.clone()).collect::<Vec<_>>(),
+            "q": q,
+            "frames": frames,
+            "closures": closures,
+        });
+        if let Some(p) = dvrk_kin::rcm::pivot_residual(&m, &data) {
+            out["pivot_residual_m"] = json!(p);
+        }
+        crate::outln!("{}", serde_json::to_string(&out)?);
+        return Ok(());
+    }
+    crate::outln!("{:>5}  {:<24} {:>6}  {:>11} {:>11} {:>11}   (position in m, base frame)", "frame", "name", "parent", "x", "y", "z");
+    for (f, t) in m.frames.iter().zip(&data.frames) {
+        let p = t.translation.vector;
+        crate::outln!("{:>5}  {:<24} {:>6}  {:>11.6} {:>11.6} {:>11.6}", f.index, f.name, parent_index(f.parent), p.x, p.y, p.z);
+    }
+    for c in &m.closures {
+        crate::outln!("closure {:<8} gap {:.3e} m", c.name, dvrk_kin::closure_gap(c, &data).norm());
+    }
+    Ok(())
+}
+
+/// One frame's pose for every row of a joints CSV.
+fn batch(m: &Model, input: &std::path::Path, output: &std::path::Path, frame: usize) -> Result<()> {
+    let name = input.display().to_string();
+    let mut reader = csv::Reader::from_path(input).with_context(|| format!("{name}: cannot read"))?;
+    let header = reader.headers().with_context(|| format!("{name}: cannot read the header"))?.clone();
+    let columns: Vec<usize> = (1..=m.nq())
+        .map(|k| {
+            let col = format!("q{k}");
+            header.iter().position(|h| h.trim() == col).ok_or_else(|| {
+                anyhow!("{name}: missing column {col} (model {} has {} joints; header: {})", m.name, m.nq(), header.iter().collect::<Vec<_>>().join(","))
+            })
+        })
+        .collect::<Result<_>>()?;
+    let mut data = Data::new(m);
+    let mut q = vec![0.0; m.nq()];
+    let mut out = String::from("x,y,z,qx,qy,qz,qw\n");
+    for (row, record) in reader.records().enumerate() {
+        let line = row + 2; // 1-based, after the header
+        let record = record.with_context(|| format!("{name}: line {line}: cannot read"))?;
+        for (k, &c) in columns.iter().enumerate() {
+            let text = record.get(c).unwrap_or("").trim();
+            let x: f64 = text.parse().map_err(|_| anyhow!("{name}: line {line}, column q{}: `{text}` is not a number", k + 1))?;
+            if !x.is_finite() {
+                bail!("{name}: line {line}, column q{} = {text}: not finite", k + 1);
+            }
+            q[k] = x;
+        }
+        m.check_q(&q).map_err(|e| anyhow!("{name}: line {line}: {e}"))?;
+        compute_frame_placements(m, &mut data, &q);
+        let t = &data.frames[frame];
+        let p = t.translation.vector;
+        let r = nalgebra::UnitQuaternion::from_rotation_matrix(&t.rotation);
+        out.push_str(&format!("{},{},{},{},{},{},{}\n", p.x, p.y, p.z, r.i, r.j, r.k, r.w));
+    }
+    crate::io::write_atomic(output, out.as_bytes())
+}

@@ -1,0 +1,46 @@
+//! One module per subcommand; each turns validated flags into library calls and output.
+
+mod export;
+mod fk;
+mod ik;
+mod model;
+
+use crate::cli::{Cli, Command, ModelArgs, ModelCommand};
+use anyhow::Result;
+use dvrk_kin::{FrameRef, Model};
+
+/// Run a parsed command line.
+pub fn run(cli: Cli) -> Result<()> {
+    match cli.command {
+        Command::Model { command } => match command {
+            ModelCommand::List => model::list(),
+            ModelCommand::Show(a) => model::show(&a),
+            ModelCommand::Check(a) => model::check(&a),
+        },
+        Command::Fk(a) => fk::run(&a),
+        Command::Ik(a) => ik::run(&a),
+        Command::Export(a) => export::run(&a),
+    }
+}
+
+/// Load the model a command names.
+pub fn load(args: &ModelArgs) -> Result<Model> {
+    Ok(dvrk_kin::load(&args.model, args.tool.as_deref())?)
+}
+
+/// A frame given on the command line: a paper frame number or a name.
+pub fn frame_arg(model: &Model, flag: &str, text: &str) -> Result<usize> {
+    let r = match text.parse::<i64>() {
+        Ok(i) => FrameRef::Index(i),
+        Err(_) => FrameRef::Name(text.to_string()),
+    };
+    model.frame_id(&r).map_err(|e| anyhow::anyhow!("{flag}: {e}"))
+}
+
+/// `q` from `--q` (checked against the model's size and limits), or the home configuration.
+pub fn q_arg(model: &Model, flag: &str, text: Option<&str>) -> Result<Vec<f64>> {
+    let Some(text) = text else { return Ok(model.home()) };
+    let q = crate::io::parse_list(flag, text)?;
+    model.check_q(&q).map_err(|e| anyhow::anyhow!("{flag}: {e}"))?;
+    Ok(q)
+}

@@ -1,0 +1,84 @@
+//! Bad model files, bad data files and bad flags: a one-line error that names the file, the
+//! field and the value; never a panic.
+
+use crate::util::{dvrk_err, tempdir};
+use std::path::Path;
+
+/// The shipped PSM model file with one edit.
+fn psm_with(dir: &Path, name: &str, from: &str, to: &str) -> String {
+    let text = dvrk_kin::load::builtin_text("psm").unwrap();
+    assert!(text.contains(from), "the edit applies: {from}");
+    let path = dir.join(name);
+    std::fs::write(&path, text.replacen(from, to, 1)).unwrap();
+    path.to_str().unwrap().to_string()
+}
+
+fn assert_one_line(err: &str, must_contain: &[&str]) {
+    assert_eq!(err.trim_end().lines().count(), 1, "one line: {err}");
+    assert!(err.starts_with("error: "), "{err}");
+    for s in must_contain {
+        assert!(err.contains(s), "`{s}` missing from: {err}");
+    }
+}
+
+#[test]
+fn bad_model_files_name_file_field_and_value() {
+    let dir = tempdir();
+    let cases = [
+        ("missing.toml", "index = 4\nname = \"pitch_front\"\nparent = 2\n", "index = 4\nname = \"pitch_front\"\n", vec!["missing.toml", "parent"]),
+        ("unknown_parent.toml", "index = 6\nname = \"pitch_bottom\"\nparent = 3", "index = 6\nname = \"pitch_bottom\"\nparent = 99", vec!["unknown_parent.toml", "pitch_bottom", "parent", "99"]),
+        ("cycle.toml", "index = 1\nname = \"yaw\"\nparent = 0", "index = 1\nname = \"yaw\"\nparent = 2", vec!["cycle.toml", "cycle"]),
+        ("nan.toml", "a = 0.516", "a = nan", vec!["nan.toml", "pitch_end", ".a", "NaN"]),
+        ("string.toml", "lower = -0.925025", "lower = \"abc\"", vec!["string.toml", "lower", "abc"]),
+        ("expr.toml", "theta = \"-q2\"", "theta = \"-q2 + gamma\"", vec!["expr.toml", "theta", "gamma"]),
+        ("typo.toml", "upper = 0.24", "uper = 0.24", vec!["typo.toml", "uper"]),
+        ("limits.toml", "lower = -1.588", "lower = 2.0", vec!["limits.toml", "outer_yaw", "lower", "2"]),
+        ("closure.toml", "partner = 6", "partner = 42", vec!["closure.toml", "c1", "partner", "42"]),
+    ];
+    for (file, from, to, expect) in cases {
+        let path = psm_with(dir.path(), file, from, to);
+        let err = dvrk_err(&["model", "check", &path]);
+        assert_one_line(&err, &expect);
+        // The library gives the same message.
+        let lib = dvrk_kin::load(&path, None).unwrap_err().to_string();
+        assert!(err.contains(&lib), "{err} vs {lib}");
+    }
+}
+
+#[test]
+fn bad_files_and_flags_are_errors_not_panics() {
+    let dir = tempdir();
+    let d = dir.path();
+    let json = d.join("bad.json");
+    std::fs::write(&json, "{ \"DH\": { \"joints\": [ { \"name\": \"yaw\", \"alpha\": \"x\" } ] } }").unwrap();
+    assert_one_line(&dvrk_err(&["fk", json.to_str().unwrap()]), &["bad.json", "DH.joints[0]"]);
+    std::fs::write(&json, "{ not json").unwrap();
+    assert_one_line(&dvrk_err(&["fk", json.to_str().unwrap()]), &["bad.json", "not valid JSON"]);
+    let missing = d.join("nope.toml");
+    assert_one_line(&dvrk_err(&["model", "show", missing.to_str().unwrap()]), &["nope.toml", "psm"]);
+    assert_one_line(&dvrk_err(&["fk", "psm", "--q", "1,2,3"]), &["--q", "expected 7, got 3"]);
+    assert_one_line(&dvrk_err(&["fk", "psm", "--q", "0,0,0.1,0,0,0,inf"]), &["--q", "inf"]);
+    assert_one_line(&dvrk_err(&["fk", "psm", "--q", "3,0,0.1,0,0,0,0"]), &["outer_yaw", "3", "limits"]);
+    assert_one_line(&dvrk_err(&["ik", "psm", "--pose", "0,0,0,0,0,0,2"]), &["--pose", "norm"]);
+    assert_one_line(&dvrk_err(&["ik", "psm", "--pose", "0,0,0,0,0"]), &["--pose", "7"]);
+    assert_one_line(&dvrk_err(&["model", "check", "ecm", "--tool", "x.json"]), &["x.json"]);
+    assert_one_line(&dvrk_err(&["model", "check", "psm", "--samples", "0"]), &["--samples"]);
+    // CSV input: a missing column, a word, a NaN.
+    for (content, expect) in [
+        ("q1,q2,q3\n0,0,0.1\n", vec!["q4", "missing column"]),
+        ("q1,q2,q3,q4,q5,q6,q7\n0,0,0.1,0,0,zero,0\n", vec!["line 2", "q6", "zero"]),
+        ("q1,q2,q3,q4,q5,q6,q7\n0,0,0.1,0,0,0,0\n0,NaN,0.1,0,0,0,0\n", vec!["line 3", "q2", "NaN"]),
+    ] {
+        let input = d.join("joints.csv");
+        let output = d.join("poses.csv");
+        std::fs::write(&input, content).unwrap();
+        let err = dvrk_err(&["fk", "psm", "--input", input.to_str().unwrap(), "--output", output.to_str().unwrap()]);
+        let mut expect = expect;
+        expect.push("joints.csv");
+        assert_one_line(&err, &expect);
+        assert!(!output.exists(), "no partial output is left behind");
+    }
+    // Usage errors are clap's (status 2), still no panic.
+    dvrk_err(&["fk"]);
+    dvrk_err(&["model", "frobnicate"]);
+}

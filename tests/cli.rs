@@ -1,0 +1,95 @@
+//! The `dvrk` command line: output contracts other tools script against.
+
+use crate::util::{dvrk_ok, tempdir};
+use serde_json::Value;
+
+#[test]
+fn fk_json_lists_every_frame_with_the_papers_numbers() {
+    let out = dvrk_ok(&["fk", "psm", "--q", "0.1,-0.2,0.12,0.3,0.2,-0.1,0.4", "--json"]);
+    let v: Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(v["model"], "psm");
+    let frames = v["frames"].as_array().unwrap();
+    let mut indices: Vec<i64> = frames.iter().map(|f| f["index"].as_i64().unwrap()).collect();
+    indices.sort();
+    assert_eq!(indices, (1..=17).collect::<Vec<_>>());
+    let f6 = frames.iter().find(|f| f["index"] == 6).unwrap();
+    assert_eq!(f6["parent"], 3);
+    assert_eq!(f6["name"], "pitch_bottom");
+    let t = f6["T"].as_array().unwrap();
+    assert_eq!(t.len(), 4);
+    assert_eq!(t[3], serde_json::json!([0.0, 0.0, 0.0, 1.0]));
+    // Frame 6 sits 0.150 m from frame 3 (Table 4).
+    let p = |f: &Value| [0, 1, 2].map(|r| f["T"][r][3].as_f64().unwrap());
+    let f3 = frames.iter().find(|f| f["index"] == 3).unwrap();
+    let (a, b) = (p(f3), p(f6));
+    let d = ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt();
+    assert!((d - 0.150).abs() < 1e-12);
+    let closures = v["closures"].as_array().unwrap();
+    assert_eq!(closures.len(), 2);
+    assert!(closures.iter().all(|c| c["gap_m"].as_f64().unwrap() < 1e-12));
+}
+
+#[test]
+fn fk_csv_batch_matches_single_evaluations() {
+    let dir = tempdir();
+    let input = dir.path().join("joints.csv");
+    let output = dir.path().join("poses.csv");
+    let rows = ["0.1,-0.2,0.12,0.3,0.2,-0.1,0.4", "-0.5,0.4,0.2,-1.0,0.5,0.3,0.0"];
+    std::fs::write(&input, format!("time,q1,q2,q3,q4,q5,q6,q7\n0.0,{}\n0.1,{}\n", rows[0], rows[1])).unwrap();
+    dvrk_ok(&["fk", "psm", "--input", input.to_str().unwrap(), "--output", output.to_str().unwrap()]);
+    let text = std::fs::read_to_string(&output).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(lines.next(), Some("x,y,z,qx,qy,qz,qw"));
+    let m = dvrk_kin::load("psm", None).unwrap();
+    for (row, line) in rows.iter().zip(lines) {
+        let q: Vec<f64> = row.split(',').map(|s| s.parse().unwrap()).collect();
+        let tip = m.fk(&q).unwrap()[m.tip];
+        let v: Vec<f64> = line.split(',').map(|s| s.parse().unwrap()).collect();
+        assert!((tip.translation.vector - nalgebra::Vector3::new(v[0], v[1], v[2])).norm() < 1e-12);
+        let r = nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(v[6], v[3], v[4], v[5]));
+        assert!(dvrk_kin::so3::angle(&(r.to_rotation_matrix().inverse() * tip.rotation)) < 1e-12);
+    }
+    // A chosen frame by paper number.
+    dvrk_ok(&["fk", "psm", "--input", input.to_str().unwrap(), "--output", output.to_str().unwrap(), "--frame", "9"]);
+    assert_eq!(std::fs::read_to_string(&output).unwrap().lines().count(), 3);
+}
+
+#[test]
+fn ik_json_round_trips_through_fk() {
+    let q = [0.2, -0.3, 0.15, 0.4, -0.2, 0.3, 0.2];
+    let m = dvrk_kin::load("psm", None).unwrap();
+    let tip = m.fk(&q).unwrap()[m.tip];
+    let r = nalgebra::UnitQuaternion::from_rotation_matrix(&tip.rotation);
+    let p = tip.translation.vector;
+    let pose = format!("{},{},{},{},{},{},{}", p.x, p.y, p.z, r.i, r.j, r.k, r.w);
+    let v: Value = serde_json::from_str(&dvrk_ok(&["ik", "psm", "--pose", &pose, "--json"])).unwrap();
+    let sol: Vec<f64> = v["q"].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect();
+    for k in 0..6 {
+        assert!((sol[k] - q[k]).abs() < 1e-8, "joint {k}: {} vs {}", sol[k], q[k]);
+    }
+    assert!(v["position_error_m"].as_f64().unwrap() < 1e-9);
+}
+
+#[test]
+fn model_check_reports_a_sound_psm() {
+    let v: Value = serde_json::from_str(&dvrk_ok(&["model", "check", "psm", "--json", "--samples", "500"])).unwrap();
+    assert_eq!(v["ok"], true);
+    assert!(v["max_closure_residual_m"].as_f64().unwrap() < 1e-12);
+    assert!(v["max_pivot_residual_m"].as_f64().unwrap() < 1e-12);
+    assert!((v["rcm"][1].as_f64().unwrap() + 0.4864).abs() < 1e-12);
+    assert!(v["conditioning"]["sigma_min_worst"].as_f64().unwrap() > 0.015);
+    assert!(v["serial_equivalence"]["max_position_error_m"].as_f64().unwrap() < 1e-9);
+}
+
+#[test]
+fn model_list_and_show_print_the_tables() {
+    let list = dvrk_ok(&["model", "list"]);
+    for name in ["psm", "ecm", "suj-psm1", "suj-psm2", "suj-psm3", "suj-ecm", "cart", "mtml", "mtmr", "psm-serial", "ecm-serial"] {
+        assert!(list.lines().any(|l| l.starts_with(name)), "{name} listed");
+    }
+    let show = dvrk_ok(&["model", "show", "psm"]);
+    assert!(show.contains("-q2 - beta1 - pi/2"));
+    assert!(show.contains("pitch_back_link"));
+    let line = show.lines().find(|l| l.trim_start().starts_with("11 ")).unwrap();
+    assert!(line.contains("mu*q3") && line.contains("-0.1"), "{line}");
+}

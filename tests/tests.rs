@@ -1,0 +1,9 @@
+//! Integration tests of the `dvrk` workspace: one binary, one module per concern.
+
+mod util;
+
+mod bad_input;
+mod cli;
+mod dvrk_files;
+mod kinematics;
+mod paper_tables;
