@@ -203,26 +203,12 @@ pub fn compose(spec: &SystemSpec, dir: Option<&Path>) -> Result<Model> {
         tip,
         base: Pose::identity(),
         coupling: None,
-        spec: ModelSpec {
-            name: spec.name.clone(),
-            title: spec.title.clone(),
-            convention: Default::default(),
-            source: spec.source.clone(),
-            notes: spec.notes.clone(),
-            parameters: Default::default(),
-            joints: vec![],
-            frames: vec![],
-            closures: vec![],
-            rcm: None,
-            tip: None,
-            serial_equivalent: None,
-            tool: None,
-            coupling: None,
-        },
+        spec: ModelSpec { title: spec.title.clone(), notes: spec.notes.clone(), ..ModelSpec::empty(&spec.name, &spec.source) },
         origin: None,
         tool_file: None,
         parts,
+        eval: Default::default(),
     };
-    crate::bodies::assign_bodies(&mut model, &declared)?;
+    model.finalize(&declared)?;
     Ok(model)
 }

@@ -1,7 +1,7 @@
 //! Forward kinematics of every frame of a tree.
 
 use crate::error::Result;
-use crate::model::{Model, Motion, Pose};
+use crate::model::{Angle, Model, Motion, Pose};
 use nalgebra::{Matrix3, Rotation3, Translation3, Vector3};
 
 /// Reusable workspace of a model: every buffer sized once, nothing allocated per evaluation.
@@ -9,12 +9,14 @@ use nalgebra::{Matrix3, Rotation3, Translation3, Vector3};
 pub struct Data {
     /// World pose of each frame (`nframes`), filled by [`forward_kinematics`].
     pub frames: Vec<Pose>,
+    /// `(sin q_k, cos q_k)` of the joints the angles use (`nq`).
+    trig: Vec<(f64, f64)>,
 }
 
 impl Data {
     /// Allocate the workspace of `model`.
     pub fn new(model: &Model) -> Self {
-        Data { frames: vec![Pose::identity(); model.frames.len()] }
+        Data { frames: vec![Pose::identity(); model.frames.len()], trig: vec![(0.0, 1.0); model.nq()] }
     }
 }
 
@@ -30,11 +32,24 @@ pub fn forward_kinematics<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> R
 /// Panics only if `q` or `data` do not belong to `model`.
 #[inline]
 pub fn compute_frame_placements(model: &Model, data: &mut Data, q: &[f64]) {
+    let eval = &model.eval;
+    for &k in &eval.trig_joints {
+        data.trig[k] = q[k].sin_cos();
+    }
     for (i, f) in model.frames.iter().enumerate() {
         let local = match &f.motion {
             Motion::Fixed(p) => *p,
             Motion::Revolute { d0 } => {
-                let (s, c) = f.theta.eval(q).sin_cos();
+                let (s, c) = match &eval.angle[i] {
+                    Some(Angle::Unit { joint, sign, sin_b, cos_b }) => {
+                        let (sq, cq) = data.trig[*joint];
+                        (sign * sq * cos_b + cq * sin_b, cq * cos_b - sign * sq * sin_b)
+                    }
+                    Some(Angle::General { terms, offset }) => {
+                        terms.iter().fold(*offset, |acc, (k, c)| acc + c * q[*k]).sin_cos()
+                    }
+                    None => f.theta.eval(q).sin_cos(),
+                };
                 let mut p = rz_tz(&f.pre, s, c, *d0);
                 if let Some(post) = &f.post {
                     p *= post;
@@ -42,7 +57,8 @@ pub fn compute_frame_placements(model: &Model, data: &mut Data, q: &[f64]) {
                 p
             }
             Motion::Prismatic => {
-                let d = f.d.eval(q);
+                let (terms, offset) = &eval.lin[i];
+                let d = terms.iter().fold(*offset, |acc, (k, c)| acc + c * q[*k]);
                 let r = f.pre.rotation.matrix();
                 let mut p = Pose::from_parts(
                     Translation3::from(f.pre.translation.vector + r.column(2) * d),

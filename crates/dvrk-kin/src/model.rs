@@ -47,6 +47,52 @@ pub(crate) enum Motion {
     Prismatic,
 }
 
+/// How a revolute frame's angle is evaluated: most are `+-q_k + b`, whose sine and cosine come
+/// from one `sin_cos(q_k)` per evaluation by the angle-sum formulas.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) enum Angle {
+    Unit { joint: usize, sign: f64, sin_b: f64, cos_b: f64 },
+    General { terms: Vec<(usize, f64)>, offset: f64 },
+}
+
+/// Sparse forms of the frames' affine maps, built once per model for the FK loop.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub(crate) struct Eval {
+    /// Per frame: the angle of a revolute frame (`None` otherwise).
+    pub(crate) angle: Vec<Option<Angle>>,
+    /// Per frame: the non-zero terms of `d` and its offset (prismatic frames).
+    pub(crate) lin: Vec<(Vec<(usize, f64)>, f64)>,
+    /// Joints whose `sin_cos` the angles use.
+    pub(crate) trig_joints: Vec<usize>,
+}
+
+impl Eval {
+    fn build(frames: &[Frame]) -> Eval {
+        let mut eval = Eval::default();
+        for f in frames {
+            let angle = match f.motion {
+                Motion::Revolute { .. } => {
+                    let terms: Vec<(usize, f64)> = f.theta.joints().collect();
+                    Some(match terms.as_slice() {
+                        [(k, c)] if c.abs() == 1.0 => {
+                            if !eval.trig_joints.contains(k) {
+                                eval.trig_joints.push(*k);
+                            }
+                            let (sin_b, cos_b) = f.theta.offset.sin_cos();
+                            Angle::Unit { joint: *k, sign: *c, sin_b, cos_b }
+                        }
+                        _ => Angle::General { terms, offset: f.theta.offset },
+                    })
+                }
+                _ => None,
+            };
+            eval.angle.push(angle);
+            eval.lin.push((f.d.joints().collect(), f.d.offset));
+        }
+        eval
+    }
+}
+
 /// One frame of the tree.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Frame {
@@ -146,6 +192,8 @@ pub struct Model {
     pub tool_file: Option<std::path::PathBuf>,
     /// The arms of a composed system (empty for a single model).
     pub parts: Vec<Part>,
+    /// Sparse evaluation data, built by [`Model::finalize`].
+    pub(crate) eval: Eval,
 }
 
 /// One arm of a composed system (see [`crate::compose`]).
@@ -225,6 +273,13 @@ pub fn pose_to_rows(p: &Pose) -> [[f64; 4]; 4] {
 }
 
 impl Model {
+    /// Last step of building a model from frames: the evaluation data, then the bodies (named
+    /// from `declared`, one optional name per frame).
+    pub(crate) fn finalize(&mut self, declared: &[Option<String>]) -> Result<()> {
+        self.eval = Eval::build(&self.frames);
+        crate::bodies::assign_bodies(self, declared)
+    }
+
     /// Number of actuated joints (the length of `q`).
     pub fn nq(&self) -> usize {
         self.joints.len()
@@ -451,6 +506,7 @@ impl Model {
             origin: None,
             tool_file: None,
             parts: Vec::new(),
+            eval: Eval::default(),
         };
         model.tip = match &spec.tip {
             Some(r) => model.frame_id(r).map_err(|e| KinError::field("tip", e.to_string()))?,
@@ -461,7 +517,7 @@ impl Model {
         }
         let declared: Vec<Option<String>> =
             (0..model.frames.len()).map(|i| model.spec_frame(i).and_then(|f| f.body.clone())).collect();
-        crate::bodies::assign_bodies(&mut model, &declared)?;
+        model.finalize(&declared)?;
         crate::closure::compile_closures(&mut model)?;
         if let Some(r) = &spec.rcm {
             let frame = model.frame_id(&r.frame).map_err(|e| KinError::field("rcm.frame", e.to_string()))?;

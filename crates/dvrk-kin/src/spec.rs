@@ -240,6 +240,26 @@ pub struct ModelSpec {
 }
 
 impl ModelSpec {
+    /// The spec of a model that was not compiled from a model file (a system, a URDF).
+    pub fn empty(name: &str, source: &str) -> Self {
+        ModelSpec {
+            name: name.into(),
+            title: String::new(),
+            convention: Convention::default(),
+            source: source.into(),
+            notes: String::new(),
+            parameters: BTreeMap::new(),
+            joints: vec![],
+            frames: vec![],
+            closures: vec![],
+            rcm: None,
+            tip: None,
+            serial_equivalent: None,
+            tool: None,
+            coupling: None,
+        }
+    }
+
     /// Parse a TOML model file's text; `path` names it in errors.
     pub fn from_toml(text: &str, path: &Path) -> Result<Self> {
         toml::from_str(text).map_err(|e| toml_error(&e, text, path))

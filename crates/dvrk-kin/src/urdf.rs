@@ -568,35 +568,17 @@ fn build_model(robot: &urdf_rs::Robot, name_hint: &str) -> std::result::Result<M
         rcm: None,
         base: Pose::identity(),
         coupling: None,
-        spec: empty_spec(&name, name_hint),
+        spec: ModelSpec::empty(&name, name_hint),
         origin: None,
         tool_file: None,
         parts: Vec::new(),
+        eval: Default::default(),
     };
     let declared = vec![None; model.frames.len()];
-    crate::bodies::assign_bodies(&mut model, &declared).map_err(|e| e.to_string())?;
+    model.finalize(&declared).map_err(|e| e.to_string())?;
     Ok(model)
 }
 
-/// The spec of a model that was not compiled from a model file.
-fn empty_spec(name: &str, source: &str) -> ModelSpec {
-    ModelSpec {
-        name: name.into(),
-        title: String::new(),
-        convention: Default::default(),
-        source: source.into(),
-        notes: String::new(),
-        parameters: Default::default(),
-        joints: vec![],
-        frames: vec![],
-        closures: vec![],
-        rcm: None,
-        tip: None,
-        serial_equivalent: None,
-        tool: None,
-        coupling: None,
-    }
-}
 
 /// A rotation taking z onto the unit vector `axis` (identity when it is z).
 fn align_z(axis: &Vector3<f64>) -> Rotation3<f64> {
