@@ -28,6 +28,18 @@ pub enum Command {
     Ik(IkArgs),
     /// Write a model as URDF (tree + mimic joints) or SDF (with the loop-closing joints).
     Export(ExportArgs),
+    /// Headless dynamic simulation of a scene (rapier): the project's main job.
+    Sim(crate::commands::sim::SimArgs),
+    /// Motion-capture calibration: pivot (RCM), joint axes, model update.
+    Calib {
+        #[command(subcommand)]
+        command: crate::commands::calib::CalibCommand,
+    },
+    /// Synthetic recordings for tests and demos.
+    Synth {
+        #[command(subcommand)]
+        command: crate::commands::synth::SynthCommand,
+    },
 }
 
 #[derive(Debug, Subcommand)]

@@ -1,9 +1,12 @@
 //! One module per subcommand; each turns validated flags into library calls and output.
 
+pub mod calib;
 mod export;
 mod fk;
 mod ik;
 mod model;
+pub mod sim;
+pub mod synth;
 
 use crate::cli::{Cli, Command, ModelArgs, ModelCommand};
 use anyhow::Result;
@@ -20,6 +23,9 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Fk(a) => fk::run(&a),
         Command::Ik(a) => ik::run(&a),
         Command::Export(a) => export::run(&a),
+        Command::Sim(a) => sim::run(&a),
+        Command::Calib { command } => calib::run(&command),
+        Command::Synth { command } => synth::run(&command),
     }
 }
 
