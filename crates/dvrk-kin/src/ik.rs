@@ -118,6 +118,9 @@ fn newton(
         iterations = it;
         compute_frame_placements(model, data, &q);
         let (ep, eo) = pose_error(target, &data.frames[frame]);
+        if !(ep.norm().is_finite() && eo.norm().is_finite()) {
+            break;
+        }
         if ep.norm() <= opts.position_tolerance * 0.1 && eo.norm() <= opts.orientation_tolerance * 0.1 {
             break;
         }
@@ -158,10 +161,14 @@ fn newton(
 
 /// `J^T (J J^T + lambda^2 I)^-1`
 fn damped_pinv(j: &DMatrix<f64>, lambda: f64) -> DMatrix<f64> {
-    let svd = j.clone().svd(true, true);
-    let (u, vt) = (svd.u.expect("u"), svd.v_t.expect("v_t"));
-    let s = svd.singular_values;
     let mut out = DMatrix::zeros(j.ncols(), j.nrows());
+    if j.iter().any(|x| !x.is_finite()) {
+        return out; // no step: the caller reports the error it could not reduce
+    }
+    // Bounded iterations: an SVD that does not converge gives no step rather than a hang.
+    let Some(svd) = j.clone().try_svd(true, true, f64::EPSILON, 1000) else { return out };
+    let (Some(u), Some(vt)) = (svd.u, svd.v_t) else { return out };
+    let s = svd.singular_values;
     for (i, &si) in s.iter().enumerate() {
         if si > 1e-12 {
             let f = si / (si * si + lambda * lambda);

@@ -1,0 +1,143 @@
+"""Type stubs of the native module ``dvrk_twin._dvrk_twin`` (re-exported by ``dvrk_twin``).
+
+Units: lengths in m, angles in rad. Poses are 4x4 homogeneous matrices.
+"""
+
+import os
+from typing import Any, Dict, List, Optional, Tuple, Union, final
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+__all__ = [
+    "DvrkError",
+    "IkError",
+    "InputError",
+    "Model",
+    "ModelError",
+    "ModelNotFoundError",
+    "__version__",
+    "builtin_models",
+]
+
+__version__: str
+
+_FrameArg = Union[int, str]
+"""A frame: its number in the paper (int, see ``Model.frame_indices``) or its name (str)."""
+
+class DvrkError(Exception):
+    """Base class of every error raised by dvrk_twin. The message is the line the ``dvrk`` CLI prints."""
+
+class ModelError(DvrkError, ValueError):
+    """A model or tool file is invalid; the message names the file, the field and the value."""
+
+class ModelNotFoundError(DvrkError, FileNotFoundError, ValueError):
+    """``Model.load`` was given neither a built-in name nor an existing file (the message lists the
+    valid names), or a tool file that does not exist."""
+
+class InputError(DvrkError, ValueError):
+    """An argument of the wrong size or shape, a non-finite value, or an unknown frame."""
+
+class IkError(DvrkError, ValueError):
+    """Inverse kinematics found no solution (out of reach, or only outside the joint limits)."""
+
+def builtin_models() -> List[str]:
+    """Names of the built-in models accepted by ``Model.load``."""
+
+@final
+class Model:
+    """A kinematic model: a tree of frames driven by the actuated joints ``q`` (rad / m), with
+    loop closures and a remote centre of motion (RCM). Immutable and thread-safe."""
+
+    @staticmethod
+    def load(
+        name_or_path: Union[str, "os.PathLike[str]"],
+        tool: Optional[Union[str, "os.PathLike[str]"]] = None,
+    ) -> "Model":
+        """Load a built-in model (``builtin_models()``) or a file: ``.toml`` model or system,
+        dVRK arm ``.json``, ``.urdf``. ``tool``: a dVRK tool ``.json`` for a model with a tool
+        (PSM). Raises ModelNotFoundError (also FileNotFoundError, ValueError) for an unknown name
+        or missing file, ModelError (also ValueError) for an invalid file."""
+
+    @property
+    def name(self) -> str:
+        """Model name."""
+    @property
+    def title(self) -> str:
+        """One-line description."""
+    @property
+    def nq(self) -> int:
+        """Number of actuated joints (length of ``q``)."""
+    @property
+    def nframes(self) -> int:
+        """Number of frames."""
+    @property
+    def joint_names(self) -> List[str]:
+        """Joint names in the order of ``q``."""
+    @property
+    def joint_types(self) -> List[str]:
+        """``"revolute"`` (rad) or ``"prismatic"`` (m) per joint."""
+    @property
+    def joint_limits(self) -> NDArray[np.float64]:
+        """Shape (nq, 2): lower, upper per joint (rad or m)."""
+    @property
+    def home(self) -> NDArray[np.float64]:
+        """Home configuration, shape (nq,) (rad or m)."""
+    @property
+    def frame_names(self) -> List[str]:
+        """Frame names in frame-position order (the order of ``fk`` results)."""
+    @property
+    def frame_indices(self) -> List[int]:
+        """The paper's frame number of each frame position."""
+    @property
+    def frame_parents(self) -> List[Optional[int]]:
+        """Parent frame position of each frame, None for a child of the base."""
+    @property
+    def tip(self) -> int:
+        """Frame position of the tool tip (default frame of ``jacobian`` and ``ik``)."""
+    @property
+    def base(self) -> NDArray[np.float64]:
+        """Pose of the model's base in the world, shape (4, 4) (m)."""
+    @property
+    def rcm(self) -> Optional[NDArray[np.float64]]:
+        """RCM in the model's base frame, shape (3,) (m), or None."""
+    @property
+    def bodies(self) -> List[Tuple[str, List[int]]]:
+        """Rigid bodies: (name, [frame positions])."""
+    @property
+    def closures(self) -> List[Tuple[str, int, NDArray[np.float64], int, NDArray[np.float64]]]:
+        """Loop closures: (name, frame, point (3,) m, partner, partner_point (3,) m); frames are
+        frame positions."""
+
+    def frame_position(self, frame: _FrameArg) -> int:
+        """Frame position of a frame given by paper number or name (InputError if unknown)."""
+
+    def fk(self, q: ArrayLike, frame: Optional[_FrameArg] = None) -> NDArray[np.float64]:
+        """World poses (4x4, m) at q (rad / m). q (nq,) -> (nframes, 4, 4), or (4, 4) with
+        ``frame``; q (N, nq) -> (N, nframes, 4, 4) or (N, 4, 4), computed without the GIL.
+        Size and finiteness of q are checked (InputError), joint limits are not."""
+
+    def jacobian(self, q: ArrayLike, frame: Optional[_FrameArg] = None) -> NDArray[np.float64]:
+        """Geometric Jacobian of ``frame`` (default: tip) at q: (6, nq), rows 0-2 linear velocity
+        (m/s per rad/s or m/s), rows 3-5 angular velocity (rad/s), world axes. q (N, nq) ->
+        (N, 6, nq)."""
+
+    def ik(
+        self,
+        pose: ArrayLike,
+        seed: Optional[ArrayLike] = None,
+        frame: Optional[_FrameArg] = None,
+    ) -> NDArray[np.float64]:
+        """Joint positions (nq,) (rad / m) within the limits that put ``frame`` (default: tip)
+        at ``pose`` (4x4, world, m). Full pose for arms with >= 6 joints moving the frame
+        (1e-9 m / 1e-9 rad), position only otherwise (ECM). Raises IkError."""
+
+    def closure_residual(self, q: ArrayLike) -> float:
+        """Largest loop-closure gap at q (m); 0.0 without closures."""
+
+    def pivot_residual(self, q: ArrayLike) -> Optional[float]:
+        """Distance from the RCM to the insertion axis at q (m); None without an RCM."""
+
+    def check(self, samples: int = 2000) -> Dict[str, Any]:
+        """Figures of ``dvrk model check`` over ``samples`` configurations (m, rad), with
+        ``ok`` (bool) and ``problems`` (list[str])."""

@@ -1,0 +1,20 @@
+#!/usr/bin/env bash
+# Every test of the project: the Rust workspace (`cargo test`) and the Python package (a wheel
+# built by maturin, installed into a private virtual environment, then `pytest`).
+# Needs only Rust and Python 3.9+; everything else comes from crates.io and PyPI.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+venv="${DVRK_VENV:-.venv}"
+[ -x "$venv/bin/python" ] || python3 -m venv "$venv"
+py="$venv/bin/python"
+"$py" -m pip install --quiet --disable-pip-version-check "maturin>=1.5,<2" "pytest>=7" "numpy>=1.21" mcap mcap-ros2-support
+
+# Rust: every crate but the Python binding (release: the simulation tests are heavy).
+cargo test --release
+
+# Python: build the wheel as a user would, install it, test it.
+rm -rf target/wheels
+"$venv/bin/maturin" build --release --quiet -m crates/dvrk-py/Cargo.toml -o target/wheels
+"$py" -m pip install --quiet --disable-pip-version-check --force-reinstall --no-deps target/wheels/*.whl
+"$py" -m pytest tests/python -q
