@@ -124,3 +124,43 @@ fn a_tool_file_changes_the_shaft_and_jaw_limits() {
     let d = si.fk(&q).unwrap()[si.tip].translation.vector - classic.fk(&q).unwrap()[classic.tip].translation.vector;
     assert!((d.norm() - (0.4670 - 0.4162)).abs() < 1e-12);
 }
+
+#[test]
+fn setup_joint_models_match_the_dvrk_suj_file() {
+    // Tables 1-3 against the dVRK's own SUJ kinematics, at every arm's simulated position and at
+    // random configurations; the cart mounts agree with the file's transforms.
+    let Some(path) = external("dvrk-config/suj-simulated.json") else { return };
+    let json = dvrk_kin::dvrk_json::read_json(&path).unwrap();
+    let cart = load("cart", None).unwrap();
+    for (arm, builtin) in [("PSM1", "suj-psm1"), ("PSM2", "suj-psm2"), ("PSM3", "suj-psm3"), ("ECM", "suj-ecm")] {
+        let (spec, world_to_suj, tip_to_tool) = dvrk_kin::dvrk_json::suj_arm_spec(&json, arm).unwrap();
+        let file = Model::compile(spec).unwrap();
+        let ours = load(builtin, None).unwrap();
+        // The file's SUJ-ECM has two extra (locked, zero) joints; Table 3 has 4.
+        let n = ours.nq();
+        assert_eq!(ours.home(), file.home()[..n].to_vec(), "{arm}: home = simulated_position");
+        let mut worst = 0.0f64;
+        for q in std::iter::once(ours.home()).chain(random_configurations(&ours, 200, 4)) {
+            let mut qf = file.home();
+            qf[..n].copy_from_slice(&q);
+            let (a, b) = (ours.fk(&q).unwrap(), file.fk(&qf).unwrap());
+            for k in 0..6 {
+                worst = worst.max((a[k].translation.vector - b[k].translation.vector).norm());
+            }
+        }
+        eprintln!("{builtin} vs suj-simulated.json {arm}: frames 1-6 differ by at most {:.2} um", worst * 1e6);
+        assert!(worst < 1e-5, "{arm}: {worst}");
+        // The cart uses the same mounts.
+        let mount = |name: &str| cart.frames.iter().position(|f| f.name == format!("{name}/mount")).unwrap();
+        let suj_mount = cart.fk(&cart.home()).unwrap()[mount(&format!("SUJ-{arm}"))];
+        let expect = dvrk_kin::pose_from_rows(&world_to_suj, "world_origin_to_SUJ").unwrap();
+        assert!((suj_mount.translation.vector - expect.translation.vector).norm() < 1e-12);
+        // Each arm's RCM sits at SUJ frame 6 * SUJ_tip_to_tool_origin, as the dVRK computes it.
+        let poses = cart.fk(&cart.home()).unwrap();
+        let suj_tip = poses[cart.frames.iter().position(|f| f.name == format!("SUJ-{arm}/link6")).unwrap()];
+        let tool_origin = suj_tip * dvrk_kin::pose_from_rows(&tip_to_tool, "SUJ_tip_to_tool_origin").unwrap();
+        let part = cart.parts.iter().find(|p| p.name == arm).unwrap();
+        let rcm = poses[part.frames.start] * nalgebra::Point3::from(part.rcm.as_ref().unwrap().point);
+        assert!((rcm.coords - tool_origin.translation.vector).norm() < 1e-12, "{arm} RCM");
+    }
+}

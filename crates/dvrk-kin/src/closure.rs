@@ -49,7 +49,9 @@ pub fn max_closure_residual(model: &Model, data: &Data) -> f64 {
 /// The physical pivots of the mechanism: moving frames grouped by the pair of bodies they join
 /// (frames of one body turning about one pivot are one joint).
 fn pivots(model: &Model) -> Vec<Vec<usize>> {
-    let mut groups: Vec<((usize, Option<usize>), Vec<usize>)> = Vec::new();
+    // (child body, parent body) -> frames
+    type Key = (usize, Option<usize>);
+    let mut groups: Vec<(Key, Vec<usize>)> = Vec::new();
     for (i, f) in model.frames.iter().enumerate() {
         if !f.is_moving() {
             continue;

@@ -267,3 +267,47 @@ pub fn apply_tool_json(spec: &mut ModelSpec, v: &Json, tool_name: &str) -> Resul
     spec.tool = Some(tool_section);
     Ok(())
 }
+
+/// One arm of the dVRK's SUJ file (`share/arm/suj-*.json`): its DH links as a serial spec, with
+/// `world_origin_to_SUJ` and `SUJ_tip_to_tool_origin` (row-major 4x4, m) and the simulated
+/// position as home.
+pub fn suj_arm_spec(v: &Json, arm: &str) -> Result<(ModelSpec, [[f64; 4]; 4], [[f64; 4]; 4])> {
+    let arms = get(v, "arms", "")?.as_array().ok_or_else(|| KinError::field("arms", "expected a list"))?;
+    let names: Vec<String> = arms.iter().filter_map(|a| a.get("name").and_then(|n| n.as_str()).map(String::from)).collect();
+    let (i, entry) = arms
+        .iter()
+        .enumerate()
+        .find(|(_, a)| a.get("name").and_then(|n| n.as_str()) == Some(arm))
+        .ok_or_else(|| KinError::unknown("SUJ arm", arm, &names))?;
+    let field = format!("arms[{i}]");
+    let mut spec = ModelSpec::empty(&format!("suj-{}", arm.to_lowercase()), "dVRK SUJ file");
+    let dh = get(entry, "DH", &field)?;
+    let links = get(dh, "links", &format!("{field}.DH"))?.as_array().ok_or_else(|| KinError::field(format!("{field}.DH.links"), "expected a list"))?;
+    for (k, link) in links.iter().enumerate() {
+        push_dh(&mut spec, link, &format!("{field}.DH.links[{k}]"), "")?;
+    }
+    if let Some(home) = entry.get("simulated_position").and_then(|h| h.as_array()) {
+        for (j, h) in spec.joints.iter_mut().zip(home) {
+            let x = h.as_f64().ok_or_else(|| KinError::field(format!("{field}.simulated_position"), format!("expected a number, got {h}")))?;
+            j.home = Some(x);
+            j.lower = j.lower.min(x);
+            j.upper = j.upper.max(x);
+        }
+    }
+    let transform = |key: &str| -> Result<[[f64; 4]; 4]> {
+        let t = get(entry, key, &field)?;
+        let f = format!("{field}.{key}");
+        let tr = matrix(&Json::Array(vec![get(t, "Translation", &f)?.clone()]), &format!("{f}.Translation"))?;
+        let rot = matrix(get(t, "Rotation", &f)?, &format!("{f}.Rotation"))?;
+        if tr[0].len() != 3 || rot.len() != 3 || rot.iter().any(|r| r.len() != 3) {
+            return Err(KinError::field(f, "expected a 3-vector Translation and a 3x3 Rotation"));
+        }
+        let mut m = [[0.0, 0.0, 0.0, 0.0], [0.0; 4], [0.0; 4], [0.0, 0.0, 0.0, 1.0]];
+        for r in 0..3 {
+            m[r][..3].copy_from_slice(&rot[r]);
+            m[r][3] = tr[0][r];
+        }
+        Ok(m)
+    };
+    Ok((spec, transform("world_origin_to_SUJ")?, transform("SUJ_tip_to_tool_origin")?))
+}
