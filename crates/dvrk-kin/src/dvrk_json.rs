@@ -145,20 +145,9 @@ fn model_name(p: &Path) -> String {
 pub fn serial_spec_from_json(v: &Json, name: &str) -> Result<ModelSpec> {
     let (convention, list, key) = dh_entries(v)?;
     let mut spec = ModelSpec {
-        name: name.to_string(),
         title: format!("{name} (dVRK serial chain)"),
         convention,
-        source: "dVRK configuration file".into(),
-        notes: String::new(),
-        parameters: Default::default(),
-        joints: vec![],
-        frames: vec![],
-        closures: vec![],
-        rcm: None,
-        tip: None,
-        serial_equivalent: None,
-        tool: None,
-        coupling: None,
+        ..ModelSpec::empty(name, "dVRK configuration file")
     };
     for (i, entry) in list.iter().enumerate() {
         push_dh(&mut spec, entry, &format!("DH.{key}[{i}]"), "")?;
