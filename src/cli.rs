@@ -84,6 +84,9 @@ pub struct FkArgs {
     /// Print every frame as JSON.
     #[arg(long)]
     pub json: bool,
+    /// `--q` holds actuator positions (encoders), mapped to joints by the model's coupling.
+    #[arg(long)]
+    pub actuators: bool,
     /// CSV of configurations (header with columns q1..qN; other columns are ignored).
     #[arg(long, requires = "output")]
     pub input: Option<PathBuf>,

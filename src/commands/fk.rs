@@ -17,7 +17,15 @@ pub fn run(args: &FkArgs) -> Result<()> {
         };
         return batch(&m, input, output, frame);
     }
-    let q = super::q_arg(&m, "--q", args.q.as_deref())?;
+    let q = if args.actuators {
+        let text = args.q.as_deref().ok_or_else(|| anyhow!("--actuators: give the actuator positions with --q"))?;
+        let a = crate::io::parse_list("--q", text)?;
+        let q = m.joints_from_actuators(&a).map_err(|e| anyhow!("--actuators: {e}"))?;
+        m.check_q(&q).map_err(|e| anyhow!("--q (as actuators): {e}"))?;
+        q
+    } else {
+        super::q_arg(&m, "--q", args.q.as_deref())?
+    };
     let mut data = Data::new(&m);
     dvrk_kin::forward_kinematics(&m, &mut data, &q)?;
     let parent_index = |p: Option<usize>| p.map_or(0, |p| m.frames[p].index);

@@ -20,6 +20,7 @@
 //! Units: metres, radians, seconds, newtons everywhere.
 
 mod bodies;
+mod coupling;
 pub mod check;
 pub mod closure;
 pub mod compose;
