@@ -1,0 +1,185 @@
+//! Running a scene for a duration under a trajectory and summarising it: real-time factor,
+//! tracking RMS / max per joint, loop-closure error, RCM error.
+
+use crate::error::{Result, SimError};
+use crate::sim::{Sim, SimOptions};
+use crate::trajectory::Trajectory;
+use crate::Scene;
+use dvrk_kin::rcm::distance_to_axis;
+use serde::Serialize;
+use std::time::Instant;
+
+/// Which reference the arms follow.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TrajectoryKind {
+    /// The paper's tracking test ([`Trajectory::tracking_test`]).
+    Sine,
+    /// Hold home.
+    Hold,
+}
+
+/// What to run.
+#[derive(Debug, Clone)]
+pub struct RunOptions {
+    /// Simulated time (s).
+    pub duration: f64,
+    pub trajectory: TrajectoryKind,
+    pub sim: SimOptions,
+}
+
+/// Tracking of one joint over a run.
+#[derive(Debug, Clone, Serialize)]
+pub struct JointSummary {
+    pub arm: String,
+    pub joint: String,
+    /// `rad` or `m`
+    pub unit: &'static str,
+    pub rms_error: f64,
+    pub max_error: f64,
+    /// Largest |effort| applied (N·m or N).
+    pub max_effort: f64,
+}
+
+/// Summary of a run (SI units).
+#[derive(Debug, Clone, Serialize)]
+pub struct Summary {
+    pub scene: String,
+    pub trajectory: String,
+    /// s
+    pub duration: f64,
+    pub dt: f64,
+    pub steps: u64,
+    pub solver_iterations: usize,
+    pub loops: crate::sim::LoopMode,
+    /// s of wall time
+    pub wall_time: f64,
+    /// simulated time / wall time
+    pub real_time_factor: f64,
+    pub joints: Vec<JointSummary>,
+    /// Largest loop-closure gap over the run (m).
+    pub max_closure_error: f64,
+    /// Largest gap over the last tenth of the run (m): equal to the max when nothing drifts.
+    pub final_closure_error: f64,
+    /// Largest distance of an insertion axis from its arm's kinematic RCM (m).
+    pub max_rcm_error: f64,
+    /// False if any state went non-finite.
+    pub finite: bool,
+    /// Amplitudes scaled to the joint limits, and other remarks.
+    pub notes: Vec<String>,
+}
+
+/// Run `scene` as `options` say; `progress` is called with the fraction done every 1%.
+pub fn run(scene: &Scene, options: &RunOptions, mut progress: impl FnMut(f64)) -> Result<Summary> {
+    if !(options.duration.is_finite() && options.duration > 0.0) {
+        return Err(SimError::value("duration (s)", options.duration, "must be a positive finite number"));
+    }
+    let mut sim = Sim::new(scene, &options.sim)?;
+    let mut notes = Vec::new();
+    let trajectories: Vec<Trajectory> = sim
+        .arms
+        .iter()
+        .map(|a| match options.trajectory {
+            TrajectoryKind::Sine => {
+                let (t, n) = Trajectory::tracking_test(&a.model);
+                notes.extend(n.into_iter().map(|s| format!("{}: {s}", a.name)));
+                t
+            }
+            TrajectoryKind::Hold => Trajectory::Hold { q: a.model.home() },
+        })
+        .collect();
+    // The RCM of each arm: its insertion-axis frame's placement in its body, and the world point.
+    let rcms: Vec<Option<(usize, dvrk_kin::Pose, nalgebra::Vector3<f64>)>> = sim
+        .arms
+        .iter()
+        .map(|a| {
+            let m = &a.model;
+            let r = m.rcm.as_ref()?;
+            let fk = m.fk(&m.home()).ok()?;
+            let body = m.frames[r.frame].body;
+            let rel = fk[m.bodies[body].frames[0]].inverse() * fk[r.frame];
+            Some((r.frame, rel, (m.base * nalgebra::Point3::from(r.point)).coords))
+        })
+        .collect();
+    let n = sim.nq();
+    let steps = (options.duration / sim.dt).round().max(1.0) as u64;
+    let (mut qr, mut qdr) = (vec![0.0; n], vec![0.0; n]);
+    let mut sum_sq = vec![0.0; n];
+    let mut max_err = vec![0.0_f64; n];
+    let mut max_eff = vec![0.0_f64; n];
+    let (mut max_closure, mut final_closure, mut max_rcm) = (0.0_f64, 0.0_f64, 0.0_f64);
+    let mut finite = true;
+    let every = (steps / 100).max(1);
+    let start = Instant::now();
+    for s in 0..steps {
+        let t = (s + 1) as f64 * sim.dt;
+        for (a, traj) in trajectories.iter().enumerate() {
+            let off = sim.arms[a].q_offset;
+            let nk = sim.arms[a].model.nq();
+            traj.sample(t, &mut qr[off..off + nk], &mut qdr[off..off + nk]);
+        }
+        for i in 0..n {
+            sim.set_target(i, qr[i], qdr[i])?;
+        }
+        sim.step();
+        for i in 0..n {
+            let e = sim.q()[i] - sim.actuator(i)?.target;
+            if !e.is_finite() {
+                finite = false;
+            }
+            sum_sq[i] += e * e;
+            max_err[i] = max_err[i].max(e.abs());
+            max_eff[i] = max_eff[i].max(sim.actuator(i)?.effort.abs());
+        }
+        let c = sim.closure_error();
+        max_closure = max_closure.max(c);
+        if s >= steps - steps / 10 {
+            final_closure = final_closure.max(c);
+        }
+        for (a, r) in rcms.iter().enumerate() {
+            if let Some((frame, rel, point)) = r {
+                let pose = sim.frame_pose(a, *frame, rel);
+                max_rcm = max_rcm.max(distance_to_axis(&pose, point));
+            }
+        }
+        if s % every == 0 {
+            progress(s as f64 / steps as f64);
+        }
+    }
+    let wall = start.elapsed().as_secs_f64();
+    progress(1.0);
+    let mut joints = Vec::with_capacity(n);
+    for arm in &sim.arms {
+        for (k, j) in arm.model.joints.iter().enumerate() {
+            let i = arm.q_offset + k;
+            joints.push(JointSummary {
+                arm: arm.name.clone(),
+                joint: j.name.clone(),
+                unit: j.unit(),
+                rms_error: (sum_sq[i] / steps as f64).sqrt(),
+                max_error: max_err[i],
+                max_effort: max_eff[i],
+            });
+        }
+    }
+    let simulated = steps as f64 * sim.dt;
+    Ok(Summary {
+        scene: scene.name.clone(),
+        trajectory: match options.trajectory {
+            TrajectoryKind::Sine => "sine".into(),
+            TrajectoryKind::Hold => "hold".into(),
+        },
+        duration: simulated,
+        dt: sim.dt,
+        steps,
+        solver_iterations: options.sim.solver_iterations.unwrap_or(scene.solver_iterations),
+        loops: options.sim.loops,
+        wall_time: wall,
+        real_time_factor: simulated / wall.max(1e-12),
+        joints,
+        max_closure_error: max_closure,
+        final_closure_error: final_closure,
+        max_rcm_error: max_rcm,
+        finite,
+        notes,
+    })
+}

@@ -1,0 +1,176 @@
+//! Scene files (`models/scenes/*.toml`): which arms, where, with which inertials, gains, armature
+//! and damping, and the solver settings. Built-in scenes are compiled in, so `dvrk sim` works on a
+//! fresh machine; a path loads a scene from disk.
+
+use crate::control::Gains;
+use crate::error::{Result, SimError};
+use crate::inertials::Inertials;
+use dvrk_kin::{pose_from_rows, Model, Pose};
+use serde::Deserialize;
+
+/// Built-in scenes: (name, file text).
+const BUILTIN_SCENES: &[(&str, &str)] = &[
+    ("psm", include_str!("../../../models/scenes/psm.toml")),
+    ("ecm", include_str!("../../../models/scenes/ecm.toml")),
+];
+
+/// Built-in inertials: (name, file text).
+const BUILTIN_INERTIALS: &[(&str, &str)] = &[
+    ("psm", include_str!("../../../models/inertials/psm.toml")),
+    ("ecm", include_str!("../../../models/inertials/ecm.toml")),
+];
+
+/// Names of the built-in scenes.
+pub fn builtin_scenes() -> Vec<&'static str> {
+    BUILTIN_SCENES.iter().map(|(n, _)| *n).collect()
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SceneFile {
+    name: String,
+    #[serde(default)]
+    title: String,
+    /// s
+    #[serde(default = "default_dt")]
+    dt: f64,
+    #[serde(default = "default_iterations")]
+    solver_iterations: usize,
+    /// m/s^2, world frame
+    #[serde(default = "default_gravity")]
+    gravity: [f64; 3],
+    #[serde(default)]
+    #[allow(dead_code)]
+    notes: String,
+    arms: Vec<ArmFile>,
+}
+
+fn default_dt() -> f64 {
+    0.001
+}
+fn default_iterations() -> usize {
+    4
+}
+fn default_gravity() -> [f64; 3] {
+    [0.0, 0.0, -9.81]
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ArmFile {
+    name: String,
+    model: String,
+    inertials: String,
+    mount: Option<[[f64; 4]; 4]>,
+    kp: Vec<f64>,
+    ki: Vec<f64>,
+    kd: Vec<f64>,
+    /// kg m^2 or kg, per joint
+    armature: Vec<f64>,
+    /// N·m s/rad or N s/m, every tree joint
+    #[serde(default = "default_damping")]
+    damping: f64,
+    #[serde(default)]
+    #[allow(dead_code)]
+    source: String,
+}
+
+fn default_damping() -> f64 {
+    0.1
+}
+
+/// One arm of a scene, ready to build.
+#[derive(Debug, Clone)]
+pub struct Arm {
+    pub name: String,
+    /// The model, with `base` set to the arm's mount in the world.
+    pub model: Model,
+    pub inertials: Inertials,
+    /// Per actuated joint.
+    pub gains: Vec<Gains>,
+    /// Reflected drive inertia per actuated joint (kg m^2 or kg).
+    pub armature: Vec<f64>,
+    /// Viscous damping of every tree joint (N·m s/rad or N s/m).
+    pub damping: f64,
+}
+
+/// A scene: arms, gravity and solver settings.
+#[derive(Debug, Clone)]
+pub struct Scene {
+    pub name: String,
+    pub title: String,
+    /// Time step (s).
+    pub dt: f64,
+    pub solver_iterations: usize,
+    /// m/s^2
+    pub gravity: [f64; 3],
+    pub arms: Vec<Arm>,
+}
+
+impl Scene {
+    /// A built-in scene by name, or a scene file by path.
+    pub fn load(name_or_path: &str) -> Result<Scene> {
+        if let Some((_, text)) = BUILTIN_SCENES.iter().find(|(n, _)| *n == name_or_path) {
+            return Scene::parse(text, &format!("built-in scene {name_or_path}"), None);
+        }
+        let path = std::path::Path::new(name_or_path);
+        if !path.exists() {
+            return Err(SimError::field(
+                name_or_path,
+                "scene",
+                format!("no such built-in scene or file (built-in: {})", builtin_scenes().join(", ")),
+            ));
+        }
+        let text = std::fs::read_to_string(path).map_err(|e| SimError::Io { path: name_or_path.into(), source: e })?;
+        Scene::parse(&text, name_or_path, path.parent())
+    }
+
+    /// Parse a scene file's text; `file` names it in errors, `dir` resolves relative inertials paths.
+    pub fn parse(text: &str, file: &str, dir: Option<&std::path::Path>) -> Result<Scene> {
+        let f: SceneFile = toml::from_str(text).map_err(|e| SimError::field(file, "(syntax)", e.to_string()))?;
+        if !(f.dt.is_finite() && f.dt > 0.0 && f.dt <= 0.1) {
+            return Err(SimError::field(file, "dt", format!("{} s is not in (0, 0.1]", f.dt)));
+        }
+        if f.solver_iterations == 0 || f.solver_iterations > 1000 {
+            return Err(SimError::field(file, "solver_iterations", format!("{} is not in 1..=1000", f.solver_iterations)));
+        }
+        if f.gravity.iter().any(|g| !g.is_finite()) {
+            return Err(SimError::field(file, "gravity", format!("{:?} has a non-finite entry", f.gravity)));
+        }
+        if f.arms.is_empty() {
+            return Err(SimError::field(file, "arms", "a scene needs at least one arm"));
+        }
+        let mut arms = Vec::with_capacity(f.arms.len());
+        for (i, a) in f.arms.iter().enumerate() {
+            let field = |x: &str| format!("arms[{i}] ({}).{x}", a.name);
+            let mut model = dvrk_kin::load(&a.model, None).map_err(|e| SimError::field(file, field("model"), e.to_string()))?;
+            if let Some(m) = &a.mount {
+                let mount: Pose = pose_from_rows(m, "mount").map_err(|e| SimError::field(file, field("mount"), e.to_string()))?;
+                model.base = mount * model.base;
+            }
+            let inertials = match BUILTIN_INERTIALS.iter().find(|(n, _)| *n == a.inertials) {
+                Some((n, text)) => Inertials::parse(text, &format!("built-in inertials {n}"), &model)?,
+                None => {
+                    let p = dir.map(|d| d.join(&a.inertials)).unwrap_or_else(|| a.inertials.clone().into());
+                    let text = std::fs::read_to_string(&p).map_err(|e| SimError::Io { path: p.display().to_string(), source: e })?;
+                    Inertials::parse(&text, &p.display().to_string(), &model)?
+                }
+            };
+            let n = model.nq();
+            for (name, v) in [("kp", &a.kp), ("ki", &a.ki), ("kd", &a.kd), ("armature", &a.armature)] {
+                if v.len() != n {
+                    return Err(SimError::field(file, field(name), format!("has {} entries, model {} has {n} joints", v.len(), model.name)));
+                }
+                if let Some(x) = v.iter().find(|x| !x.is_finite() || **x < 0.0) {
+                    return Err(SimError::field(file, field(name), format!("{x} is not a finite non-negative number")));
+                }
+            }
+            if !a.damping.is_finite() || a.damping < 0.0 {
+                return Err(SimError::field(file, field("damping"), format!("{} is not a finite non-negative number", a.damping)));
+            }
+            let gains = (0..n).map(|k| Gains { kp: a.kp[k], ki: a.ki[k], kd: a.kd[k] }).collect();
+            arms.push(Arm { name: a.name.clone(), model, inertials, gains, armature: a.armature.clone(), damping: a.damping });
+        }
+        Ok(Scene { name: f.name, title: f.title, dt: f.dt, solver_iterations: f.solver_iterations, gravity: f.gravity, arms })
+    }
+}

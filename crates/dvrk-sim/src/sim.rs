@@ -1,0 +1,668 @@
+//! The rapier world of a scene: one rigid body per dvrk-kin body, the frame tree as one
+//! reduced-coordinate multibody per arm, each loop closed by a spherical impulse joint at the
+//! closure point (c1, c2), and passive joints outside any loop (the PSM counterweight, the second
+//! jaw blade) tied to their driving joint by a DoF coupling, the way a cable loads its drive.
+//!
+//! Every tree joint's rapier coordinate equals the dvrk-kin frame variable (`theta` or `d`, an
+//! affine map of `q`), so joint values read back directly.
+
+use crate::control::{Actuator, Gains, Mode};
+use crate::error::{Result, SimError};
+use crate::scene::Scene;
+use dvrk_kin::{Model, Pose};
+use nalgebra::{Rotation3, Translation3, UnitQuaternion, Vector3};
+use rapier3d_f64::math::{Matrix as RMat, Pose as RPose, Rotation as RRot, Vector as RVec};
+use rapier3d_f64::prelude::*;
+
+/// How the closed loops are represented.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum LoopMode {
+    /// Spherical impulse joints at the closure points (the physical mechanism).
+    ImpulseJoints,
+    /// No loops: every passive joint follows its driving joint through a DoF coupling
+    /// (the URDF-mimic way).
+    DofCoupling,
+}
+
+/// Build options beyond the scene file.
+#[derive(Debug, Clone)]
+pub struct SimOptions {
+    pub loops: LoopMode,
+    /// Override of the scene's solver iterations.
+    pub solver_iterations: Option<usize>,
+    /// Turn gravity off.
+    pub no_gravity: bool,
+}
+
+impl Default for SimOptions {
+    fn default() -> Self {
+        SimOptions { loops: LoopMode::ImpulseJoints, solver_iterations: None, no_gravity: false }
+    }
+}
+
+/// A tree joint of the multibody: the joint that attaches one body to its parent.
+#[derive(Debug, Clone)]
+struct TreeDof {
+    /// Rigid body of the child (and its parent; `None`: the ground).
+    child: RigidBodyHandle,
+    parent: Option<RigidBodyHandle>,
+    handle: MultibodyJointHandle,
+    revolute: bool,
+    /// The child-side joint frame in the child body (x: the joint axis).
+    frame2: RPose,
+    /// The coordinate as `coef . q + offset` (the dvrk-kin frame variable).
+    coef: Vec<f64>,
+    offset: f64,
+}
+
+/// One actuated joint: the tree joint that drives it (`coord = c q + b`).
+#[derive(Debug, Clone)]
+struct Drive {
+    dof: usize,
+    c: f64,
+    b: f64,
+}
+
+/// A loop closure: the point on two bodies (body frames, m).
+#[derive(Debug, Clone)]
+struct ClosurePoints {
+    a: RigidBodyHandle,
+    pa: RVec,
+    b: RigidBodyHandle,
+    pb: RVec,
+}
+
+/// A passive joint tied to a driving joint like a cable: `follower = coeff * leader + offset`,
+/// held by a stiff implicit spring-damper on the follower whose tension reacts on the leader.
+/// (rapier 0.36's `MultibodyDofCoupling` was tried first: with it the PSM yaw joint stops dead
+/// after a few centimetres of motion anywhere in the arm, so it is not used.)
+#[derive(Debug, Clone)]
+struct Cable {
+    leader: usize,
+    follower: usize,
+    coeff: f64,
+    offset: f64,
+    /// N/m or N·m/rad
+    stiffness: f64,
+    /// N s/m or N·m s/rad
+    damping: f64,
+}
+
+/// Per-arm data.
+#[derive(Debug, Clone)]
+pub struct ArmState {
+    pub name: String,
+    pub model: Model,
+    /// Joint offset of this arm in the scene's joint vector.
+    pub q_offset: usize,
+    /// Rigid body of each dvrk-kin body.
+    pub bodies: Vec<RigidBodyHandle>,
+    dofs: Vec<TreeDof>,
+    drives: Vec<Drive>,
+    closures: Vec<ClosurePoints>,
+    cables: Vec<Cable>,
+    pub actuators: Vec<Actuator>,
+}
+
+/// A running simulation. Built once from a [`Scene`]; [`Sim::step`] allocates nothing of its own.
+pub struct Sim {
+    pub scene_name: String,
+    pub dt: f64,
+    pub time: f64,
+    pub arms: Vec<ArmState>,
+    bodies: RigidBodySet,
+    colliders: ColliderSet,
+    impulse_joints: ImpulseJointSet,
+    multibody_joints: MultibodyJointSet,
+    soft_bodies: SoftBodySet,
+    pipeline: PhysicsPipeline,
+    islands: IslandManager,
+    broad_phase: DefaultBroadPhase,
+    narrow_phase: NarrowPhase,
+    ccd: CCDSolver,
+    params: IntegrationParameters,
+    gravity: RVec,
+    /// Measured q, qd and applied effort of every joint of the scene (rad, m; /s; N·m, N).
+    q: Vec<f64>,
+    qd: Vec<f64>,
+}
+
+/// nalgebra pose to rapier pose.
+pub fn to_rapier(p: &Pose) -> RPose {
+    let r = p.rotation.matrix();
+    let m = RMat::from_cols(
+        RVec::new(r[(0, 0)], r[(1, 0)], r[(2, 0)]),
+        RVec::new(r[(0, 1)], r[(1, 1)], r[(2, 1)]),
+        RVec::new(r[(0, 2)], r[(1, 2)], r[(2, 2)]),
+    );
+    let t = p.translation.vector;
+    RPose::from_parts(RVec::new(t.x, t.y, t.z), RRot::from_mat3(&m).normalize())
+}
+
+/// rapier pose to nalgebra pose.
+pub fn from_rapier(p: &RPose) -> Pose {
+    let q = p.rotation;
+    let uq = UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(q.w, q.x, q.y, q.z));
+    Pose::from_parts(Translation3::new(p.translation.x, p.translation.y, p.translation.z), uq.to_rotation_matrix())
+}
+
+fn rv(v: &Vector3<f64>) -> RVec {
+    RVec::new(v.x, v.y, v.z)
+}
+
+impl Sim {
+    /// Build the rapier world of `scene` with every joint at its home position, in PID mode
+    /// holding home.
+    pub fn new(scene: &Scene, options: &SimOptions) -> Result<Sim> {
+        let mut bodies = RigidBodySet::new();
+        let mut impulse_joints = ImpulseJointSet::new();
+        let mut multibody_joints = MultibodyJointSet::new();
+        let ground = bodies.insert(RigidBodyBuilder::fixed());
+        let mut arms = Vec::with_capacity(scene.arms.len());
+        let mut q_offset = 0;
+        for arm in &scene.arms {
+            let model = &arm.model;
+            let home = model.home();
+            let fk = model.fk(&home)?;
+            // One rigid body per dvrk-kin body, placed at its first frame.
+            let body_pose: Vec<Pose> = model.bodies.iter().map(|b| fk[b.frames[0]]).collect();
+            let mut handles = Vec::with_capacity(model.bodies.len());
+            for (bi, b) in model.bodies.iter().enumerate() {
+                let ine = arm.inertials.body(model, bi).ok_or_else(|| SimError::Build(format!("no inertials for body {}", b.name)))?;
+                let mp = MassProperties::with_inertia_matrix(
+                    RVec::new(ine.com[0], ine.com[1], ine.com[2]),
+                    ine.mass,
+                    RMat::from_cols_array_2d(&ine.inertia).transpose(),
+                );
+                let rb = RigidBodyBuilder::dynamic().pose(to_rapier(&body_pose[bi])).additional_mass_properties(mp).can_sleep(false);
+                handles.push(bodies.insert(rb));
+            }
+            // Tree joints: for each body, the first moving frame whose parent lies in another body.
+            let ry = Pose::from_parts(Translation3::identity(), Rotation3::from_axis_angle(&Vector3::y_axis(), -std::f64::consts::FRAC_PI_2));
+            let mut dofs: Vec<TreeDof> = Vec::new();
+            let mut pivots: Vec<ClosurePoints> = Vec::new();
+            let mut dof_of_body = vec![usize::MAX; model.bodies.len()];
+            // The closing link of each loop (a leaf body on a closure's `frame` side) is left out
+            // of the multibody: a free body on two impulse joints (its pivot and the closure).
+            // rapier 0.36 mishandles an impulse joint between two links of one multibody: it
+            // resists the links' common motion (the yaw joint moves at 0.5 mrad/s under 27 N·m).
+            let has_child = |bi: usize| model.frames.iter().any(|f| f.body != bi && f.parent.is_some_and(|p| model.frames[p].body == bi));
+            let free_body: Vec<bool> = (0..model.bodies.len())
+                .map(|bi| options.loops == LoopMode::ImpulseJoints && !has_child(bi) && model.closures.iter().any(|c| model.frames[c.frame].body == bi))
+                .collect();
+            for (bi, b) in model.bodies.iter().enumerate() {
+                let Some(&f) = b.frames.iter().find(|&&f| model.frames[f].parent.is_none_or(|p| model.frames[p].body != bi)) else {
+                    continue;
+                };
+                let frame = &model.frames[f];
+                let Some(var) = frame.variable().filter(|v| !v.is_constant()) else {
+                    return Err(SimError::Build(format!("body {} is fixed to its parent: fixed joints are not supported yet", b.name)));
+                };
+                let revolute = frame.joint == dvrk_kin::FrameJoint::Revolute;
+                let (parent_pose, parent_handle) = match frame.parent {
+                    Some(p) => (body_pose[model.frames[p].body], Some(handles[model.frames[p].body])),
+                    None => (Pose::identity(), None),
+                };
+                let parent_frame = match frame.parent {
+                    Some(p) => fk[p],
+                    None => model.base,
+                };
+                let j1 = parent_pose.inverse() * parent_frame * frame.pre() * ry;
+                let post_inv = frame.post().map(|p| p.inverse()).unwrap_or_else(Pose::identity);
+                let along = if revolute { var_d0(frame, model) } else { 0.0 };
+                let j2 = body_pose[bi].inverse() * fk[f] * post_inv * Translation3::new(0.0, 0.0, -along) * ry;
+                let mask = if revolute { JointAxesMask::LOCKED_REVOLUTE_AXES } else { JointAxesMask::LOCKED_PRISMATIC_AXES };
+                let joint = GenericJointBuilder::new(mask).local_frame1(to_rapier(&j1)).local_frame2(to_rapier(&j2)).build();
+                let parent_rb = parent_handle.unwrap_or(ground);
+                if free_body[bi] {
+                    impulse_joints.insert(parent_rb, handles[bi], joint, true);
+                    // Its pivot is part of the loop: watch two points on the axis (origin and
+                    // 50 mm along it), so axis tilt counts in the loop-closure error too.
+                    let parent_pose_w = parent_pose;
+                    for along_axis in [0.0, 0.05] {
+                        let p_world = parent_pose_w * j1 * nalgebra::Point3::new(along_axis, 0.0, 0.0);
+                        let pa = parent_pose_w.inverse() * p_world;
+                        let pb = body_pose[bi].inverse() * p_world;
+                        pivots.push(ClosurePoints { a: parent_rb, pa: rv(&pa.coords), b: handles[bi], pb: rv(&pb.coords) });
+                    }
+                    continue;
+                }
+                let handle = multibody_joints
+                    .insert(parent_rb, handles[bi], joint, true)
+                    .ok_or_else(|| SimError::Build(format!("rapier refused the joint of body {}", b.name)))?;
+                dof_of_body[bi] = dofs.len();
+                dofs.push(TreeDof { child: handles[bi], parent: parent_handle, handle, revolute, frame2: to_rapier(&j2), coef: var.coef.clone(), offset: var.offset });
+            }
+            // The driving tree joint of each actuated joint: the first that depends on it alone.
+            let mut drives = Vec::with_capacity(model.nq());
+            for (k, j) in model.joints.iter().enumerate() {
+                let d = dofs
+                    .iter()
+                    .position(|d| d.coef[k] != 0.0 && d.coef.iter().enumerate().all(|(i, c)| i == k || *c == 0.0))
+                    .ok_or_else(|| SimError::Build(format!("joint {} drives no tree joint on its own", j.name)))?;
+                drives.push(Drive { dof: d, c: dofs[d].coef[k], b: dofs[d].offset });
+            }
+            // Tree joints inside a loop: on the tree path between a closure's two bodies.
+            let mut in_loop = vec![false; dofs.len()];
+            let body_parent = |bi: usize| -> Option<usize> {
+                let f = model.bodies[bi].frames.iter().find(|&&f| model.frames[f].parent.is_none_or(|p| model.frames[p].body != bi))?;
+                model.frames[*f].parent.map(|p| model.frames[p].body)
+            };
+            let chain = |mut bi: usize| -> Vec<usize> {
+                let mut v = vec![bi];
+                while let Some(p) = body_parent(bi) {
+                    v.push(p);
+                    bi = p;
+                }
+                v
+            };
+            let mut closures = pivots;
+            for c in &model.closures {
+                let (ba, bb) = (model.frames[c.frame].body, model.frames[c.partner].body);
+                let (ca, cb) = (chain(ba), chain(bb));
+                for &x in ca.iter().filter(|x| !cb.contains(x)).chain(cb.iter().filter(|x| !ca.contains(x))) {
+                    if dof_of_body[x] != usize::MAX {
+                        in_loop[dof_of_body[x]] = true;
+                    }
+                }
+                let pa = body_pose[ba].inverse() * (fk[c.frame] * nalgebra::Point3::from(c.point));
+                let pb = body_pose[bb].inverse() * (fk[c.partner] * nalgebra::Point3::from(c.partner_point));
+                closures.push(ClosurePoints { a: handles[ba], pa: rv(&pa.coords), b: handles[bb], pb: rv(&pb.coords) });
+                if options.loops == LoopMode::ImpulseJoints {
+                    let joint = SphericalJointBuilder::new().local_anchor1(rv(&pa.coords)).local_anchor2(rv(&pb.coords)).contacts_enabled(false);
+                    impulse_joints.insert(handles[ba], handles[bb], joint, true);
+                }
+            }
+            // Passive tree joints not held by a loop follow their driving joint by a coupling.
+            let (mb_index, _) = multibody_index(&multibody_joints, dofs[0].handle)?;
+            let mut cables = Vec::new();
+            for (i, d) in dofs.iter().enumerate() {
+                if drives.iter().any(|dr| dr.dof == i) || (in_loop[i] && options.loops == LoopMode::ImpulseJoints) {
+                    continue;
+                }
+                let terms: Vec<(usize, f64)> = d.coef.iter().copied().enumerate().filter(|(_, c)| *c != 0.0).collect();
+                let [(k, ci)] = terms.as_slice() else {
+                    return Err(SimError::Build(format!("passive joint of body {} depends on several joints", model.bodies[dof_body(&dof_of_body, i)].name)));
+                };
+                let dr = &drives[*k];
+                let coeff = ci / dr.c;
+                // Stiffness for a 200 rad/s cable mode on the follower's own inertia, critically damped.
+                let inertia = axis_inertia(&arm.inertials, model, dof_body(&dof_of_body, i), &d.frame2, d.revolute);
+                let w = 200.0;
+                cables.push(Cable { leader: dr.dof, follower: i, coeff, offset: d.offset - coeff * dr.b, stiffness: inertia * w * w, damping: 2.0 * inertia * w });
+            }
+            let link_ids: Vec<usize> = dofs.iter().map(|d| multibody_joints.get(d.handle).map(|(_, l)| l).unwrap_or(0)).collect();
+            let mb = multibody_joints.get_multibody_mut(mb_index).ok_or_else(|| SimError::Build("multibody vanished".into()))?;
+            // Coordinates at home, damping on every tree joint, armature on the drives.
+            let mut disp = vec![0.0; mb.ndofs()];
+            for (i, d) in dofs.iter().enumerate() {
+                let assembly = mb.link(link_ids[i]).map(|l| l.assembly_id()).unwrap_or(0);
+                disp[assembly] = d.coef.iter().zip(&home).map(|(c, q)| c * q).sum::<f64>() + d.offset;
+                mb.damping_mut()[assembly] = arm.damping;
+                mb.armature_mut()[assembly] = 0.0;
+            }
+            for c in &cables {
+                let assembly = mb.link(link_ids[c.follower]).map(|l| l.assembly_id()).unwrap_or(0);
+                mb.damping_mut()[assembly] = arm.damping + c.damping;
+            }
+            for (k, dr) in drives.iter().enumerate() {
+                let assembly = mb.link(link_ids[dr.dof]).map(|l| l.assembly_id()).unwrap_or(0);
+                // Reflected through the drive's ratio: armature is per unit of q.
+                mb.armature_mut()[assembly] = arm.armature[k] / (dr.c * dr.c);
+            }
+            // Joint limits on the drives, in coordinate units (coord = c q + b).
+            for (k, dr) in drives.iter().enumerate() {
+                let j = &model.joints[k];
+                let (a, b) = (dr.c * j.lower + dr.b, dr.c * j.upper + dr.b);
+                let axis = if dofs[dr.dof].revolute { JointAxis::AngX } else { JointAxis::LinX };
+                if let Some(l) = mb.link_mut(link_ids[dr.dof]) {
+                    l.joint.data.set_limits(axis, [a.min(b), a.max(b)]);
+                }
+            }
+            mb.apply_displacements(&disp);
+            mb.forward_kinematics(&bodies, true);
+            mb.update_rigid_bodies(&mut bodies, true);
+            let actuators = model
+                .joints
+                .iter()
+                .enumerate()
+                .map(|(k, j)| Actuator::new(arm.gains[k], j.effort_limit, home[k]))
+                .collect();
+            arms.push(ArmState { name: arm.name.clone(), model: model.clone(), q_offset, bodies: handles, dofs, drives, closures, cables, actuators });
+            q_offset += model.nq();
+        }
+        let mut params = IntegrationParameters { dt: scene.dt, ..IntegrationParameters::default() };
+        params.num_solver_iterations = options.solver_iterations.unwrap_or(scene.solver_iterations);
+        let g = if options.no_gravity { [0.0; 3] } else { scene.gravity };
+        let mut sim = Sim {
+            scene_name: scene.name.clone(),
+            dt: scene.dt,
+            time: 0.0,
+            arms,
+            bodies,
+            colliders: ColliderSet::new(),
+            impulse_joints,
+            multibody_joints,
+            soft_bodies: SoftBodySet::new(),
+            pipeline: PhysicsPipeline::new(),
+            islands: IslandManager::new(),
+            broad_phase: DefaultBroadPhase::new(),
+            narrow_phase: NarrowPhase::new(),
+            ccd: CCDSolver::new(),
+            params,
+            gravity: RVec::new(g[0], g[1], g[2]),
+            q: vec![0.0; q_offset],
+            qd: vec![0.0; q_offset],
+        };
+        sim.read_state();
+        Ok(sim)
+    }
+
+    /// Number of joints of the scene (all arms).
+    pub fn nq(&self) -> usize {
+        self.q.len()
+    }
+
+    /// Measured joint positions (rad, m), scene order (arm by arm).
+    pub fn q(&self) -> &[f64] {
+        &self.q
+    }
+
+    /// Measured joint velocities (rad/s, m/s).
+    pub fn qd(&self) -> &[f64] {
+        &self.qd
+    }
+
+    /// (arm, joint) of scene joint `i`.
+    fn locate(&self, i: usize) -> Result<(usize, usize)> {
+        for (a, arm) in self.arms.iter().enumerate() {
+            if i < arm.q_offset + arm.model.nq() {
+                return Ok((a, i - arm.q_offset));
+            }
+        }
+        Err(SimError::value("joint index", i as f64, format!("the scene has {} joints", self.nq())))
+    }
+
+    /// The actuator of scene joint `i`.
+    pub fn actuator(&self, i: usize) -> Result<&Actuator> {
+        let (a, k) = self.locate(i)?;
+        Ok(&self.arms[a].actuators[k])
+    }
+
+    fn joint_name(&self, a: usize, k: usize) -> String {
+        format!("{} joint {}", self.arms[a].name, self.arms[a].model.joints[k].name)
+    }
+
+    /// Switch joint `i` to `mode`. Entering position mode holds the current target.
+    pub fn set_mode(&mut self, i: usize, mode: Mode) -> Result<()> {
+        let (a, k) = self.locate(i)?;
+        let act = &mut self.arms[a].actuators[k];
+        if act.mode != mode {
+            act.integral = 0.0;
+        }
+        act.mode = mode;
+        self.apply_position_motor(a, k);
+        Ok(())
+    }
+
+    /// Position target (rad, m) and velocity feed-forward (rad/s, m/s) of joint `i`. Non-finite
+    /// values are rejected; targets outside the joint limits are clamped to them.
+    pub fn set_target(&mut self, i: usize, position: f64, velocity: f64) -> Result<()> {
+        let (a, k) = self.locate(i)?;
+        let name = self.joint_name(a, k);
+        if !position.is_finite() {
+            return Err(SimError::value(format!("{name} target position"), position, "must be finite"));
+        }
+        if !velocity.is_finite() {
+            return Err(SimError::value(format!("{name} target velocity"), velocity, "must be finite"));
+        }
+        let (lower, upper) = (self.arms[a].model.joints[k].lower, self.arms[a].model.joints[k].upper);
+        let act = &mut self.arms[a].actuators[k];
+        act.target = position.clamp(lower, upper);
+        act.target_velocity = velocity;
+        if act.mode == Mode::Position {
+            self.apply_position_motor(a, k);
+        }
+        Ok(())
+    }
+
+    /// Open-loop effort of joint `i` (N·m, N), used in effort mode; clamped at the effort limit.
+    pub fn set_effort(&mut self, i: usize, effort: f64) -> Result<()> {
+        let (a, k) = self.locate(i)?;
+        if !effort.is_finite() {
+            return Err(SimError::value(format!("{} effort", self.joint_name(a, k)), effort, "must be finite"));
+        }
+        self.arms[a].actuators[k].effort_command = effort;
+        Ok(())
+    }
+
+    /// PID gains of joint `i`; rejected unless finite and non-negative.
+    pub fn set_gains(&mut self, i: usize, gains: Gains) -> Result<()> {
+        let (a, k) = self.locate(i)?;
+        gains.check(&self.joint_name(a, k))?;
+        self.arms[a].actuators[k].gains = gains;
+        Ok(())
+    }
+
+    /// Joint damping (N·m s/rad, N s/m) of every tree joint, and armature scale, for all arms
+    /// (the energy check turns both off).
+    pub fn set_damping_and_armature(&mut self, damping: f64, armature_scale: f64) -> Result<()> {
+        for (name, v) in [("damping", damping), ("armature scale", armature_scale)] {
+            if !v.is_finite() || v < 0.0 {
+                return Err(SimError::value(name, v, "must be finite and non-negative"));
+            }
+        }
+        for arm in &self.arms {
+            let (mb, _) = self.multibody_joints.get_mut(arm.dofs[0].handle).ok_or_else(|| SimError::Build("multibody vanished".into()))?;
+            for x in mb.damping_mut().iter_mut() {
+                *x = damping;
+            }
+            for x in mb.armature_mut().iter_mut() {
+                *x *= armature_scale;
+            }
+        }
+        Ok(())
+    }
+
+    /// Rapier's implicit position motor on a drive in position mode (stiff, unlimited), off otherwise.
+    fn apply_position_motor(&mut self, a: usize, k: usize) {
+        let arm = &self.arms[a];
+        let act = &arm.actuators[k];
+        let dr = &arm.drives[k];
+        let dof = &arm.dofs[dr.dof];
+        let axis = if dof.revolute { JointAxis::AngX } else { JointAxis::LinX };
+        let Some((mb, link)) = self.multibody_joints.get_mut(dof.handle) else { return };
+        let Some(l) = mb.link_mut(link) else { return };
+        if act.mode == Mode::Position {
+            let target = dr.c * act.target + dr.b;
+            l.joint.data.set_motor_model(axis, MotorModel::AccelerationBased);
+            l.joint.data.set_motor(axis, target, dr.c * act.target_velocity, 1.0e5, 2.0e3);
+            l.joint.data.set_motor_max_force(axis, Real::MAX);
+        } else {
+            l.joint.data.set_motor(axis, 0.0, 0.0, 0.0, 0.0);
+            l.joint.data.set_motor_max_force(axis, 0.0);
+        }
+    }
+
+    /// Read q, qd of every joint from the multibody coordinates.
+    fn read_state(&mut self) {
+        for arm in &self.arms {
+            for (k, dr) in arm.drives.iter().enumerate() {
+                let dof = &arm.dofs[dr.dof];
+                let Some((mb, link)) = self.multibody_joints.get(dof.handle) else { continue };
+                let Some(l) = mb.link(link) else { continue };
+                let coord = l.joint().coords()[if dof.revolute { 3 } else { 0 }];
+                let q = (coord - dr.b) / dr.c;
+                // The velocity is the coordinate's change over the step: exactly what the
+                // integrator applied (coords += v dt), and independent of rapier's DoF ordering.
+                if self.time > 0.0 {
+                    self.qd[arm.q_offset + k] = (q - self.q[arm.q_offset + k]) / self.dt;
+                }
+                self.q[arm.q_offset + k] = q;
+            }
+        }
+    }
+
+    /// Advance one time step: controllers, efforts applied as joint torques/forces, physics.
+    pub fn step(&mut self) {
+        // User forces and torques persist in rapier until cleared: clear both every step.
+        for (_, rb) in self.bodies.iter_mut() {
+            rb.reset_forces(false);
+            rb.reset_torques(false);
+        }
+        for arm in self.arms.iter_mut() {
+            for (k, dr) in arm.drives.iter().enumerate() {
+                let i = arm.q_offset + k;
+                let tau = arm.actuators[k].update(self.q[i], self.qd[i], self.dt);
+                if tau == 0.0 {
+                    continue;
+                }
+                // Generalised force on the drive's coordinate: tau dq = f dcoord.
+                apply_generalized(&mut self.bodies, &arm.dofs[dr.dof], tau / dr.c);
+            }
+        }
+        self.apply_cables();
+        self.pipeline.step(
+            self.gravity,
+            &self.params,
+            &mut self.islands,
+            &mut self.broad_phase,
+            &mut self.narrow_phase,
+            &mut self.bodies,
+            &mut self.colliders,
+            &mut self.impulse_joints,
+            &mut self.multibody_joints,
+            &mut self.soft_bodies,
+            &mut self.ccd,
+            &(),
+            &(),
+        );
+        self.time += self.dt;
+        self.read_state();
+    }
+
+    /// Cables: move each follower's implicit spring rest to where the leader puts it, add the
+    /// damper's feed-forward, and apply the cable tension back on the leader.
+    fn apply_cables(&mut self) {
+        for arm in &self.arms {
+            for c in &arm.cables {
+                let (lead, fol) = (&arm.dofs[c.leader], &arm.dofs[c.follower]);
+                let Some((mb, ll)) = self.multibody_joints.get(lead.handle) else { continue };
+                let Some(l) = mb.link(ll) else { continue };
+                let (xl, vl) = (l.joint().coords()[if lead.revolute { 3 } else { 0 }], mb.joint_velocity(l)[0]);
+                let Some((mb, fl)) = self.multibody_joints.get_mut(fol.handle) else { continue };
+                let axis = if fol.revolute { 3 } else { 0 };
+                let rest = c.coeff * xl + c.offset;
+                let Some(f) = mb.link_mut(fl) else { continue };
+                let xf = f.joint().coords()[axis];
+                f.joint.set_spring(axis, c.stiffness, rest);
+                let vf = mb.link(fl).map(|f| mb.joint_velocity(f)[0]).unwrap_or(0.0);
+                // Tension on the follower (spring + damper about the leader's motion), explicit part.
+                let tension = -c.stiffness * (xf - rest) - c.damping * (vf - c.coeff * vl);
+                apply_generalized(&mut self.bodies, fol, c.damping * c.coeff * vl);
+                apply_generalized(&mut self.bodies, lead, -c.coeff * tension);
+            }
+        }
+    }
+
+    /// World pose of dvrk-kin body `body` of arm `arm` (its first frame).
+    pub fn body_pose(&self, arm: usize, body: usize) -> Pose {
+        from_rapier(self.bodies[self.arms[arm].bodies[body]].position())
+    }
+
+    /// World pose of frame `frame` of arm `arm`, from its body's pose and the model's constant
+    /// placement of the frame in the body (m).
+    pub fn frame_pose(&self, arm: usize, frame: usize, rel: &Pose) -> Pose {
+        let b = self.arms[arm].model.frames[frame].body;
+        self.body_pose(arm, b) * rel
+    }
+
+    /// Largest loop-closure gap over all arms (m): distance between the two bodies' copies of
+    /// each closure point.
+    pub fn closure_error(&self) -> f64 {
+        let mut worst: f64 = 0.0;
+        for arm in &self.arms {
+            for c in &arm.closures {
+                let pa = self.bodies[c.a].position().transform_point(c.pa);
+                let pb = self.bodies[c.b].position().transform_point(c.pb);
+                worst = worst.max((pa - pb).length());
+            }
+        }
+        worst
+    }
+
+    /// Effort applied at the last step by joint `i`'s actuator (N·m, N).
+    pub fn effort(&self, i: usize) -> Result<f64> {
+        Ok(self.actuator(i)?.effort)
+    }
+
+    /// Largest |generalised velocity| of any tree joint of any arm (rad/s or m/s), for diagnostics.
+    pub fn max_tree_velocity(&self) -> f64 {
+        self.arms
+            .iter()
+            .filter_map(|a| self.multibody_joints.get(a.dofs[0].handle))
+            .map(|(mb, _)| mb.generalized_velocity().amax())
+            .fold(0.0, f64::max)
+    }
+
+    /// Total mechanical energy (J): kinetic plus gravitational potential of every body.
+    pub fn energy(&self) -> f64 {
+        let g = self.gravity;
+        self.bodies
+            .iter()
+            .filter(|(_, rb)| rb.is_dynamic())
+            .map(|(_, rb)| rb.kinetic_energy() - rb.mass() * g.dot(rb.center_of_mass()))
+            .sum()
+    }
+}
+
+/// Apply generalised force `f` (N·m or N) on tree joint `dof`: a torque (force) on the child
+/// about (along) the joint axis and its reaction on the parent.
+fn apply_generalized(bodies: &mut RigidBodySet, dof: &TreeDof, f: f64) {
+    let child_pose = *bodies[dof.child].position();
+    let axis = (child_pose * dof.frame2).rotation * RVec::X;
+    if dof.revolute {
+        bodies[dof.child].add_torque(axis * f, false);
+        if let Some(p) = dof.parent {
+            bodies[p].add_torque(-axis * f, false);
+        }
+    } else {
+        let at = bodies[dof.child].center_of_mass();
+        bodies[dof.child].add_force(axis * f, false);
+        if let Some(p) = dof.parent {
+            bodies[p].add_force_at_point(-axis * f, at, false);
+        }
+    }
+}
+
+fn dof_body(dof_of_body: &[usize], dof: usize) -> usize {
+    dof_of_body.iter().position(|&d| d == dof).unwrap_or(0)
+}
+
+/// Inertia of body `body` about (mass along) the joint axis of `frame2` (x axis, body frame):
+/// kg m^2 or kg.
+fn axis_inertia(ine: &crate::inertials::Inertials, model: &Model, body: usize, frame2: &RPose, revolute: bool) -> f64 {
+    let Some(b) = ine.body(model, body) else { return 1e-3 };
+    if !revolute {
+        return b.mass;
+    }
+    let a = frame2.rotation * RVec::X;
+    let a = Vector3::new(a.x, a.y, a.z);
+    let r = Vector3::new(b.com[0] - frame2.translation.x, b.com[1] - frame2.translation.y, b.com[2] - frame2.translation.z);
+    let i = crate::inertials::matrix3(&b.inertia);
+    (a.transpose() * i * a)[0] + b.mass * a.cross(&r).norm_squared()
+}
+
+/// The revolute frame's constant offset along its axis (`Tz(d0)` after the rotation), m.
+fn var_d0(frame: &dvrk_kin::Frame, _model: &Model) -> f64 {
+    frame.d.offset
+}
+
+fn multibody_index(mbs: &MultibodyJointSet, h: MultibodyJointHandle) -> Result<(MultibodyIndex, usize)> {
+    let (_, link) = mbs.get(h).ok_or_else(|| SimError::Build("joint not in a multibody".into()))?;
+    let id = mbs
+        .rigid_body_link(RigidBodyHandle(h.0))
+        .ok_or_else(|| SimError::Build("body not in a multibody".into()))?;
+    Ok((id.multibody, link))
+}
