@@ -197,6 +197,26 @@ fn ecm_pivot_positions_agree_with_the_papers_own_cad_model() {
     let (b1, b2) = (lean(origin(&m, &poses, 6), o3, toward), lean(origin(&m, &poses, 7), o3, toward));
     eprintln!("ECM beta1: model {b1:.5}, SDF {s1:.5}; beta2: model {b2:.5}, SDF {s2:.5}");
     assert!((b1 - s1).abs() < 1e-3 && (b2 - s2).abs() < 1e-3);
+    // The closing link's pivot (frame 4; the SDF's pitch_back_link) sits 36.6 mm on the base
+    // side of the pitch axis and 9.8 mm below it, as in the CAD model (Table 5 prints +0.03657,
+    // the mirror position on the RCM side).
+    let back = link("pitch_back_link");
+    let sdf_along = (back - front).x;
+    let model_along = (origin(&m, &poses, 4) - o3).dot(&toward);
+    eprintln!("ECM frame-4 pivot along the yaw axis toward the RCM: model {model_along:.5} m, SDF {sdf_along:.5} m");
+    assert!((model_along - sdf_along).abs() < 1e-4 && model_along < -0.03);
+}
+
+#[test]
+fn table_5_sign_of_the_closing_pivot_would_bring_the_first_loop_near_flat() {
+    let printed = variant("ecm", |s| {
+        let f = s.frames.iter_mut().find(|f| f.index == Some(4)).unwrap();
+        f.a = dvrk_kin::spec::Value::Number(0.03657);
+        s.closures[0].partner_point = Some([0.03657, 0.0098, 0.0]);
+    });
+    let (p, ours) = (closure_conditioning(&printed, 500).unwrap(), closure_conditioning(&load("ecm", None).unwrap(), 500).unwrap());
+    eprintln!("ECM closure sigma_min over the dVRK range: Table 5 sign {:.4} m/rad, CAD sign {:.4} m/rad", p.worst, ours.worst);
+    assert!(ours.worst > 2.0 * p.worst && ours.worst > 0.015);
 }
 
 #[test]

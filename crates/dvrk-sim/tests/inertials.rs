@@ -60,13 +60,6 @@ fn sdf_links_sit_on_the_model_axes_up_to_one_base_transform() {
         assert_eq!(agree.len(), expected, "{name}: joints compared {agree:?}");
         for (joint, angle, distance) in &agree {
             assert!(*angle < 2e-3, "{name} {joint}: axes {angle} rad apart");
-            if name == "ecm" && joint == "pitch_back_joint" {
-                // Known difference: dvrk-kin's ECM puts the closing (back) link's pivot 0.03657 m
-                // in front of the pitch axis (frame 4, a = +0.03657), the SDF 0.03657 m behind it
-                // (the mirror parallelogram; same motion of the tool). The pivots are 2 x 0.03657 apart.
-                assert!((distance - 2.0 * 0.03657).abs() < 1e-4, "{name} {joint}: {distance}");
-                continue;
-            }
             // ECM: the SDF's link lengths differ from the DH table by up to 1 mm (Table 6), and its
             // pitch-end, insertion and tool links sit 0.46-0.59 mm off the pitch plane (y).
             let tol = if name == "psm" { 1e-4 } else { 1e-3 };
