@@ -1,14 +1,137 @@
-//! `dvrk synth`: synthetic recordings (issue 4; not built yet).
+//! `dvrk synth`: synthetic recordings for tests and demos. `synth mocap` writes what a real
+//! tracker would record of a robot model: three-marker rigid bodies on the PSM links of the
+//! paper's Figure 5, marker noise, occlusions, a tracker frame the fits do not know.
 
-use anyhow::{bail, Result};
-use clap::Subcommand;
+use crate::outln;
+use anyhow::{anyhow, bail, Result};
+use clap::{Args, Subcommand};
+use dvrk_calib::mcap_io::McapLayout;
+use dvrk_calib::synth::{Scenario, SynthMotion, SynthOptions};
+use serde_json::json;
+use std::path::PathBuf;
 
 #[derive(Debug, Subcommand)]
 pub enum SynthCommand {
-    /// A synthetic motion-capture recording (not built yet).
-    Mocap,
+    /// A synthetic motion-capture recording (.mcap or plain .csv).
+    Mocap(MocapArgs),
 }
 
-pub fn run(_c: &SynthCommand) -> Result<()> {
-    bail!("dvrk synth is not built yet")
+#[derive(Debug, Args)]
+pub struct MocapArgs {
+    /// The robot: built-in name or model file (a PSM layout: frames 2, 3, 4, 6, 7, 8).
+    #[arg(long, default_value = "psm")]
+    pub model: String,
+    /// q1q2-sweep (pivot: q1 and q2 in a Lissajous sweep) or q2-sweep (axes: q2 alone, q1 = 0).
+    #[arg(long, default_value = "q1q2-sweep")]
+    pub motion: String,
+    /// Marker noise, standard deviation per coordinate (mm).
+    #[arg(long, default_value_t = 0.1)]
+    pub noise_mm: f64,
+    /// Frame rate (Hz).
+    #[arg(long, default_value_t = 120.0)]
+    pub rate: f64,
+    /// Length (s).
+    #[arg(long, default_value_t = 20.0)]
+    pub duration: f64,
+    /// Sweep amplitudes of q1 and q2 (rad), comma-separated.
+    #[arg(long, default_value = "0.6,0.8")]
+    pub amplitude: String,
+    /// Probability that a marker is hidden in a frame.
+    #[arg(long, default_value_t = 0.01)]
+    pub occlusion: f64,
+    /// Probability that a body's frame has a ghost marker 5 mm off.
+    #[arg(long, default_value_t = 0.0)]
+    pub outliers: f64,
+    /// Seed of the noise, occlusions and outliers.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// MCAP layout: pose-stamped (/mocap/NAME/pose), tf (/tf) or foxglove-json.
+    #[arg(long, default_value = "pose-stamped")]
+    pub layout: String,
+    /// Topic of the joint states (sensor_msgs/msg/JointState).
+    #[arg(long, default_value = "/PSM1/measured_js")]
+    pub joint_topic: String,
+    /// Output: .mcap or .csv (plain CSV, with the raw markers), written whole or not at all.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Also write the matching axes configuration (for `calib axes --config`).
+    #[arg(long)]
+    pub config_out: Option<PathBuf>,
+    /// Also write the ground truth (tracker frame, RCM, clusters) as JSON.
+    #[arg(long)]
+    pub truth: Option<PathBuf>,
+}
+
+pub fn run(c: &SynthCommand) -> Result<()> {
+    match c {
+        SynthCommand::Mocap(a) => mocap(a),
+    }
+}
+
+fn mocap(a: &MocapArgs) -> Result<()> {
+    let model = dvrk_kin::load(&a.model, None)?;
+    let motion: SynthMotion = a.motion.parse().map_err(|e| anyhow!("--motion: {e}"))?;
+    let amp = crate::io::parse_list("--amplitude", &a.amplitude)?;
+    let [a1, a2] = amp.as_slice() else { bail!("--amplitude: give two values (q1, q2 in rad), got {}", amp.len()) };
+    if !(a.noise_mm.is_finite() && a.noise_mm >= 0.0) {
+        bail!("--noise-mm: {} must be a finite number >= 0", a.noise_mm);
+    }
+    let layout = match a.layout.as_str() {
+        "pose-stamped" => McapLayout::PoseStamped,
+        "tf" => McapLayout::Tf,
+        "foxglove-json" => McapLayout::FoxgloveJson,
+        other => bail!("--layout: `{other}` is not a layout; valid: pose-stamped, tf, foxglove-json"),
+    };
+    let options = SynthOptions {
+        motion,
+        noise: a.noise_mm * 1e-3,
+        rate: a.rate,
+        duration: a.duration,
+        amplitude: [*a1, *a2],
+        occlusion: a.occlusion,
+        outliers: a.outliers,
+        seed: a.seed,
+        ..Default::default()
+    };
+    let scenario = Scenario::new(&model, &options).map_err(|e| anyhow!("synth mocap: {e}"))?;
+    let rec = scenario.record(a.seed);
+    let ext = a.output.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
+    let bytes = match ext.as_str() {
+        "mcap" => dvrk_calib::mcap_io::write(&rec, layout, &a.joint_topic)?,
+        "csv" => dvrk_calib::plain_csv::write(&rec).into_bytes(),
+        _ => bail!("-o {}: unknown format `.{ext}`; valid: .mcap, .csv", a.output.display()),
+    };
+    crate::io::write_atomic(&a.output, &bytes)?;
+    if let Some(c) = &a.config_out {
+        crate::io::write_atomic(c, scenario.axes_config_toml().as_bytes())?;
+    }
+    if let Some(t) = &a.truth {
+        let clusters: Vec<_> = scenario
+            .clusters
+            .iter()
+            .map(|c| json!({"name": c.name, "link": c.link, "frame": c.frame, "offset": dvrk_kin::pose_to_rows(&c.offset), "markers": c.layout.iter().map(|m| [m.x, m.y, m.z]).collect::<Vec<_>>()}))
+            .collect();
+        let v = json!({
+            "model": model.name,
+            "motion": motion.name(),
+            "tracker_from_base": dvrk_kin::pose_to_rows(&options.tracker_from_base),
+            "rcm": scenario.rcm.map(|r| [r.x, r.y, r.z]),
+            "clusters": clusters,
+        });
+        crate::io::write_atomic(t, format!("{}\n", serde_json::to_string_pretty(&v)?).as_bytes())?;
+    }
+    let frames = scenario.t.len();
+    let seen: usize = rec.bodies.iter().map(|b| b.len()).sum();
+    outln!(
+        "wrote {}: {} rigid bodies x {frames} frames ({:.0} s at {} Hz, {}), {} poses ({} occluded), marker noise {} mm",
+        a.output.display(),
+        rec.bodies.len(),
+        a.duration,
+        a.rate,
+        motion.name(),
+        seen,
+        rec.bodies.iter().map(|b| b.occluded).sum::<usize>(),
+        a.noise_mm
+    );
+    Ok(())
 }

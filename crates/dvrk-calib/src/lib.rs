@@ -1,2 +1,50 @@
-//! Motion-capture calibration of dvrk-kin models (work in progress: see issue 4).
+//! # dvrk-calib
+//!
+//! Motion-capture calibration of dvrk-kin models (Gondokaryono et al., sections 2.4 and 4.1):
+//! recordings in (MCAP with ROS 2 or Foxglove messages, OptiTrack Motive CSV, a plain CSV),
+//! joint axes, the axis distances of Table 6 and the DH parameters they imply, the RCM by pivot
+//! calibration (eq. 3-5, Table 7), an updated model file, and a synthetic tracker that writes
+//! what a real one would record.
+//!
+//! ```
+//! use dvrk_calib::{pivot_calibration, PivotOptions, synth};
+//! let model = dvrk_calib::dvrk_kin::load("psm", None).unwrap();
+//! let options = synth::SynthOptions { noise: 0.0, duration: 10.0, ..Default::default() };
+//! let scenario = synth::Scenario::new(&model, &options).unwrap();
+//! let rec = scenario.record(1);
+//! let fit = pivot_calibration(&rec.body("end").unwrap().poses, &PivotOptions::default()).unwrap();
+//! assert!((fit.pivot - scenario.rcm.unwrap()).norm() < 1e-9);
+//! ```
+//!
+//! Units: metres, radians, seconds. Poses are `dvrk_kin::Pose` (rotation matrix + translation).
+
+pub mod apply;
+pub mod axes;
+pub mod axes_config;
+pub mod axis;
+pub mod cdr;
+mod error;
+pub mod foxglove;
+pub mod mcap_io;
+pub mod motion_range;
+pub mod motive_csv;
+pub mod pivot;
+pub mod plain_csv;
+pub mod plot;
+pub mod psm_dh;
+pub mod read;
+pub mod recording;
+pub mod report_json;
+pub mod rigid_fit;
+pub mod ros_msgs;
+pub mod synth;
+
+pub use axes::{calibrate_axes, AxesOptions, AxesReport};
+pub use axes_config::AxesConfig;
+pub use axis::{fit_axis, AxisFit, AxisMethod, AxisOptions};
+pub use error::{CalibError, Result};
+pub use mcap_io::McapOptions;
+pub use pivot::{pivot_calibration, PivotFit, PivotMethod, PivotOptions};
+pub use read::read_recording;
+pub use recording::{BodyTrack, JointTrack, MarkerTrack, Recording};
 pub use dvrk_kin;

@@ -1,0 +1,62 @@
+//! Errors of reading recordings and fitting them.
+//!
+//! Every error names what it is about (file, topic, body, row, field) and quotes the value, so a
+//! user can fix the input from the one-line message alone. Nothing here panics on user input.
+
+use std::path::PathBuf;
+
+/// What went wrong.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum CalibError {
+    /// A file could not be read, or its content is malformed (the message says where in it).
+    #[error("{}: {message}", path.display())]
+    File { path: PathBuf, message: String },
+    /// A field of a configuration or a result file is missing or has an invalid value.
+    #[error("field `{field}`: {message}")]
+    Field { field: String, message: String },
+    /// Recorded data that cannot be used: a missing topic or body, too few samples, NaN values.
+    #[error("{what}: {message}")]
+    Data { what: String, message: String },
+    /// The motion in the recording does not determine the quantity asked for.
+    #[error("{what}: {message}")]
+    Motion { what: String, message: String },
+    /// A model could not be loaded or rebuilt.
+    #[error(transparent)]
+    Kin(#[from] dvrk_kin::KinError),
+}
+
+impl CalibError {
+    /// An error about a file.
+    pub fn file(path: impl Into<PathBuf>, message: impl Into<String>) -> Self {
+        CalibError::File { path: path.into(), message: message.into() }
+    }
+    /// An error about a field of a configuration or result file.
+    pub fn field(field: impl Into<String>, message: impl Into<String>) -> Self {
+        CalibError::Field { field: field.into(), message: message.into() }
+    }
+    /// An error about recorded data.
+    pub fn data(what: impl Into<String>, message: impl Into<String>) -> Self {
+        CalibError::Data { what: what.into(), message: message.into() }
+    }
+    /// The motion does not determine the estimate.
+    pub fn motion(what: impl Into<String>, message: impl Into<String>) -> Self {
+        CalibError::Motion { what: what.into(), message: message.into() }
+    }
+    /// A name that is not known, answered with the valid ones.
+    pub fn unknown(what: &str, name: &str, valid: impl IntoIterator<Item = impl AsRef<str>>) -> Self {
+        let valid: Vec<String> = valid.into_iter().map(|s| s.as_ref().to_string()).collect();
+        let list = if valid.is_empty() { "none".to_string() } else { valid.join(", ") };
+        CalibError::data(format!("{what} `{name}`"), format!("not in the recording; available: {list}"))
+    }
+    /// Attach the file this error was found in (errors that already name a file keep it).
+    pub fn in_file(self, path: impl Into<PathBuf>) -> Self {
+        match self {
+            e @ CalibError::File { .. } => e,
+            e => CalibError::File { path: path.into(), message: e.to_string() },
+        }
+    }
+}
+
+/// Result alias of this crate.
+pub type Result<T, E = CalibError> = std::result::Result<T, E>;

@@ -1,0 +1,267 @@
+//! MCAP recordings: ROS 2 (`cdr` messages with `ros2msg` schemas) PoseStamped, TFMessage and
+//! JointState, and Foxglove PoseInFrame / FrameTransform(s) in JSON; read into a
+//! [`Recording`], and written by the synthetic tracker.
+
+use crate::error::{CalibError, Result};
+use crate::foxglove::{self, FoxglovePose};
+use crate::recording::{BodyTrack, JointTrack, Recording};
+use crate::ros_msgs::{self, Header, JointState, PoseStamped, TransformStamped};
+use dvrk_kin::Pose;
+use nalgebra::{Translation3, UnitQuaternion};
+use std::collections::BTreeMap;
+use std::io::Cursor;
+use std::path::Path;
+
+/// Which topics to read.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct McapOptions {
+    /// Pose topics to read (all supported ones when empty); each must exist.
+    pub topics: Vec<String>,
+    /// The JointState topic (the first one found when `None`).
+    pub joint_topic: Option<String>,
+}
+
+/// What a channel carries.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Kind {
+    PoseStamped,
+    Tf,
+    JointState,
+    FoxPose,
+    FoxTransforms,
+}
+
+fn kind(schema: &str, encoding: &str) -> Option<Kind> {
+    match (schema, encoding) {
+        ("geometry_msgs/msg/PoseStamped", "cdr") => Some(Kind::PoseStamped),
+        ("tf2_msgs/msg/TFMessage", "cdr") => Some(Kind::Tf),
+        ("sensor_msgs/msg/JointState", "cdr") => Some(Kind::JointState),
+        ("foxglove.PoseInFrame", "json") => Some(Kind::FoxPose),
+        ("foxglove.FrameTransform" | "foxglove.FrameTransforms", "json") => Some(Kind::FoxTransforms),
+        _ => None,
+    }
+}
+
+fn pose(position: [f64; 3], q: [f64; 4]) -> std::result::Result<Pose, String> {
+    let u = crate::plain_csv::unit_quaternion(q[0], q[1], q[2], q[3])?;
+    if !position.iter().all(|x| x.is_finite()) {
+        return Err(format!("position ({}, {}, {}) is not finite", position[0], position[1], position[2]));
+    }
+    Ok(Pose::from_parts(Translation3::new(position[0], position[1], position[2]), u.to_rotation_matrix()))
+}
+
+/// Read an MCAP file.
+pub fn read(path: &Path, options: &McapOptions) -> Result<Recording> {
+    let bytes = std::fs::read(path).map_err(|e| CalibError::file(path, format!("cannot read: {e}")))?;
+    parse(&bytes, path, options)
+}
+
+/// Read MCAP bytes; `path` names them in errors.
+pub fn parse(bytes: &[u8], path: &Path, options: &McapOptions) -> Result<Recording> {
+    let stream = mcap::MessageStream::new(bytes).map_err(|e| CalibError::file(path, format!("not an MCAP file: {e}")))?;
+    let mut rec = Recording { source: path.display().to_string(), ..Default::default() };
+    let mut bodies: BTreeMap<String, BodyTrack> = BTreeMap::new();
+    let mut topics: BTreeMap<String, (String, String)> = BTreeMap::new();
+    let mut joints: BTreeMap<String, JointTrack> = BTreeMap::new();
+    let mut bad: BTreeMap<String, usize> = BTreeMap::new();
+    let wanted = |topic: &str| options.topics.is_empty() || options.topics.iter().any(|t| t == topic);
+    let mut count = 0usize;
+    for m in stream {
+        let m = m.map_err(|e| match e {
+            mcap::McapError::BadMagic if count == 0 => CalibError::file(path, "not an MCAP file (it does not start with the MCAP magic bytes)"),
+            e => CalibError::file(path, format!("truncated or damaged after {count} message(s): {e}; nothing was fitted (recover the file with `mcap recover`)")),
+        })?;
+        count += 1;
+        let ch = &m.channel;
+        let schema = ch.schema.as_ref().map_or("", |s| s.name.as_str());
+        topics.entry(ch.topic.clone()).or_insert_with(|| (schema.to_string(), ch.message_encoding.clone()));
+        let Some(k) = kind(schema, &ch.message_encoding) else { continue };
+        let log_time = m.log_time as f64 * 1e-9;
+        let stamp = |h: f64| if h > 0.0 { h } else { log_time };
+        let what = |e: String| format!("message {count} on {} ({schema}): {e}", ch.topic);
+        let mut add = |name: &str, frame: &str, t: f64, p: std::result::Result<Pose, String>| -> Result<()> {
+            let tr = bodies.entry(name.to_string()).or_insert_with(|| BodyTrack::new(name, frame));
+            match p {
+                Ok(p) => {
+                    tr.t.push(t);
+                    tr.poses.push(p);
+                }
+                Err(e) if e.contains("not finite") || e.contains("NaN") => tr.occluded += 1,
+                Err(e) => return Err(CalibError::file(path, what(e))),
+            }
+            Ok(())
+        };
+        match k {
+            Kind::JointState => {
+                if options.joint_topic.as_ref().is_some_and(|t| t != &ch.topic) {
+                    continue;
+                }
+                let js = JointState::decode(&m.data).map_err(|e| CalibError::file(path, what(e)))?;
+                let jt = joints.entry(ch.topic.clone()).or_insert_with(|| JointTrack { source: ch.topic.clone(), names: js.name.clone(), ..Default::default() });
+                if js.position.len() != jt.names.len() || js.name != jt.names {
+                    *bad.entry(ch.topic.clone()).or_default() += 1;
+                    continue;
+                }
+                jt.t.push(stamp(js.header.time()));
+                jt.q.push(js.position);
+            }
+            _ if !wanted(&ch.topic) && k != Kind::Tf && k != Kind::FoxTransforms => {}
+            Kind::PoseStamped => {
+                let p = PoseStamped::decode(&m.data).map_err(|e| CalibError::file(path, what(e)))?;
+                add(&ch.topic, &p.header.frame_id, stamp(p.header.time()), pose(p.position, p.orientation))?;
+            }
+            Kind::FoxPose => {
+                let p = foxglove::decode_pose_in_frame(&m.data).map_err(|e| CalibError::file(path, what(e)))?;
+                add(&ch.topic, &p.frame_id, stamp(p.time), pose(p.position, p.orientation))?;
+            }
+            Kind::Tf | Kind::FoxTransforms => {
+                let list: Vec<FoxglovePose> = if k == Kind::Tf {
+                    ros_msgs::decode_tf(&m.data)
+                        .map_err(|e| CalibError::file(path, what(e)))?
+                        .into_iter()
+                        .map(|t| FoxglovePose { time: t.header.time(), frame_id: t.header.frame_id, child_frame_id: t.child_frame_id, position: t.translation, orientation: t.rotation })
+                        .collect()
+                } else {
+                    foxglove::decode_frame_transforms(&m.data).map_err(|e| CalibError::file(path, what(e)))?
+                };
+                for t in list {
+                    // A TF child frame is a body; `--topic` may name it or the topic.
+                    if wanted(&t.child_frame_id) || wanted(&ch.topic) {
+                        add(&t.child_frame_id, &t.frame_id, stamp(t.time), pose(t.position, t.orientation))?;
+                    }
+                }
+            }
+        }
+    }
+    if count == 0 {
+        return Err(CalibError::file(path, "the MCAP file holds no message"));
+    }
+    let listing = || topics.iter().map(|(t, (s, e))| format!("{t} ({s}, {e})")).collect::<Vec<_>>().join(", ");
+    for t in &options.topics {
+        if !bodies.contains_key(t) && !topics.contains_key(t) {
+            return Err(CalibError::file(path, format!("no topic or TF child frame `{t}`; topics: {}", listing())));
+        }
+        if topics.get(t).is_some_and(|(s, e)| kind(s, e).is_none()) {
+            let (s, e) = &topics[t];
+            return Err(CalibError::file(path, format!("topic `{t}` carries {s} ({e}); supported: geometry_msgs/msg/PoseStamped, tf2_msgs/msg/TFMessage, sensor_msgs/msg/JointState (cdr), foxglove.PoseInFrame, foxglove.FrameTransform(s) (json)")));
+        }
+    }
+    if let Some(jt) = &options.joint_topic {
+        if !joints.contains_key(jt) {
+            return Err(CalibError::file(path, format!("no JointState topic `{jt}`; topics: {}", listing())));
+        }
+    }
+    let unsupported: Vec<String> = topics.iter().filter(|(_, (s, e))| kind(s, e).is_none()).map(|(t, (s, _))| format!("{t} ({s})")).collect();
+    if !unsupported.is_empty() {
+        rec.warnings.push(format!("{}: skipped topic(s) of other types: {}", path.display(), unsupported.join(", ")));
+    }
+    for b in bodies.values().filter(|b| b.occluded > 0) {
+        rec.warnings.push(format!("{}: {}: {} message(s) hold NaN; treated as occluded", path.display(), b.name, b.occluded));
+    }
+    for (t, n) in bad {
+        rec.warnings.push(format!("{}: {n} JointState message(s) on {t} changed their joint names or sizes; skipped", path.display()));
+    }
+    rec.bodies = bodies
+        .into_values()
+        .map(|mut b| {
+            b.sort_by_time();
+            b
+        })
+        .collect();
+    rec.joints = joints.into_values().next();
+    Ok(rec)
+}
+
+/// How the synthetic tracker lays out its MCAP.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum McapLayout {
+    /// geometry_msgs/msg/PoseStamped on `/mocap/NAME/pose` (one topic per rigid body).
+    #[default]
+    PoseStamped,
+    /// tf2_msgs/msg/TFMessage on `/tf`, one transform per visible body and frame.
+    Tf,
+    /// foxglove.PoseInFrame in JSON on `/mocap/NAME/pose`.
+    FoxgloveJson,
+}
+
+/// The topic of a rigid body in [`McapLayout::PoseStamped`] and [`McapLayout::FoxgloveJson`].
+pub fn pose_topic(body: &str) -> String {
+    format!("/mocap/{body}/pose")
+}
+
+/// Write a recording (poses and joint states; raw markers have no message here) as MCAP.
+/// `joint_topic` names the JointState topic (`/PSM1/measured_js`).
+pub fn write(rec: &Recording, layout: McapLayout, joint_topic: &str) -> Result<Vec<u8>> {
+    let io = |e: mcap::McapError| CalibError::data("MCAP writer", e.to_string());
+    let mut w = mcap::Writer::with_options(Cursor::new(Vec::new()), mcap::WriteOptions::new().profile("ros2")).map_err(io)?;
+    let meta = BTreeMap::new();
+    // Messages are written in time order across topics, as a recorder would.
+    let mut events: Vec<(f64, u16, Vec<u8>)> = Vec::new();
+    match layout {
+        McapLayout::PoseStamped | McapLayout::FoxgloveJson => {
+            let (schema, enc, data) = match layout {
+                McapLayout::PoseStamped => {
+                    let (n, t) = ros_msgs::pose_stamped_schema();
+                    (n, "cdr", t.into_bytes())
+                }
+                _ => ("foxglove.PoseInFrame", "json", foxglove::POSE_IN_FRAME_SCHEMA.as_bytes().to_vec()),
+            };
+            let sid = w.add_schema(schema, if enc == "cdr" { "ros2msg" } else { "jsonschema" }, &data).map_err(io)?;
+            for b in &rec.bodies {
+                let ch = w.add_channel(sid, &pose_topic(&b.name), enc, &meta).map_err(io)?;
+                let frame = if b.frame_id.is_empty() { "tracker" } else { &b.frame_id };
+                for (t, p) in b.t.iter().zip(&b.poses) {
+                    let q = UnitQuaternion::from_rotation_matrix(&p.rotation);
+                    let v = p.translation.vector;
+                    let bytes = if layout == McapLayout::PoseStamped {
+                        PoseStamped { header: Header::at(*t, frame), position: [v.x, v.y, v.z], orientation: [q.i, q.j, q.k, q.w] }.encode()
+                    } else {
+                        foxglove::encode_pose_in_frame(&FoxglovePose { time: *t, frame_id: frame.into(), child_frame_id: String::new(), position: [v.x, v.y, v.z], orientation: [q.i, q.j, q.k, q.w] })
+                    };
+                    events.push((*t, ch, bytes));
+                }
+            }
+        }
+        McapLayout::Tf => {
+            let (n, t) = ros_msgs::tf_schema();
+            let sid = w.add_schema(n, "ros2msg", t.as_bytes()).map_err(io)?;
+            let ch = w.add_channel(sid, "/tf", "cdr", &meta).map_err(io)?;
+            let mut by_time: BTreeMap<u64, Vec<TransformStamped>> = BTreeMap::new();
+            for b in &rec.bodies {
+                let frame = if b.frame_id.is_empty() { "tracker" } else { &b.frame_id };
+                for (t, p) in b.t.iter().zip(&b.poses) {
+                    let q = UnitQuaternion::from_rotation_matrix(&p.rotation);
+                    let v = p.translation.vector;
+                    by_time.entry(t.to_bits()).or_default().push(TransformStamped {
+                        header: Header::at(*t, frame),
+                        child_frame_id: b.name.clone(),
+                        translation: [v.x, v.y, v.z],
+                        rotation: [q.i, q.j, q.k, q.w],
+                    });
+                }
+            }
+            for (t, list) in by_time {
+                events.push((f64::from_bits(t), ch, ros_msgs::encode_tf(&list)));
+            }
+        }
+    }
+    if let Some(j) = &rec.joints {
+        let (n, t) = ros_msgs::joint_state_schema();
+        let sid = w.add_schema(n, "ros2msg", t.as_bytes()).map_err(io)?;
+        let ch = w.add_channel(sid, joint_topic, "cdr", &meta).map_err(io)?;
+        for (t, q) in j.t.iter().zip(&j.q) {
+            let js = JointState { header: Header::at(*t, ""), name: j.names.clone(), position: q.clone(), ..Default::default() };
+            events.push((*t, ch, js.encode()));
+        }
+    }
+    events.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let mut seq: BTreeMap<u16, u32> = BTreeMap::new();
+    for (t, ch, data) in events {
+        let s = seq.entry(ch).or_default();
+        *s += 1;
+        let ns = (t.max(0.0) * 1e9).round() as u64;
+        w.write_to_known_channel(&mcap::records::MessageHeader { channel_id: ch, sequence: *s, log_time: ns, publish_time: ns }, &data).map_err(io)?;
+    }
+    w.finish().map_err(io)?;
+    Ok(w.into_inner().into_inner())
+}

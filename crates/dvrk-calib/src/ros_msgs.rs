@@ -1,0 +1,211 @@
+//! The three ROS 2 messages a tracker recording holds, in CDR: geometry_msgs/msg/PoseStamped
+//! (one rigid body per topic), tf2_msgs/msg/TFMessage (many per message) and
+//! sensor_msgs/msg/JointState (the dVRK's `measured_js`), with their `ros2msg` schema texts.
+
+use crate::cdr::{CdrReader, CdrWriter};
+
+/// std_msgs/Header.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Header {
+    pub sec: i32,
+    pub nanosec: u32,
+    pub frame_id: String,
+}
+
+impl Header {
+    /// A header at time `t` (s).
+    pub fn at(t: f64, frame_id: &str) -> Self {
+        let sec = t.floor();
+        let mut nanosec = ((t - sec) * 1e9).round() as u32;
+        let mut sec = sec as i32;
+        if nanosec >= 1_000_000_000 {
+            sec += 1;
+            nanosec -= 1_000_000_000;
+        }
+        Header { sec, nanosec, frame_id: frame_id.into() }
+    }
+    /// The stamp (s).
+    pub fn time(&self) -> f64 {
+        self.sec as f64 + self.nanosec as f64 * 1e-9
+    }
+    fn write(&self, w: &mut CdrWriter) {
+        w.i32(self.sec);
+        w.u32(self.nanosec);
+        w.string(&self.frame_id);
+    }
+    fn read(r: &mut CdrReader) -> Result<Self, String> {
+        Ok(Header { sec: r.i32("header.stamp.sec")?, nanosec: r.u32("header.stamp.nanosec")?, frame_id: r.string("header.frame_id")? })
+    }
+}
+
+/// geometry_msgs/msg/PoseStamped (m; quaternion x, y, z, w).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct PoseStamped {
+    pub header: Header,
+    pub position: [f64; 3],
+    pub orientation: [f64; 4],
+}
+
+/// geometry_msgs/msg/TransformStamped (m; quaternion x, y, z, w).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct TransformStamped {
+    pub header: Header,
+    pub child_frame_id: String,
+    pub translation: [f64; 3],
+    pub rotation: [f64; 4],
+}
+
+/// sensor_msgs/msg/JointState (rad, m; velocity and effort may be empty).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct JointState {
+    pub header: Header,
+    pub name: Vec<String>,
+    pub position: Vec<f64>,
+    pub velocity: Vec<f64>,
+    pub effort: Vec<f64>,
+}
+
+fn read3(r: &mut CdrReader, field: &str) -> Result<[f64; 3], String> {
+    Ok([r.f64(&format!("{field}.x"))?, r.f64(&format!("{field}.y"))?, r.f64(&format!("{field}.z"))?])
+}
+
+fn read4(r: &mut CdrReader, field: &str) -> Result<[f64; 4], String> {
+    Ok([r.f64(&format!("{field}.x"))?, r.f64(&format!("{field}.y"))?, r.f64(&format!("{field}.z"))?, r.f64(&format!("{field}.w"))?])
+}
+
+impl PoseStamped {
+    /// CDR bytes.
+    pub fn encode(&self) -> Vec<u8> {
+        let mut w = CdrWriter::new();
+        self.header.write(&mut w);
+        self.position.iter().chain(&self.orientation).for_each(|x| w.f64(*x));
+        w.finish()
+    }
+    /// From CDR bytes.
+    pub fn decode(bytes: &[u8]) -> Result<Self, String> {
+        let mut r = CdrReader::new(bytes)?;
+        Ok(PoseStamped { header: Header::read(&mut r)?, position: read3(&mut r, "pose.position")?, orientation: read4(&mut r, "pose.orientation")? })
+    }
+}
+
+/// tf2_msgs/msg/TFMessage: CDR bytes of `transforms`.
+pub fn encode_tf(transforms: &[TransformStamped]) -> Vec<u8> {
+    let mut w = CdrWriter::new();
+    w.u32(transforms.len() as u32);
+    for t in transforms {
+        t.header.write(&mut w);
+        w.string(&t.child_frame_id);
+        t.translation.iter().chain(&t.rotation).for_each(|x| w.f64(*x));
+    }
+    w.finish()
+}
+
+/// tf2_msgs/msg/TFMessage from CDR bytes.
+pub fn decode_tf(bytes: &[u8]) -> Result<Vec<TransformStamped>, String> {
+    let mut r = CdrReader::new(bytes)?;
+    // Smallest element: header (4 + 4 + 5) + child id (5) + 7 f64.
+    let n = r.seq_len("transforms", 18 + 56)?;
+    (0..n)
+        .map(|i| {
+            let f = |s: &str| format!("transforms[{i}].{s}");
+            let header = Header::read(&mut r).map_err(|e| format!("transforms[{i}].{e}"))?;
+            let child_frame_id = r.string(&f("child_frame_id"))?;
+            let translation = read3(&mut r, &f("transform.translation"))?;
+            let rotation = read4(&mut r, &f("transform.rotation"))?;
+            Ok(TransformStamped { header, child_frame_id, translation, rotation })
+        })
+        .collect()
+}
+
+impl JointState {
+    /// CDR bytes.
+    pub fn encode(&self) -> Vec<u8> {
+        let mut w = CdrWriter::new();
+        self.header.write(&mut w);
+        w.string_seq(&self.name);
+        w.f64_seq(&self.position);
+        w.f64_seq(&self.velocity);
+        w.f64_seq(&self.effort);
+        w.finish()
+    }
+    /// From CDR bytes.
+    pub fn decode(bytes: &[u8]) -> Result<Self, String> {
+        let mut r = CdrReader::new(bytes)?;
+        Ok(JointState {
+            header: Header::read(&mut r)?,
+            name: r.string_seq("name")?,
+            position: r.f64_seq("position")?,
+            velocity: r.f64_seq("velocity")?,
+            effort: r.f64_seq("effort")?,
+        })
+    }
+}
+
+const SEP: &str = "================================================================================\n";
+
+fn header_defs() -> String {
+    format!("{SEP}MSG: std_msgs/Header\nbuiltin_interfaces/Time stamp\nstring frame_id\n{SEP}MSG: builtin_interfaces/Time\nint32 sec\nuint32 nanosec\n")
+}
+
+/// Schema name and `ros2msg` text of geometry_msgs/msg/PoseStamped.
+pub fn pose_stamped_schema() -> (&'static str, String) {
+    (
+        "geometry_msgs/msg/PoseStamped",
+        format!(
+            "std_msgs/Header header\ngeometry_msgs/Pose pose\n{}{SEP}MSG: geometry_msgs/Pose\ngeometry_msgs/Point position\ngeometry_msgs/Quaternion orientation\n\
+             {SEP}MSG: geometry_msgs/Point\nfloat64 x\nfloat64 y\nfloat64 z\n{SEP}MSG: geometry_msgs/Quaternion\nfloat64 x\nfloat64 y\nfloat64 z\nfloat64 w\n",
+            header_defs()
+        ),
+    )
+}
+
+/// Schema name and `ros2msg` text of tf2_msgs/msg/TFMessage.
+pub fn tf_schema() -> (&'static str, String) {
+    (
+        "tf2_msgs/msg/TFMessage",
+        format!(
+            "geometry_msgs/TransformStamped[] transforms\n{SEP}MSG: geometry_msgs/TransformStamped\nstd_msgs/Header header\nstring child_frame_id\n\
+             geometry_msgs/Transform transform\n{}{SEP}MSG: geometry_msgs/Transform\ngeometry_msgs/Vector3 translation\ngeometry_msgs/Quaternion rotation\n\
+             {SEP}MSG: geometry_msgs/Vector3\nfloat64 x\nfloat64 y\nfloat64 z\n{SEP}MSG: geometry_msgs/Quaternion\nfloat64 x\nfloat64 y\nfloat64 z\nfloat64 w\n",
+            header_defs()
+        ),
+    )
+}
+
+/// Schema name and `ros2msg` text of sensor_msgs/msg/JointState.
+pub fn joint_state_schema() -> (&'static str, String) {
+    (
+        "sensor_msgs/msg/JointState",
+        format!("std_msgs/Header header\nstring[] name\nfloat64[] position\nfloat64[] velocity\nfloat64[] effort\n{}", header_defs()),
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pose_stamped_has_the_ros2_layout() {
+        let m = PoseStamped { header: Header::at(12.25, "world"), position: [1.0, 2.0, 3.0], orientation: [0.0, 0.0, 0.0, 1.0] };
+        let b = m.encode();
+        // header 4 | sec 4 | nanosec 4 | len 4 + "world\0" 6 = 18 -> pad to 24 | 7 f64 = 56: 80 bytes of payload.
+        assert_eq!(b.len(), 4 + 80);
+        assert_eq!(&b[4..8], &12i32.to_le_bytes());
+        assert_eq!(&b[8..12], &250_000_000u32.to_le_bytes());
+        assert_eq!(&b[28..36], &1.0f64.to_le_bytes());
+        assert_eq!(PoseStamped::decode(&b).unwrap(), m);
+        let e = PoseStamped::decode(&b[..48]).unwrap_err();
+        assert_eq!(e, "pose.position.z: the message ends at byte 44 of its payload, 8 more byte(s) needed");
+    }
+
+    #[test]
+    fn joint_state_and_tf_round_trip() {
+        let js = JointState { header: Header::at(1.5, ""), name: vec!["outer_yaw".into(), "outer_pitch".into()], position: vec![0.1, -0.2], ..Default::default() };
+        assert_eq!(JointState::decode(&js.encode()).unwrap(), js);
+        let tf = vec![
+            TransformStamped { header: Header::at(2.0, "tracker"), child_frame_id: "back".into(), translation: [0.1, 0.2, 0.3], rotation: [0.0, 0.0, 1.0, 0.0] },
+            TransformStamped { header: Header::at(2.0, "tracker"), child_frame_id: "end".into(), translation: [0.4, 0.5, 0.6], rotation: [0.0, 0.0, 0.0, 1.0] },
+        ];
+        assert_eq!(decode_tf(&encode_tf(&tf)).unwrap(), tf);
+    }
+}

@@ -1,0 +1,17 @@
+//! Integration tests of dvrk-calib: one binary, one module per concern.
+//!
+//! - `paper`: noise-free synthetic recordings give the model's Table 6 distances and RCM (1e-6 m).
+//! - `noise_bound`: 100 seeded trials at 0.1 mm marker noise against the closed-form bound.
+//! - `perturbed`: a robot with link lengths off by 1-3 mm, calibrated and applied.
+//! - `bad_input`: recordings that cannot give a result give an error or a warning with numbers.
+//! - `formats`: MCAP (ROS 2 and Foxglove layouts), plain and raw-marker CSV round trips.
+//! - `python_mcap`: MCAP files written by the Python `mcap` / `mcap-ros2-support` packages.
+
+mod util;
+
+mod bad_input;
+mod formats;
+mod noise_bound;
+mod paper;
+mod perturbed;
+mod python_mcap;
