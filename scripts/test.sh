@@ -7,12 +7,13 @@ cd "$(dirname "$0")/.."
 
 venv="${DVRK_VENV:-.venv}"
 [ -x "$venv/bin/python" ] || python3 -m venv "$venv"
+venv="$(cd "$venv" && pwd)"
 py="$venv/bin/python"
 "$py" -m pip install --quiet --disable-pip-version-check "maturin>=1.5,<2" "pytest>=7" "numpy>=1.21" mcap mcap-ros2-support
 
 # Rust: every crate but the Python binding (release: the simulation tests are heavy). The venv
 # comes first on PATH so tests that write fixtures with Python's mcap packages find them.
-PATH="$PWD/$venv/bin:$PATH" cargo test --release
+PATH="$venv/bin:$PATH" cargo test --release
 
 # Python: build the wheel as a user would, install it, test it.
 rm -rf target/wheels
