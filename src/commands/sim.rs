@@ -52,7 +52,7 @@ pub fn run(args: &SimArgs) -> Result<()> {
     let options = RunOptions {
         duration: args.duration,
         trajectory,
-        sim: SimOptions { loops, solver_iterations: args.solver_iterations, no_gravity: false },
+        sim: SimOptions { loops, solver_iterations: args.solver_iterations, ..Default::default() },
     };
     let tty = std::io::stderr().is_terminal();
     let summary = dvrk_sim::run(&scene, &options, |f| {
@@ -73,7 +73,7 @@ pub fn run(args: &SimArgs) -> Result<()> {
         "scene {} ({}), trajectory {}, {:.1} s simulated in {:.2} s: real-time factor {:.1}",
         summary.scene, scene.title, summary.trajectory, summary.duration, summary.wall_time, summary.real_time_factor
     );
-    println!("dt {} s, {} solver iterations, loops: {:?}", summary.dt, summary.solver_iterations, summary.loops);
+    println!("dt {} s, {} solver iterations, loops: {:?}", summary.dt, summary.solver.iterations, summary.loops);
     println!("{:>8} {:<20} {:>12} {:>12} {:>12}", "arm", "joint", "rms error", "max error", "max effort");
     for j in &summary.joints {
         println!("{:>8} {:<20} {:>10.3e} {:<3} {:>8.3e} {:<3} {:>10.3}", j.arm, j.joint, j.rms_error, j.unit, j.max_error, j.unit, j.max_effort);

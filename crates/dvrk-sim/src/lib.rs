@@ -27,6 +27,6 @@ pub mod trajectory;
 pub use control::{Actuator, Gains, Mode};
 pub use error::{Result, SimError};
 pub use run::{run, RunOptions, Summary};
-pub use scene::Scene;
-pub use sim::{LoopMode, Sim, SimOptions};
+pub use scene::{Scene, SolverSettings};
+pub use sim::{ClosingLinks, LoopMode, Sim, SimOptions};
 pub use dvrk_kin;

@@ -49,8 +49,9 @@ pub struct Summary {
     pub duration: f64,
     pub dt: f64,
     pub steps: u64,
-    pub solver_iterations: usize,
+    pub solver: crate::scene::SolverSettings,
     pub loops: crate::sim::LoopMode,
+    pub closing_links: crate::sim::ClosingLinks,
     /// s of wall time
     pub wall_time: f64,
     /// simulated time / wall time
@@ -58,6 +59,8 @@ pub struct Summary {
     pub joints: Vec<JointSummary>,
     /// Largest loop-closure gap over the run (m).
     pub max_closure_error: f64,
+    /// When that gap occurred (s).
+    pub max_closure_time: f64,
     /// Largest gap over the last tenth of the run (m): equal to the max when nothing drifts.
     pub final_closure_error: f64,
     /// Largest distance of an insertion axis from its arm's kinematic RCM (m).
@@ -107,6 +110,7 @@ pub fn run(scene: &Scene, options: &RunOptions, mut progress: impl FnMut(f64)) -
     let mut max_err = vec![0.0_f64; n];
     let mut max_eff = vec![0.0_f64; n];
     let (mut max_closure, mut final_closure, mut max_rcm) = (0.0_f64, 0.0_f64, 0.0_f64);
+    let mut max_closure_time = 0.0;
     let mut finite = true;
     let every = (steps / 100).max(1);
     let start = Instant::now();
@@ -131,7 +135,10 @@ pub fn run(scene: &Scene, options: &RunOptions, mut progress: impl FnMut(f64)) -
             max_eff[i] = max_eff[i].max(sim.actuator(i)?.effort.abs());
         }
         let c = sim.closure_error();
-        max_closure = max_closure.max(c);
+        if c > max_closure {
+            max_closure = c;
+            max_closure_time = t;
+        }
         if s >= steps - steps / 10 {
             final_closure = final_closure.max(c);
         }
@@ -171,12 +178,14 @@ pub fn run(scene: &Scene, options: &RunOptions, mut progress: impl FnMut(f64)) -
         duration: simulated,
         dt: sim.dt,
         steps,
-        solver_iterations: options.sim.solver_iterations.unwrap_or(scene.solver_iterations),
+        solver: options.sim.solver_settings(scene),
         loops: options.sim.loops,
+        closing_links: options.sim.closing_links,
         wall_time: wall,
         real_time_factor: simulated / wall.max(1e-12),
         joints,
         max_closure_error: max_closure,
+        max_closure_time,
         final_closure_error: final_closure,
         max_rcm_error: max_rcm,
         finite,

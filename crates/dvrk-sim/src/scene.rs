@@ -36,6 +36,12 @@ struct SceneFile {
     dt: f64,
     #[serde(default = "default_iterations")]
     solver_iterations: usize,
+    #[serde(default = "default_one")]
+    pgs_iterations: usize,
+    #[serde(default = "default_one")]
+    stabilization_iterations: usize,
+    #[serde(default)]
+    warmstart_joints: bool,
     /// m/s^2, world frame
     #[serde(default = "default_gravity")]
     gravity: [f64; 3],
@@ -50,6 +56,9 @@ fn default_dt() -> f64 {
 }
 fn default_iterations() -> usize {
     4
+}
+fn default_one() -> usize {
+    1
 }
 fn default_gravity() -> [f64; 3] {
     [0.0, 0.0, -9.81]
@@ -94,6 +103,19 @@ pub struct Arm {
     pub damping: f64,
 }
 
+/// rapier solver settings of a scene (see `rapier3d::dynamics::IntegrationParameters`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+pub struct SolverSettings {
+    /// Substeps per time step (`num_solver_iterations`).
+    pub iterations: usize,
+    /// Biased projected Gauss-Seidel sweeps per substep (`num_internal_pgs_iterations`).
+    pub pgs_iterations: usize,
+    /// Unbiased sweeps per substep (`num_internal_stabilization_iterations`).
+    pub stabilization_iterations: usize,
+    /// Warm-start impulse joints from the last step (`warmstart_joints`).
+    pub warmstart_joints: bool,
+}
+
 /// A scene: arms, gravity and solver settings.
 #[derive(Debug, Clone)]
 pub struct Scene {
@@ -101,7 +123,7 @@ pub struct Scene {
     pub title: String,
     /// Time step (s).
     pub dt: f64,
-    pub solver_iterations: usize,
+    pub solver: SolverSettings,
     /// m/s^2
     pub gravity: [f64; 3],
     pub arms: Vec<Arm>,
@@ -131,8 +153,14 @@ impl Scene {
         if !(f.dt.is_finite() && f.dt > 0.0 && f.dt <= 0.1) {
             return Err(SimError::field(file, "dt", format!("{} s is not in (0, 0.1]", f.dt)));
         }
-        if f.solver_iterations == 0 || f.solver_iterations > 1000 {
-            return Err(SimError::field(file, "solver_iterations", format!("{} is not in 1..=1000", f.solver_iterations)));
+        for (name, v, min) in [
+            ("solver_iterations", f.solver_iterations, 1),
+            ("pgs_iterations", f.pgs_iterations, 1),
+            ("stabilization_iterations", f.stabilization_iterations, 0),
+        ] {
+            if v < min || v > 1000 {
+                return Err(SimError::field(file, name, format!("{v} is not in {min}..=1000")));
+            }
         }
         if f.gravity.iter().any(|g| !g.is_finite()) {
             return Err(SimError::field(file, "gravity", format!("{:?} has a non-finite entry", f.gravity)));
@@ -171,6 +199,12 @@ impl Scene {
             let gains = (0..n).map(|k| Gains { kp: a.kp[k], ki: a.ki[k], kd: a.kd[k] }).collect();
             arms.push(Arm { name: a.name.clone(), model, inertials, gains, armature: a.armature.clone(), damping: a.damping });
         }
-        Ok(Scene { name: f.name, title: f.title, dt: f.dt, solver_iterations: f.solver_iterations, gravity: f.gravity, arms })
+        Ok(Scene { name: f.name, title: f.title, dt: f.dt, solver: SolverSettings {
+                iterations: f.solver_iterations,
+                pgs_iterations: f.pgs_iterations,
+                stabilization_iterations: f.stabilization_iterations,
+                warmstart_joints: f.warmstart_joints,
+            },
+            gravity: f.gravity, arms })
     }
 }

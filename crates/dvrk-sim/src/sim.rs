@@ -1,6 +1,6 @@
 //! The rapier world of a scene: one rigid body per dvrk-kin body, the frame tree as one
 //! reduced-coordinate multibody per arm, each loop closed by a spherical impulse joint at the
-//! closure point (c1, c2), and passive joints outside any loop (the PSM counterweight, the second
+//! closure point (c1, c2) between two links of that multibody, and passive joints outside any loop (the PSM counterweight, the second
 //! jaw blade) tied to their driving joint by a DoF coupling, the way a cable loads its drive.
 //!
 //! Every tree joint's rapier coordinate equals the dvrk-kin frame variable (`theta` or `d`, an
@@ -25,19 +25,60 @@ pub enum LoopMode {
     DofCoupling,
 }
 
-/// Build options beyond the scene file.
+/// Where the closing link of each loop (the leaf body whose closure point meets another body)
+/// lives in the rapier world.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ClosingLinks {
+    /// A link of the arm's multibody like every other body; the closure is an impulse joint
+    /// between two links of one multibody, which rapier solves on the relative jacobian
+    /// `J2 - J1` of the shared generalised velocities.
+    InMultibody,
+    /// A free rigid body held by two impulse joints (its pivot and the closure point).
+    FreeBodies,
+}
+
+/// Build options beyond the scene file. Every `Option` overrides the scene's value when set.
 #[derive(Debug, Clone)]
 pub struct SimOptions {
     pub loops: LoopMode,
-    /// Override of the scene's solver iterations.
+    pub closing_links: ClosingLinks,
+    /// Solver substeps per step.
     pub solver_iterations: Option<usize>,
+    /// Projected Gauss-Seidel sweeps per substep.
+    pub pgs_iterations: Option<usize>,
+    /// Unbiased (velocity-only) sweeps per substep.
+    pub stabilization_iterations: Option<usize>,
+    /// Warm-start impulse joints from the previous step's impulses.
+    pub warmstart_joints: Option<bool>,
     /// Turn gravity off.
     pub no_gravity: bool,
 }
 
 impl Default for SimOptions {
     fn default() -> Self {
-        SimOptions { loops: LoopMode::ImpulseJoints, solver_iterations: None, no_gravity: false }
+        SimOptions {
+            loops: LoopMode::ImpulseJoints,
+            closing_links: ClosingLinks::InMultibody,
+            solver_iterations: None,
+            pgs_iterations: None,
+            stabilization_iterations: None,
+            warmstart_joints: None,
+            no_gravity: false,
+        }
+    }
+}
+
+impl SimOptions {
+    /// The solver settings a sim built with these options on `scene` uses.
+    pub fn solver_settings(&self, scene: &Scene) -> crate::scene::SolverSettings {
+        let s = scene.solver;
+        crate::scene::SolverSettings {
+            iterations: self.solver_iterations.unwrap_or(s.iterations),
+            pgs_iterations: self.pgs_iterations.unwrap_or(s.pgs_iterations),
+            stabilization_iterations: self.stabilization_iterations.unwrap_or(s.stabilization_iterations),
+            warmstart_joints: self.warmstart_joints.unwrap_or(s.warmstart_joints),
+        }
     }
 }
 
@@ -183,13 +224,17 @@ impl Sim {
             let mut dofs: Vec<TreeDof> = Vec::new();
             let mut pivots: Vec<ClosurePoints> = Vec::new();
             let mut dof_of_body = vec![usize::MAX; model.bodies.len()];
-            // The closing link of each loop (a leaf body on a closure's `frame` side) is left out
-            // of the multibody: a free body on two impulse joints (its pivot and the closure).
-            // rapier 0.36 mishandles an impulse joint between two links of one multibody: it
-            // resists the links' common motion (the yaw joint moves at 0.5 mrad/s under 27 N·m).
+            // The closing link of each loop (a leaf body on a closure's `frame` side) is a multibody
+            // link by default, and the closure an impulse joint between two links of the multibody
+            // (rapier solves it on the relative jacobian J2 - J1). `ClosingLinks::FreeBodies`
+            // keeps the first design for comparison: a free body on two impulse joints (its pivot
+            // and the closure), whose gap stays at 0.1-0.5 mm (PSM) however many iterations run,
+            // because the light free link is pulled between two stiff, heavy multibodies. The
+            // same-multibody closure needs enough Gauss-Seidel sweeps per substep (scene
+            // `pgs_iterations`): under-converged, it can lock the yaw joint.
             let has_child = |bi: usize| model.frames.iter().any(|f| f.body != bi && f.parent.is_some_and(|p| model.frames[p].body == bi));
             let free_body: Vec<bool> = (0..model.bodies.len())
-                .map(|bi| options.loops == LoopMode::ImpulseJoints && !has_child(bi) && model.closures.iter().any(|c| model.frames[c.frame].body == bi))
+                .map(|bi| options.loops == LoopMode::ImpulseJoints && options.closing_links == ClosingLinks::FreeBodies && !has_child(bi) && model.closures.iter().any(|c| model.frames[c.frame].body == bi))
                 .collect();
             for (bi, b) in model.bodies.iter().enumerate() {
                 let Some(&f) = b.frames.iter().find(|&&f| model.frames[f].parent.is_none_or(|p| model.frames[p].body != bi)) else {
@@ -333,7 +378,11 @@ impl Sim {
             q_offset += model.nq();
         }
         let mut params = IntegrationParameters { dt: scene.dt, ..IntegrationParameters::default() };
-        params.num_solver_iterations = options.solver_iterations.unwrap_or(scene.solver_iterations);
+        let solver = options.solver_settings(scene);
+        params.num_solver_iterations = solver.iterations;
+        params.num_internal_pgs_iterations = solver.pgs_iterations;
+        params.num_internal_stabilization_iterations = solver.stabilization_iterations;
+        params.warmstart_joints = solver.warmstart_joints;
         let g = if options.no_gravity { [0.0; 3] } else { scene.gravity };
         let mut sim = Sim {
             scene_name: scene.name.clone(),

@@ -2,7 +2,7 @@
 
 use dvrk_sim::pivot::pivot_fit;
 use dvrk_sim::run::TrajectoryKind;
-use dvrk_sim::{run, Gains, LoopMode, Mode, RunOptions, Scene, Sim, SimOptions};
+use dvrk_sim::{run, ClosingLinks, Gains, LoopMode, Mode, RunOptions, Scene, Sim, SimOptions};
 use rand::{Rng, SeedableRng};
 
 fn psm() -> Scene {
@@ -102,28 +102,61 @@ fn a_million_random_commands_leave_no_nan() {
     random_commands(1_000_000);
 }
 
-/// Section 4.3 tracking test, 10 s (the 60 s figures come from `dvrk sim --scene psm --json`):
-/// stable, loop closure held without drift, Table 8 tracking errors as measured.
+/// Section 4.3 tracking test, 60 s: stable, loop closure held to the issue's 0.002 mm without
+/// drift, Table 8 tracking errors as measured.
 #[test]
-fn psm_tracking_test_holds_the_loops() {
-    let s = run(&psm(), &RunOptions { duration: 10.0, trajectory: TrajectoryKind::Sine, sim: SimOptions::default() }, |_| {}).unwrap();
+fn psm_tracking_test_holds_the_loops_to_2_um_over_60_s() {
+    let s = run(&psm(), &RunOptions { duration: 60.0, trajectory: TrajectoryKind::Sine, sim: SimOptions::default() }, |_| {}).unwrap();
     assert!(s.finite);
-    // Measured 2026-xx: 4.9e-4 m max (first seconds), 1.4e-4 m over the last second, with 4
-    // solver iterations (16: 3.5e-5 / 8.9e-6). Far from the 2e-6 m goal: see the report.
-    assert!(s.max_closure_error < 6e-4, "{}", s.max_closure_error);
-    assert!(s.final_closure_error <= s.max_closure_error);
+    println!("PSM 60 s: max gap {:.3e} m at {:.3} s, last 10% {:.3e} m, RCM {:.3e} m", s.max_closure_error, s.max_closure_time, s.final_closure_error, s.max_rcm_error);
+    // Measured: 1.2e-8 m max, 1e-11 m over the last 6 s (1 substep x 12 sweeps).
+    assert!(s.max_closure_error < 2e-6, "{}", s.max_closure_error);
+    assert!(s.max_closure_error < 1e-7, "{}", s.max_closure_error);
+    assert!(s.final_closure_error < 1e-9, "drift: {}", s.final_closure_error);
+    // The insertion axis stays on the kinematic RCM (measured 3e-8 m).
+    assert!(s.max_rcm_error < 3e-7, "{}", s.max_rcm_error);
+    // Yaw follows its sine (a locked yaw, the failure of an under-converged closure, gives 0.7 rad).
+    let yaw = &s.joints[0];
+    assert!(yaw.rms_error < 0.02 && yaw.max_error < 0.04, "{yaw:?}");
     let pitch = &s.joints[1];
-    assert!(pitch.rms_error < 0.03 && pitch.max_error < 0.05, "{pitch:?}");
+    assert!(pitch.rms_error < 0.025 && pitch.max_error < 0.05, "{pitch:?}");
     let insertion = &s.joints[2];
     assert!(insertion.rms_error < 1e-3 && insertion.max_error < 2e-3, "{insertion:?}");
     assert!(s.notes.iter().any(|n| n.contains("outer_pitch")), "the pitch amplitude is scaled to its limits: {:?}", s.notes);
 }
 
+/// The ECM's loops over the 60 s tracking test: 0.002 mm at most (the insertion limit impact),
+/// no drift.
 #[test]
-#[ignore = "goal of the issue, not met yet: 60 s closure below 0.002 mm (measured ~0.5 mm at 4 iterations)"]
-fn psm_closure_error_below_2_um_over_60_s() {
-    let s = run(&psm(), &RunOptions { duration: 60.0, trajectory: TrajectoryKind::Sine, sim: SimOptions::default() }, |_| {}).unwrap();
-    assert!(s.max_closure_error < 2e-6, "{}", s.max_closure_error);
+fn ecm_tracking_test_holds_the_loops_over_60_s() {
+    let s = run(&Scene::load("ecm").unwrap(), &RunOptions { duration: 60.0, trajectory: TrajectoryKind::Sine, sim: SimOptions::default() }, |_| {}).unwrap();
+    assert!(s.finite);
+    println!("ECM 60 s: max gap {:.3e} m at {:.3} s, last 10% {:.3e} m, RCM {:.3e} m", s.max_closure_error, s.max_closure_time, s.final_closure_error, s.max_rcm_error);
+    assert!(s.max_closure_error < 3e-6, "{}", s.max_closure_error);
+    assert!(s.final_closure_error < 1e-8, "drift: {}", s.final_closure_error);
+    assert!(s.max_rcm_error < 1e-5, "{}", s.max_rcm_error);
+    assert!(s.joints[0].rms_error < 0.04, "{:?}", s.joints[0]);
+}
+
+/// A constant 1 N·m on the yaw (gravity off, other joints holding): the arm accelerates as the
+/// free-body design (the reference with no same-multibody constraint) says, to 1%. This is the
+/// check against the yaw lock of an under-converged closure (4 substeps x 1 sweep: stops dead at
+/// 0.066 s).
+#[test]
+fn yaw_accelerates_freely_under_a_constant_torque() {
+    let yaw_rate = |closing_links: ClosingLinks| {
+        let mut sim = Sim::new(&psm(), &SimOptions { closing_links, no_gravity: true, ..Default::default() }).unwrap();
+        sim.set_mode(0, Mode::Effort).unwrap();
+        sim.set_effort(0, 1.0).unwrap();
+        for _ in 0..400 {
+            sim.step();
+        }
+        sim.qd()[0]
+    };
+    let (mb, free) = (yaw_rate(ClosingLinks::InMultibody), yaw_rate(ClosingLinks::FreeBodies));
+    // Measured: 2.231 rad/s (about 0.18 kg m^2 about the yaw axis).
+    assert!((mb - free).abs() < 0.01 * free, "multibody {mb} vs free bodies {free} rad/s");
+    assert!((mb - 2.231).abs() < 0.02, "{mb}");
 }
 
 /// Paper section 4.2 in simulation: sweep q1, q2 under PID, pivot-fit the pose of link 8
@@ -131,7 +164,7 @@ fn psm_closure_error_below_2_um_over_60_s() {
 #[test]
 fn rcm_from_a_pivot_fit_of_link_8() {
     let scene = psm();
-    let mut sim = Sim::new(&scene, &SimOptions { solver_iterations: Some(16), ..Default::default() }).unwrap();
+    let mut sim = Sim::new(&scene, &SimOptions::default()).unwrap();
     let model = sim.arms[0].model.clone();
     let body8 = model.frames[model.frame_id(&dvrk_kin::FrameRef::Index(8)).unwrap()].body;
     let mut poses = Vec::new();
@@ -148,11 +181,10 @@ fn rcm_from_a_pivot_fit_of_link_8() {
     let fit = pivot_fit(&poses).unwrap();
     let rcm = model.base * nalgebra::Point3::from(model.rcm.as_ref().unwrap().point);
     let offset = (fit.post - rcm.coords).norm();
-    // Measured (16 iterations): 0.132 mm from the kinematic RCM, 0.042 mm RMS spread. The
-    // issue's goal is 0.05 mm / 0.02 mm: not met yet (the loops' impulse joints are soft).
     println!("RCM pivot fit: {offset:.3e} m from the kinematic RCM, RMS {:.3e} m, max {:.3e} m", fit.rms, fit.max);
-    assert!(offset < 2e-4, "{offset}");
-    assert!(fit.rms < 6e-5, "{}", fit.rms);
+    // The issue's goal: within 0.05 mm, RMS spread below 0.02 mm.
+    assert!(offset < 5e-5, "{offset}");
+    assert!(fit.rms < 2e-5, "{}", fit.rms);
 }
 
 /// With the actuators holding home, the steady PID efforts equal the gravity torques computed
@@ -160,7 +192,7 @@ fn rcm_from_a_pivot_fit_of_link_8() {
 #[test]
 fn steady_pid_efforts_equal_gravity_torques() {
     let scene = psm();
-    let mut sim = Sim::new(&scene, &SimOptions { solver_iterations: Some(16), ..Default::default() }).unwrap();
+    let mut sim = Sim::new(&scene, &SimOptions::default()).unwrap();
     for k in 0..7 {
         // Stiffer integral so the hold settles within the test.
         let g = sim.actuator(k).unwrap().gains;
