@@ -90,6 +90,10 @@ pub fn exceptions(py: Python<'_>) -> PyResult<&Exceptions> {
 /// or a Python error passed through.
 pub enum Error {
     Kin(KinError),
+    /// A simulation error (bad scene file, bad command): raised by its kind.
+    Sim(dvrk_sim::SimError),
+    /// A calibration error (bad recording, too little motion).
+    Calib(dvrk_calib::CalibError),
     /// An argument error found in the binding (raised as `InputError`).
     Input(String),
     Py(PyErr),
@@ -98,6 +102,24 @@ pub enum Error {
 impl From<KinError> for Error {
     fn from(e: KinError) -> Self {
         Error::Kin(e)
+    }
+}
+
+impl From<dvrk_sim::SimError> for Error {
+    fn from(e: dvrk_sim::SimError) -> Self {
+        match e {
+            dvrk_sim::SimError::Kin(k) => Error::Kin(k),
+            e => Error::Sim(e),
+        }
+    }
+}
+
+impl From<dvrk_calib::CalibError> for Error {
+    fn from(e: dvrk_calib::CalibError) -> Self {
+        match e {
+            dvrk_calib::CalibError::Kin(k) => Error::Kin(k),
+            e => Error::Calib(e),
+        }
     }
 }
 
@@ -140,6 +162,22 @@ impl From<Error> for PyErr {
                 Error::Py(err) => err,
                 Error::Input(msg) => PyErr::from_type(ex.input.bind(py).clone(), msg),
                 Error::Kin(k) => PyErr::from_type(class_of(ex, &k).bind(py).clone(), k.to_string()),
+                Error::Sim(e) => {
+                    let class = match &e {
+                        dvrk_sim::SimError::Value { .. } => &ex.input,
+                        dvrk_sim::SimError::Field { .. } => &ex.model,
+                        _ => &ex.base,
+                    };
+                    PyErr::from_type(class.bind(py).clone(), e.to_string())
+                }
+                Error::Calib(e) => {
+                    let class = match &e {
+                        dvrk_calib::CalibError::File { path, .. } if !path.exists() => &ex.not_found,
+                        dvrk_calib::CalibError::Field { .. } | dvrk_calib::CalibError::File { .. } => &ex.model,
+                        _ => &ex.input,
+                    };
+                    PyErr::from_type(class.bind(py).clone(), e.to_string())
+                }
             }
         })
     }

@@ -8,7 +8,9 @@
 //!
 //! Units: m, rad everywhere; poses are 4x4 homogeneous matrices (rotation, translation in m).
 
+mod calib;
 mod errors;
+mod sim;
 
 use dvrk_kin::check::check_model;
 use dvrk_kin::rcm::pivot_residual;
@@ -567,6 +569,12 @@ fn _dvrk_twin(m: &Bound<'_, PyModule>) -> PyResult<()> {
     let py = m.py();
     m.add_class::<PyModel>()?;
     m.add_function(wrap_pyfunction!(builtin_models, m)?)?;
+    m.add_class::<sim::PySim>()?;
+    m.add_function(wrap_pyfunction!(sim::run_scene, m)?)?;
+    m.add_function(wrap_pyfunction!(sim::builtin_scenes, m)?)?;
+    m.add_function(wrap_pyfunction!(calib::pivot, m)?)?;
+    m.add_function(wrap_pyfunction!(calib::axis, m)?)?;
+    m.add_function(wrap_pyfunction!(calib::read_recording, m)?)?;
     let ex = exceptions(py)?;
     m.add("DvrkError", ex.base.bind(py))?;
     m.add("ModelError", ex.model.bind(py))?;

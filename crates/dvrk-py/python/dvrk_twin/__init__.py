@@ -1,7 +1,9 @@
-"""dvrk_twin: kinematics of the da Vinci Research Kit (dVRK) manipulators.
+"""dvrk_twin: the da Vinci Research Kit (dVRK) manipulators as closed-loop mechanisms.
 
-Closed-loop kinematic trees of the PSM, ECM, setup joints, the patient-side cart and the MTMs,
-computed by a Rust core (crate ``dvrk-kin``).
+Closed-loop kinematic trees of the PSM, ECM, setup joints, the patient-side cart and the MTMs
+(:class:`Model`, crate ``dvrk-kin``), headless dynamic simulation of the paper's scenes
+(:class:`Sim`, :func:`run_scene`, crate ``dvrk-sim``) and motion-capture calibration
+(:func:`pivot`, :func:`axis`, :func:`read_recording`, crate ``dvrk-calib``), computed by a Rust core.
 
 Units: lengths in m, angles in rad. Poses are 4x4 homogeneous matrices (rotation, translation
 in m) in the model's world frame. ``q`` holds one value per actuated joint (rad for revolute, m
@@ -21,10 +23,16 @@ from ._dvrk_twin import (
     IkError as IkError,
     InputError as InputError,
     Model as Model,
+    Sim as Sim,
     ModelError as ModelError,
     ModelNotFoundError as ModelNotFoundError,
     __version__ as __version__,
+    axis as axis,
     builtin_models as builtin_models,
+    builtin_scenes as builtin_scenes,
+    pivot as pivot,
+    read_recording as read_recording,
+    run_scene as run_scene,
 )
 
 __all__ = [
@@ -32,8 +40,14 @@ __all__ = [
     "IkError",
     "InputError",
     "Model",
+    "Sim",
     "ModelError",
     "ModelNotFoundError",
     "__version__",
+    "axis",
     "builtin_models",
+    "builtin_scenes",
+    "pivot",
+    "read_recording",
+    "run_scene",
 ]

@@ -141,3 +141,70 @@ class Model:
     def check(self, samples: int = 2000) -> Dict[str, Any]:
         """Figures of ``dvrk model check`` over ``samples`` configurations (m, rad), with
         ``ok`` (bool) and ``problems`` (list[str])."""
+
+_JointArg = Union[int, str]
+
+class Sim:
+    """A running dynamic simulation of a scene (rapier, f64). Units: m, rad, s, N, N·m."""
+
+    @staticmethod
+    def from_scene(scene: str, loops: str = "impulse", solver_iterations: Optional[int] = None) -> "Sim":
+        """Build a built-in scene ("psm", "ecm", ...) or a scene file. ``loops``: "impulse"
+        (loop-closing impulse joints) or "coupling" (loop-free)."""
+    @property
+    def joint_names(self) -> List[str]:
+        """Joint names ``ARM/joint`` in the order of ``q``."""
+    @property
+    def nq(self) -> int: ...
+    @property
+    def time(self) -> float:
+        """Simulated time (s)."""
+    @property
+    def dt(self) -> float:
+        """Time step (s)."""
+    @property
+    def q(self) -> NDArray[np.float64]:
+        """Measured joint positions (nq,) (rad, m)."""
+    @property
+    def qd(self) -> NDArray[np.float64]:
+        """Measured joint velocities (nq,) (rad/s, m/s)."""
+    @property
+    def closure_error(self) -> float:
+        """Largest loop-closure gap now (m)."""
+    def step(self, n: int = 1) -> None:
+        """Advance ``n`` steps of ``dt``."""
+    def set_mode(self, joint: _JointArg, mode: str) -> None:
+        """"pid", "position" or "effort"."""
+    def set_target(self, joint: _JointArg, position: float, velocity: float = 0.0) -> None:
+        """Position target (rad, m) and velocity feed-forward (rad/s, m/s)."""
+    def set_effort(self, joint: _JointArg, effort: float) -> None:
+        """Open-loop effort (N·m, N), clamped at the joint's effort limit."""
+    def set_gains(self, joint: _JointArg, kp: float, ki: float, kd: float) -> None:
+        """PID gains (N·m/rad or N/m, per s, times s)."""
+    def effort(self, joint: _JointArg) -> float:
+        """Effort applied at the last step (N·m, N)."""
+
+def run_scene(
+    scene: str,
+    duration: float,
+    trajectory: str = "sine",
+    loops: str = "impulse",
+    solver_iterations: Optional[int] = None,
+) -> Dict[str, Any]:
+    """Run a scene for ``duration`` s ("sine": the paper's tracking test, or "hold") without the
+    GIL; the summary of ``dvrk sim --json`` as a dict (real_time_factor, joints, max_closure_error
+    (m), max_rcm_error (m), ...)."""
+
+def builtin_scenes() -> List[str]: ...
+
+def pivot(poses: ArrayLike, method: str = "one-step") -> Dict[str, Any]:
+    """Pivot calibration (paper eq. 3-5) of marker poses (N, 4, 4) in the tracker frame (m):
+    tip, pivot, rms_per_axis, rms, tip_std, pivot_std (m), samples, method, warnings."""
+
+def axis(reference: ArrayLike, moving: ArrayLike, method: str = "sara") -> Dict[str, Any]:
+    """Axis of rotation of ``moving`` about ``reference`` (poses (N, 4, 4), m): point (m, in the
+    reference cluster's frame), direction, point_std (m), direction_std (rad), rms, samples."""
+
+def read_recording(path: Union[str, "os.PathLike[str]"], topics: Optional[List[str]] = None) -> Dict[str, Any]:
+    """Read an MCAP / Motive CSV / plain CSV recording: {"bodies": {name: {"t", "poses",
+    "frame_id"}}, "joints": None or {"names", "t", "q"}, "warnings"} (s, m, rad)."""

@@ -1,0 +1,136 @@
+//! Python bindings of `dvrk-calib`: pivot and axis fits on numpy arrays of poses, recordings
+//! read into numpy arrays. Conversions only.
+
+use crate::errors::{Error, Result};
+use dvrk_calib::{fit_axis, pivot_calibration, AxisMethod, AxisOptions, McapOptions, PivotMethod, PivotOptions};
+use dvrk_kin::Pose;
+use nalgebra::{Matrix3, Rotation3, Translation3};
+use numpy::ndarray::Array3;
+use numpy::{AllowTypeChange, IntoPyArray, PyArrayLikeDyn};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use std::path::PathBuf;
+
+/// Poses from an (N, 4, 4) array; rotations must be orthonormal to 1e-6.
+fn poses_from_array(a: &PyArrayLikeDyn<'_, f64, AllowTypeChange>, what: &str) -> Result<Vec<Pose>> {
+    let v = a.as_array();
+    let s = v.shape();
+    if s.len() != 3 || s[1] != 4 || s[2] != 4 {
+        return Err(Error::Input(format!("{what}: expected shape (N, 4, 4), got {s:?}")));
+    }
+    (0..s[0])
+        .map(|i| {
+            let m = |r: usize, c: usize| v[[i, r, c]];
+            if (0..4).any(|r| (0..4).any(|c| !m(r, c).is_finite())) {
+                return Err(Error::Input(format!("{what}[{i}]: not finite")));
+            }
+            let r = Matrix3::from_fn(|r, c| m(r, c));
+            let err = (r.transpose() * r - Matrix3::identity()).abs().max();
+            if err > 1e-6 || r.determinant() < 0.0 {
+                return Err(Error::Input(format!("{what}[{i}]: rotation part is not a rotation (|R^T R - I| = {err:.1e})")));
+            }
+            Ok(Pose::from_parts(Translation3::new(m(0, 3), m(1, 3), m(2, 3)), Rotation3::from_matrix_unchecked(r)))
+        })
+        .collect()
+}
+
+fn to_py_json<'py>(py: Python<'py>, v: &serde_json::Value) -> Result<Bound<'py, PyAny>> {
+    Ok(py.import("json")?.call_method1("loads", (v.to_string(),))?)
+}
+
+/// Pivot calibration (paper eq. 3-5) of marker-frame poses (N, 4, 4) in the tracker frame (m).
+/// `method`: "one-step" (the paper's stacked system), "two-step" or "sphere". Returns the same
+/// dict as `dvrk calib pivot --json`: tip, pivot, rms_per_axis, rms, tip_std, pivot_std,
+/// samples, method (m), plus warnings.
+#[pyfunction]
+#[pyo3(signature = (poses, method="one-step"))]
+pub fn pivot<'py>(py: Python<'py>, poses: PyArrayLikeDyn<'py, f64, AllowTypeChange>, method: &str) -> Result<Bound<'py, PyAny>> {
+    let method = match method {
+        "one-step" => PivotMethod::OneStep,
+        "two-step" => PivotMethod::TwoStep,
+        "sphere" => PivotMethod::Sphere,
+        other => return Err(Error::Input(format!("method = `{other}`: expected one-step, two-step or sphere"))),
+    };
+    let p = poses_from_array(&poses, "poses")?;
+    let fit = py.detach(|| pivot_calibration(&p, &PivotOptions { method, ..Default::default() }))?;
+    to_py_json(py, &dvrk_calib::report_json::pivot_json(&fit))
+}
+
+/// Axis of rotation of a `moving` marker cluster about a `reference` cluster, from their poses
+/// (N, 4, 4 each, same samples) in the tracker frame (m). `method`: "sara" or "gamage-lasenby".
+/// Returns a dict: point (m, in the reference cluster's frame), direction (unit), point_std (m),
+/// direction_std (rad), rms (m), samples, warnings.
+#[pyfunction]
+#[pyo3(signature = (reference, moving, method="sara"))]
+pub fn axis<'py>(
+    py: Python<'py>,
+    reference: PyArrayLikeDyn<'py, f64, AllowTypeChange>,
+    moving: PyArrayLikeDyn<'py, f64, AllowTypeChange>,
+    method: &str,
+) -> Result<Bound<'py, PyAny>> {
+    let method = match method {
+        "sara" => AxisMethod::Sara,
+        "gamage-lasenby" => AxisMethod::GamageLasenby,
+        other => return Err(Error::Input(format!("method = `{other}`: expected sara or gamage-lasenby"))),
+    };
+    let (a, b) = (poses_from_array(&reference, "reference")?, poses_from_array(&moving, "moving")?);
+    if a.len() != b.len() {
+        return Err(Error::Input(format!("reference has {} poses, moving {}: expected the same samples", a.len(), b.len())));
+    }
+    let fit = py.detach(|| fit_axis(&a, &b, &AxisOptions { method, ..Default::default() }, "axis"))?;
+    let v = serde_json::json!({
+        "point": [fit.point.x, fit.point.y, fit.point.z],
+        "direction": [fit.direction.x, fit.direction.y, fit.direction.z],
+        "point_std": fit.point_std(),
+        "direction_std": fit.direction_std(),
+        "rms": fit.rms,
+        "samples": fit.samples,
+        "method": fit.method.name(),
+        "warnings": fit.warnings,
+    });
+    to_py_json(py, &v)
+}
+
+/// Read a recording (MCAP, Motive CSV, plain CSV) into numpy arrays: a dict with `bodies`
+/// (name -> {"t": (N,) s, "poses": (N, 4, 4) m, "frame_id"}), `joints` (None or {"names",
+/// "t": (M,), "q": (M, n) rad/m}) and `warnings`.
+#[pyfunction]
+#[pyo3(signature = (path, topics=None))]
+pub fn read_recording<'py>(py: Python<'py>, path: PathBuf, topics: Option<Vec<String>>) -> Result<Bound<'py, PyDict>> {
+    let options = McapOptions { topics: topics.unwrap_or_default(), joint_topic: None };
+    let rec = py.detach(|| dvrk_calib::read_recording(&path, &options))?;
+    let bodies = PyDict::new(py);
+    for b in &rec.bodies {
+        let mut arr = Array3::<f64>::zeros((b.poses.len(), 4, 4));
+        for (i, p) in b.poses.iter().enumerate() {
+            let h = p.to_homogeneous();
+            for r in 0..4 {
+                for c in 0..4 {
+                    arr[[i, r, c]] = h[(r, c)];
+                }
+            }
+        }
+        let d = PyDict::new(py);
+        d.set_item("t", b.t.clone().into_pyarray(py))?;
+        d.set_item("poses", arr.into_pyarray(py))?;
+        d.set_item("frame_id", &b.frame_id)?;
+        bodies.set_item(&b.name, d)?;
+    }
+    let out = PyDict::new(py);
+    out.set_item("bodies", bodies)?;
+    match &rec.joints {
+        Some(j) => {
+            let n = j.names.len();
+            let flat: Vec<f64> = j.q.iter().flat_map(|row| row.iter().copied()).collect();
+            let q = numpy::ndarray::Array2::from_shape_vec((j.q.len(), n), flat).map_err(|e| Error::Input(e.to_string()))?;
+            let d = PyDict::new(py);
+            d.set_item("names", j.names.clone())?;
+            d.set_item("t", j.t.clone().into_pyarray(py))?;
+            d.set_item("q", q.into_pyarray(py))?;
+            out.set_item("joints", d)?;
+        }
+        None => out.set_item("joints", py.None())?,
+    }
+    out.set_item("warnings", rec.warnings.clone())?;
+    Ok(out)
+}

@@ -1,0 +1,193 @@
+//! Python bindings of `dvrk-sim`: `dvrk_twin.Sim` (a running scene) and `dvrk_twin.run_scene`.
+//! Conversions only; the simulator knows nothing of Python.
+
+use crate::errors::{Error, Result};
+use dvrk_sim::run::TrajectoryKind;
+use dvrk_sim::{Gains, LoopMode, Mode, RunOptions, Scene, SimOptions};
+use numpy::{IntoPyArray, PyArray1};
+use pyo3::prelude::*;
+
+/// A joint of a scene: its index in the scene's joint vector, or its name `ARM/joint`.
+#[derive(FromPyObject)]
+pub enum JointArg {
+    Index(usize),
+    Name(String),
+}
+
+fn options(loops: &str, solver_iterations: Option<usize>) -> Result<SimOptions> {
+    let mut o = SimOptions::default();
+    o.loops = match loops {
+        "impulse" => LoopMode::ImpulseJoints,
+        "coupling" => LoopMode::DofCoupling,
+        other => return Err(Error::Input(format!("loops = `{other}`: expected `impulse` or `coupling`"))),
+    };
+    if let Some(n) = solver_iterations {
+        if n == 0 {
+            return Err(Error::Input("solver_iterations = 0: must be at least 1".into()));
+        }
+        o.solver_iterations = Some(n);
+    }
+    Ok(o)
+}
+
+/// A running dynamic simulation of a scene (rapier, f64). Units: m, rad, s, N, N·m.
+#[pyclass(module = "dvrk_twin", name = "Sim", unsendable)]
+pub struct PySim {
+    sim: dvrk_sim::Sim,
+    names: Vec<String>,
+}
+
+impl PySim {
+    fn joint(&self, j: JointArg) -> Result<usize> {
+        match j {
+            JointArg::Index(i) if i < self.names.len() => Ok(i),
+            JointArg::Index(i) => Err(Error::Input(format!("joint index {i}: the scene has {} joints", self.names.len()))),
+            JointArg::Name(n) => self
+                .names
+                .iter()
+                .position(|x| *x == n)
+                .ok_or_else(|| Error::Input(format!("unknown joint `{n}`; valid: {}", self.names.join(", ")))),
+        }
+    }
+}
+
+#[pymethods]
+impl PySim {
+    /// Build a scene (built-in name such as "psm", "ecm", or a scene file) ready to step.
+    /// `loops`: "impulse" (loop-closing impulse joints) or "coupling" (loop-free, URDF-mimic way).
+    #[staticmethod]
+    #[pyo3(signature = (scene, loops="impulse", solver_iterations=None))]
+    fn from_scene(scene: &str, loops: &str, solver_iterations: Option<usize>) -> Result<Self> {
+        let s = Scene::load(scene)?;
+        let sim = dvrk_sim::Sim::new(&s, &options(loops, solver_iterations)?)?;
+        let names = sim
+            .arms
+            .iter()
+            .flat_map(|a| a.model.joints.iter().map(move |j| format!("{}/{}", a.name, j.name)))
+            .collect();
+        Ok(PySim { sim, names })
+    }
+
+    /// Joint names `ARM/joint`, in the order of `q`.
+    #[getter]
+    fn joint_names(&self) -> Vec<String> {
+        self.names.clone()
+    }
+
+    /// Number of joints of the scene.
+    #[getter]
+    fn nq(&self) -> usize {
+        self.sim.nq()
+    }
+
+    /// Simulated time (s).
+    #[getter]
+    fn time(&self) -> f64 {
+        self.sim.time
+    }
+
+    /// Time step (s).
+    #[getter]
+    fn dt(&self) -> f64 {
+        self.sim.dt
+    }
+
+    /// Measured joint positions (rad, m), shape (nq,).
+    #[getter]
+    fn q<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        self.sim.q().to_vec().into_pyarray(py)
+    }
+
+    /// Measured joint velocities (rad/s, m/s), shape (nq,).
+    #[getter]
+    fn qd<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        self.sim.qd().to_vec().into_pyarray(py)
+    }
+
+    /// Largest loop-closure gap now (m).
+    #[getter]
+    fn closure_error(&self) -> f64 {
+        self.sim.closure_error()
+    }
+
+    /// Advance `n` steps of `dt`.
+    #[pyo3(signature = (n=1))]
+    fn step(&mut self, n: usize) {
+        for _ in 0..n {
+            self.sim.step();
+        }
+    }
+
+    /// Control mode of a joint: "pid", "position" or "effort".
+    fn set_mode(&mut self, joint: JointArg, mode: &str) -> Result<()> {
+        let mode = match mode {
+            "pid" => Mode::Pid,
+            "position" => Mode::Position,
+            "effort" => Mode::Effort,
+            other => return Err(Error::Input(format!("mode = `{other}`: expected pid, position or effort"))),
+        };
+        let i = self.joint(joint)?;
+        Ok(self.sim.set_mode(i, mode)?)
+    }
+
+    /// Position target (rad, m) and velocity feed-forward (rad/s, m/s) of a joint.
+    #[pyo3(signature = (joint, position, velocity=0.0))]
+    fn set_target(&mut self, joint: JointArg, position: f64, velocity: f64) -> Result<()> {
+        let i = self.joint(joint)?;
+        Ok(self.sim.set_target(i, position, velocity)?)
+    }
+
+    /// Open-loop effort (N·m, N) of a joint in effort mode (clamped at its effort limit).
+    fn set_effort(&mut self, joint: JointArg, effort: f64) -> Result<()> {
+        let i = self.joint(joint)?;
+        Ok(self.sim.set_effort(i, effort)?)
+    }
+
+    /// PID gains of a joint: kp (N·m/rad, N/m), ki, kd.
+    fn set_gains(&mut self, joint: JointArg, kp: f64, ki: f64, kd: f64) -> Result<()> {
+        let i = self.joint(joint)?;
+        Ok(self.sim.set_gains(i, Gains { kp, ki, kd })?)
+    }
+
+    /// Effort applied at the last step (N·m, N).
+    fn effort(&self, joint: JointArg) -> Result<f64> {
+        let i = self.joint(joint)?;
+        Ok(self.sim.effort(i)?)
+    }
+
+    fn __repr__(&self) -> String {
+        format!("Sim(scene={:?}, nq={}, time={:.3} s)", self.sim.scene_name, self.sim.nq(), self.sim.time)
+    }
+}
+
+/// Run a scene for `duration` s under a trajectory ("sine": the paper's tracking test, or
+/// "hold") without the GIL, and return the summary as a dict (real-time factor, per-joint
+/// tracking RMS/max, loop-closure and RCM errors, in SI units) — the same figures as
+/// `dvrk sim --json`.
+#[pyfunction]
+#[pyo3(signature = (scene, duration, trajectory="sine", loops="impulse", solver_iterations=None))]
+pub fn run_scene<'py>(
+    py: Python<'py>,
+    scene: &str,
+    duration: f64,
+    trajectory: &str,
+    loops: &str,
+    solver_iterations: Option<usize>,
+) -> Result<Bound<'py, PyAny>> {
+    let trajectory = match trajectory {
+        "sine" => TrajectoryKind::Sine,
+        "hold" => TrajectoryKind::Hold,
+        other => return Err(Error::Input(format!("trajectory = `{other}`: expected sine or hold"))),
+    };
+    let s = Scene::load(scene)?;
+    let opts = RunOptions { duration, trajectory, sim: options(loops, solver_iterations)? };
+    let summary = py.detach(|| dvrk_sim::run(&s, &opts, |_| {}))?;
+    let text = serde_json::to_string(&summary).map_err(|e| Error::Input(e.to_string()))?;
+    Ok(py.import("json")?.call_method1("loads", (text,))?)
+}
+
+/// Names of the built-in scenes.
+#[pyfunction]
+pub fn builtin_scenes() -> Vec<&'static str> {
+    dvrk_sim::scene::builtin_scenes()
+}
