@@ -93,3 +93,47 @@ fn model_list_and_show_print_the_tables() {
     let line = show.lines().find(|l| l.trim_start().starts_with("11 ")).unwrap();
     assert!(line.contains("mu*q3") && line.contains("-0.1"), "{line}");
 }
+
+#[test]
+fn sim_json_summary_of_the_psm_scene() {
+    let v: Value = serde_json::from_str(&dvrk_ok(&["sim", "--scene", "psm", "--duration", "1", "--json"])).unwrap();
+    assert_eq!(v["scene"], "psm");
+    assert_eq!(v["joints"].as_array().unwrap().len(), 7);
+    assert!(v["real_time_factor"].as_f64().unwrap() > 1.0);
+    // Loops closed to well under a micrometre, the insertion axis on the kinematic RCM.
+    assert!(v["max_closure_error"].as_f64().unwrap() < 1e-6, "{}", v["max_closure_error"]);
+    assert!(v["max_rcm_error"].as_f64().unwrap() < 1e-6, "{}", v["max_rcm_error"]);
+    let yaw = &v["joints"][0];
+    assert_eq!(yaw["joint"], "outer_yaw");
+    assert!(yaw["rms_error"].as_f64().unwrap() < 0.05);
+}
+
+#[test]
+fn synthetic_tracker_to_calibrated_model() {
+    let dir = tempdir();
+    let d = |f: &str| dir.path().join(f).to_str().unwrap().to_string();
+    // Pivot (RCM) from markers on link 8 while q1 and q2 sweep, noise-free.
+    dvrk_ok(&["synth", "mocap", "--model", "psm", "--motion", "q1q2-sweep", "--noise-mm", "0", "--rate", "120", "-o", &d("piv.mcap")]);
+    let p: Value = serde_json::from_str(&dvrk_ok(&["calib", "pivot", "--recording", &d("piv.mcap"), "--topic", "end", "--json"])).unwrap();
+    for key in ["tip", "pivot", "rms_per_axis", "rms", "tip_std", "pivot_std", "samples", "method"] {
+        assert!(p.get(key).is_some(), "pivot JSON has {key}");
+    }
+    assert_eq!(p["method"], "one-step");
+    assert!(p["rms"].as_f64().unwrap() < 1e-9, "{}", p["rms"]);
+    // Axes -> distance table -> an updated model that is still sound.
+    dvrk_ok(&["synth", "mocap", "--model", "psm", "--motion", "q2-sweep", "--noise-mm", "0", "-o", &d("axes.mcap"), "--config-out", &d("markers.toml")]);
+    let axes = dvrk_ok(&["calib", "axes", "--recording", &d("axes.mcap"), "--config", &d("markers.toml"), "--json"]);
+    std::fs::write(d("axes.json"), &axes).unwrap();
+    dvrk_ok(&["calib", "apply", "--axes", &d("axes.json"), "--model", "psm", "-o", &d("my-psm.toml")]);
+    let check: Value = serde_json::from_str(&dvrk_ok(&["model", "check", &d("my-psm.toml"), "--json", "--samples", "200"])).unwrap();
+    assert_eq!(check["ok"], true, "{check}");
+    // Noise-free: the calibrated model's RCM is the shipped one's.
+    assert!((check["rcm"][1].as_f64().unwrap() + 0.4864).abs() < 1e-6, "{}", check["rcm"]);
+}
+
+#[test]
+fn sim_and_calib_reject_bad_flags() {
+    crate::util::dvrk_err(&["sim", "--scene", "psm", "--duration", "nan"]);
+    crate::util::dvrk_err(&["sim", "--scene", "no-such-scene", "--duration", "1"]);
+    crate::util::dvrk_err(&["calib", "pivot", "--recording", "/nonexistent.mcap"]);
+}
