@@ -3,7 +3,8 @@
 //! Closed-loop kinematic trees of the da Vinci Research Kit manipulators in modified (or
 //! standard) DH: frames with several successors, passive frames driven by affine maps of the
 //! actuated joints, loop-closure points, the remote centre of motion, serial dVRK equivalents,
-//! Jacobians, inverse kinematics, and URDF/SDF interchange. No physics.
+//! Jacobians, inverse kinematics, rigid-body inverse dynamics (RNEA, CRBA, the regressor) of the
+//! closed-loop trees, and URDF/SDF interchange. No physics-engine dependency.
 //!
 //! The design follows Pinocchio: an immutable [`Model`] (flat arrays, parents before children)
 //! and a reusable [`Data`] workspace; algorithms are free functions that fill `Data`.
@@ -25,6 +26,7 @@ pub mod check;
 pub mod closure;
 pub mod compose;
 pub mod dvrk_json;
+pub mod dynamics;
 mod error;
 pub mod expr;
 mod fk;
@@ -38,6 +40,7 @@ pub mod so3;
 pub mod spec;
 pub mod urdf;
 
+pub use dynamics::{gravity_torque, inverse_dynamics, mass_matrix, regressor, BodyInertia, DynamicsData, DynamicsModel};
 pub use closure::{closure_conditioning, closure_gap, closure_jacobian, max_closure_residual};
 pub use error::{KinError, Result};
 pub use fk::{compute_frame_placements, forward_kinematics, Data};

@@ -1,0 +1,58 @@
+//! Joint-space mass matrix by the composite-rigid-body algorithm on the frame tree.
+
+use super::rigid::RigidInertia;
+use super::rnea::body_world_inertia;
+use super::setup::{check_common, placements_and_axes, DynamicsData, DynamicsModel};
+use crate::error::{KinError, Result};
+use crate::model::Model;
+use nalgebra::DMatrix;
+
+/// The joint-space mass matrix `M(q)` (nq x nq; kg m^2, kg m, kg by joint types), by the
+/// composite-rigid-body algorithm (one backward pass, not nq inverse-dynamics calls): in frame
+/// variables `M_phi[i][j] = s_i . (I^c_i s_j)` for `j` an ancestor of `i`, then
+/// `M = C^T M_phi C`. `out` must be nq x nq; it is overwritten. Allocates nothing.
+pub fn mass_matrix(model: &Model, dm: &DynamicsModel, data: &mut DynamicsData, q: &[f64], out: &mut DMatrix<f64>) -> Result<()> {
+    check_common(model, dm, data, q)?;
+    let n = model.nq();
+    if out.nrows() != n || out.ncols() != n {
+        return Err(KinError::Size { what: "mass matrix rows and columns (nq)".into(), expected: n, got: if out.nrows() != n { out.nrows() } else { out.ncols() } });
+    }
+    placements_and_axes(model, dm, data, q);
+    for i in 0..model.frames.len() {
+        data.composite[i] = match dm.carries[i] {
+            Some(b) => body_world_inertia(dm, b, data, i),
+            None => RigidInertia::zero(),
+        };
+    }
+    for (i, f) in model.frames.iter().enumerate().rev() {
+        if let Some(p) = f.parent {
+            let ci = data.composite[i];
+            data.composite[p].add(&ci);
+        }
+    }
+    out.fill(0.0);
+    for i in 0..model.frames.len() {
+        if dm.terms[i].is_empty() {
+            continue;
+        }
+        // Force needed to accelerate the subtree of i at a unit rate of phi_i.
+        let force = data.composite[i].apply(&data.axis[i]);
+        let mut cur = Some(i);
+        while let Some(j) = cur {
+            cur = model.frames[j].parent;
+            if dm.terms[j].is_empty() {
+                continue;
+            }
+            let mij = data.axis[j].dot(&force);
+            for &(k, ck) in &dm.terms[i] {
+                for &(l, cl) in &dm.terms[j] {
+                    out[(k, l)] += ck * cl * mij;
+                    if j != i {
+                        out[(l, k)] += ck * cl * mij;
+                    }
+                }
+            }
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,106 @@
+//! Recursive Newton-Euler inverse dynamics on the frame tree, mapped to the actuated joints.
+
+use super::rigid::RigidInertia;
+use super::setup::{check_common, check_gravity, check_vector, frame_rate, placements_and_axes, DynamicsData, DynamicsModel};
+use super::spatial::Spatial;
+use crate::error::Result;
+use crate::model::Model;
+use crate::KinError;
+use nalgebra::Vector3;
+
+/// Joint efforts `tau = M(q) q'' + c(q, q') + g(q)` (N·m revolute, N prismatic, one per actuated
+/// joint) that produce accelerations `qdd` at positions `q` (rad, m) and velocities `qd`
+/// (rad/s, m/s) under `gravity` (world axes, m/s^2, e.g. `[0, 0, -9.81]`). No friction, damping
+/// or drive inertia. Written into `tau` (length nq); allocates nothing.
+#[allow(clippy::too_many_arguments)]
+pub fn inverse_dynamics(
+    model: &Model,
+    dm: &DynamicsModel,
+    data: &mut DynamicsData,
+    q: &[f64],
+    qd: &[f64],
+    qdd: &[f64],
+    gravity: &Vector3<f64>,
+    tau: &mut [f64],
+) -> Result<()> {
+    check_common(model, dm, data, q)?;
+    check_vector(qd, model.nq(), "qd")?;
+    check_vector(qdd, model.nq(), "qdd")?;
+    check_gravity(gravity)?;
+    check_out(tau, model.nq())?;
+    placements_and_axes(model, dm, data, q);
+    rnea(model, dm, data, Some(qd), Some(qdd), gravity, tau);
+    Ok(())
+}
+
+/// Gravity torques `g(q)`: the efforts that hold the arm still at `q` (N·m, N), i.e. the
+/// gradient of the potential energy. Written into `tau` (length nq); allocates nothing.
+pub fn gravity_torque(model: &Model, dm: &DynamicsModel, data: &mut DynamicsData, q: &[f64], gravity: &Vector3<f64>, tau: &mut [f64]) -> Result<()> {
+    check_common(model, dm, data, q)?;
+    check_gravity(gravity)?;
+    check_out(tau, model.nq())?;
+    placements_and_axes(model, dm, data, q);
+    rnea(model, dm, data, None, None, gravity, tau);
+    Ok(())
+}
+
+pub(crate) fn check_out(tau: &[f64], nq: usize) -> Result<()> {
+    if tau.len() != nq {
+        return Err(KinError::Size { what: "output tau (nq)".into(), expected: nq, got: tau.len() });
+    }
+    Ok(())
+}
+
+/// The two passes, after [`placements_and_axes`]. `None` rates are zero. Gravity enters as an
+/// upward acceleration `-g` of the base, which every body inherits.
+fn rnea(model: &Model, dm: &DynamicsModel, data: &mut DynamicsData, qd: Option<&[f64]>, qdd: Option<&[f64]>, gravity: &Vector3<f64>, tau: &mut [f64]) {
+    let base_a = Spatial { ang: Vector3::zeros(), lin: -gravity };
+    for (i, f) in model.frames.iter().enumerate() {
+        let (vp, ap) = match f.parent {
+            Some(p) => (data.v[p], data.a[p]),
+            None => (Spatial::zero(), base_a),
+        };
+        let s = data.axis[i];
+        let terms = &dm.terms[i];
+        let vj = s * frame_rate(terms, qd);
+        let v = vp + vj;
+        // The axis is fixed in the moving frame: d/dt (s phi') = s phi'' + v x (s phi').
+        let a = ap + s * frame_rate(terms, qdd) + v.cross_motion(&vj);
+        data.v[i] = v;
+        data.a[i] = a;
+        data.f[i] = match dm.carries[i] {
+            Some(b) => {
+                let ine = body_world_inertia(dm, b, data, i);
+                ine.apply(&a) + v.cross_force(&ine.apply(&v))
+            }
+            None => Spatial::zero(),
+        };
+    }
+    for (i, f) in model.frames.iter().enumerate().rev() {
+        data.tau_phi[i] = data.axis[i].dot(&data.f[i]);
+        if let Some(p) = f.parent {
+            let fi = data.f[i];
+            data.f[p] += fi;
+        }
+    }
+    project(dm, &data.tau_phi, tau);
+}
+
+/// Body `b`'s inertia in world axes about the world origin; `frame` is its inertial frame.
+pub(crate) fn body_world_inertia(dm: &DynamicsModel, b: usize, data: &DynamicsData, frame: usize) -> RigidInertia {
+    let ine = &dm.inertias[b];
+    let pose = &data.kin.frames[frame];
+    let r = pose.rotation.matrix();
+    let c = pose.translation.vector + r * ine.com;
+    RigidInertia::from_com(ine.mass, &c, &(r * ine.inertia * r.transpose()))
+}
+
+/// `tau = C^T tau_phi`: virtual work of the frame forces through `phi = C q + b`.
+pub(crate) fn project(dm: &DynamicsModel, tau_phi: &[f64], tau: &mut [f64]) {
+    tau.fill(0.0);
+    for (terms, t) in dm.terms.iter().zip(tau_phi) {
+        for (k, c) in terms {
+            tau[*k] += c * t;
+        }
+    }
+}
