@@ -7,17 +7,26 @@ use dvrk_sim::run::TrajectoryKind;
 use dvrk_sim::{LoopMode, RunOptions, Scene, SimOptions};
 use std::io::{IsTerminal, Write};
 
-/// The default scene while the cart scene is not built: the PSM alone.
-const DEFAULT_SCENE: &str = "psm";
+/// The default scene: the whole cart (SUJ held, PSMs on the tracking test, ECM holding).
+const DEFAULT_SCENE: &str = "full";
+/// Default simulated time (s): one period of the 0.1 Hz tracking sine; the full scene runs at a
+/// real-time factor of ~0.7 (criterion bench `rtf/full_1s_sine`), so about 15 s of wall time.
+const DEFAULT_DURATION: f64 = 10.0;
 
 #[derive(Debug, Args)]
 pub struct SimArgs {
-    /// Built-in scene (psm, ecm) or a scene file (.toml).
+    /// Built-in scene (full, 3psm, 2psm-ecm, psm, ecm) or a scene file (.toml).
     #[arg(long, default_value = DEFAULT_SCENE)]
     pub scene: String,
     /// Simulated time (s).
-    #[arg(long, default_value_t = 60.0)]
+    #[arg(long, default_value_t = DEFAULT_DURATION)]
     pub duration: f64,
+    /// Record the run as MCAP (ROS 2 CDR on the dVRK's CRTK topics, Foxglove transforms).
+    #[arg(long)]
+    pub out: Option<std::path::PathBuf>,
+    /// Recording rate (Hz of simulated time), with --out.
+    #[arg(long, default_value_t = dvrk_sim::RecordOptions::DEFAULT_RATE)]
+    pub rate: f64,
     /// sine (the paper's section 4.3 tracking test) or hold (home).
     #[arg(long, default_value = "sine")]
     pub trajectory: String,
@@ -54,8 +63,12 @@ pub fn run(args: &SimArgs) -> Result<()> {
         trajectory,
         sim: SimOptions { loops, solver_iterations: args.solver_iterations, ..Default::default() },
     };
+    if !(args.rate.is_finite() && args.rate > 0.0) {
+        bail!("--rate {}: must be a positive number of samples per second", args.rate);
+    }
+    let record = args.out.as_ref().map(|p| dvrk_sim::RecordOptions { path: p.clone(), rate: args.rate });
     let tty = std::io::stderr().is_terminal();
-    let summary = dvrk_sim::run(&scene, &options, |f| {
+    let summary = dvrk_sim::run_recorded(&scene, &options, record.as_ref(), |f| {
         if tty {
             let n = (f * 40.0).round() as usize;
             eprint!("\r[{}{}] {:3.0}%", "#".repeat(n), " ".repeat(40 - n.min(40)), f * 100.0);
@@ -82,6 +95,9 @@ pub fn run(args: &SimArgs) -> Result<()> {
         "loop closure: max {:.3e} m, last 10% {:.3e} m; RCM: max {:.3e} m",
         summary.max_closure_error, summary.final_closure_error, summary.max_rcm_error
     );
+    if let Some(p) = &args.out {
+        println!("recorded {} at {} Hz", p.display(), args.rate);
+    }
     for n in &summary.notes {
         println!("note: {n}");
     }

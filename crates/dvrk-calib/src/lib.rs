@@ -22,7 +22,6 @@ pub mod apply;
 pub mod axes;
 pub mod axes_config;
 pub mod axis;
-pub mod cdr;
 mod error;
 pub mod foxglove;
 pub mod mcap_io;
@@ -36,8 +35,11 @@ pub mod read;
 pub mod recording;
 pub mod report_json;
 pub mod rigid_fit;
-pub mod ros_msgs;
 pub mod synth;
+
+// The CDR codec and the ROS 2 messages live in dvrk-sim (which records them); re-exported here so
+// `dvrk_calib::cdr` and `dvrk_calib::ros_msgs` keep working.
+pub use dvrk_sim::recording::{cdr, ros_msgs};
 
 pub use axes::{calibrate_axes, AxesOptions, AxesReport};
 pub use axes_config::AxesConfig;

@@ -19,6 +19,7 @@ mod error;
 pub mod inertials;
 pub mod pivot;
 pub mod recipe;
+pub mod recording;
 pub mod run;
 pub mod scene;
 pub mod sim;
@@ -26,7 +27,8 @@ pub mod trajectory;
 
 pub use control::{Actuator, Gains, Mode};
 pub use error::{Result, SimError};
-pub use run::{run, RunOptions, Summary};
+pub use recording::{RecordOptions, Recorder};
+pub use run::{run, run_recorded, RunOptions, Summary};
 pub use scene::{Scene, SolverSettings};
 pub use sim::{ClosingLinks, LoopMode, Sim, SimOptions};
 pub use dvrk_kin;

@@ -69,3 +69,51 @@ pub fn regenerate(model: &Model, sdf_json: &str) -> Result<Inertials> {
         _ => from_sdf(model, &sdf, &base, &[], ECM_NOTES),
     }
 }
+
+/// Edge lengths of the block every SUJ body is given (m): 80 x 80 mm across, 400 mm along the body
+/// frame's x axis (the direction of the SUJ's long links, `a` = 0.4318 m).
+const SUJ_BLOCK: [f64; 3] = [0.4, 0.08, 0.08];
+
+/// Mass given to a SUJ body the SDF has no link for (kg).
+const SUJ_MISSING_MASS: f64 = 1.0;
+
+const SUJ_NOTES: &str = "Simple block inertias, not CAD figures: the setup joints are held in position mode (the paper \
+holds them too), so their inertia matters little. The SDF's SUJ links do not map cleanly onto the dvrk-kin \
+bodies (its SUJ-PSM arms have 5 links, L0-L4, for the model's 6 moving bodies, in other frame conventions), \
+so only the masses are taken from it, link by link in chain order (L0 on the first body); a body past the \
+SDF's last link gets 1 kg. Each body is a uniform 400 x 80 x 80 mm block (long along the body frame's x) \
+centred on the body frame's origin.";
+
+/// Block inertials of SUJ model `model` (`suj-psm1` .. `suj-psm3`, `suj-ecm`): masses from the SDF
+/// extract `suj.json` (the `suj_<arm>_L<i>` links, in chain order), inertias of a uniform block.
+pub fn suj_blocks(model: &Model, sdf_json: &str) -> Result<Inertials> {
+    let sdf: SdfExtract = serde_json::from_str(sdf_json).map_err(|e| SimError::field("suj SDF extract", "(json)", e.to_string()))?;
+    let Some(arm) = model.name.strip_prefix("suj-") else {
+        return Err(SimError::field(&model.name, "model", "not a SUJ model (suj-psm1, suj-psm2, suj-psm3, suj-ecm)"));
+    };
+    let [a, b, c] = SUJ_BLOCK;
+    let r = |x: f64| (x * 1e12).round() / 1e12;
+    let bodies = model
+        .bodies
+        .iter()
+        .enumerate()
+        .map(|(i, body)| {
+            let link = format!("suj_{arm}_L{i}");
+            let (mass, from) = match sdf.links.iter().find(|l| l.link == link) {
+                Some(l) => (l.mass_kg, format!("mass of SDF link {link}")),
+                None => (SUJ_MISSING_MASS, format!("no SDF link {link}: {SUJ_MISSING_MASS} kg assumed")),
+            };
+            let (ixx, iyy, izz) = (r(mass / 12.0 * (b * b + c * c)), r(mass / 12.0 * (a * a + c * c)), r(mass / 12.0 * (a * a + b * b)));
+            BodyInertial {
+                name: body.name.clone(),
+                frame: model.frames[body.frames[0]].index,
+                mass,
+                com: [0.0, 0.0, 0.0],
+                inertia: [[ixx, 0.0, 0.0], [0.0, iyy, 0.0], [0.0, 0.0, izz]],
+                provenance: format!("{from}; inertia of a uniform 400 x 80 x 80 mm block centred on the frame origin"),
+            }
+        })
+        .collect();
+    let identity = [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]];
+    Ok(Inertials { model: model.name.clone(), source: sdf.source.clone(), base_transform: identity, notes: SUJ_NOTES.into(), bodies })
+}

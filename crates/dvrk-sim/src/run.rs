@@ -2,6 +2,7 @@
 //! tracking RMS / max per joint, loop-closure error, RCM error.
 
 use crate::error::{Result, SimError};
+use crate::recording::{RecordOptions, Recorder};
 use crate::sim::{Sim, SimOptions};
 use crate::trajectory::Trajectory;
 use crate::Scene;
@@ -72,22 +73,28 @@ pub struct Summary {
 }
 
 /// Run `scene` as `options` say; `progress` is called with the fraction done every 1%.
-pub fn run(scene: &Scene, options: &RunOptions, mut progress: impl FnMut(f64)) -> Result<Summary> {
+pub fn run(scene: &Scene, options: &RunOptions, progress: impl FnMut(f64)) -> Result<Summary> {
+    run_recorded(scene, options, None, progress)
+}
+
+/// [`run`], recording the run as MCAP when `record` is given (see [`crate::recording::writer`]).
+pub fn run_recorded(scene: &Scene, options: &RunOptions, record: Option<&RecordOptions>, mut progress: impl FnMut(f64)) -> Result<Summary> {
     if !(options.duration.is_finite() && options.duration > 0.0) {
         return Err(SimError::value("duration (s)", options.duration, "must be a positive finite number"));
     }
     let mut sim = Sim::new(scene, &options.sim)?;
+    let mut recorder = record.map(|r| Recorder::create(&sim, r)).transpose()?;
     let mut notes = Vec::new();
     let trajectories: Vec<Trajectory> = sim
         .arms
         .iter()
         .map(|a| match options.trajectory {
-            TrajectoryKind::Sine => {
+            TrajectoryKind::Sine if a.tracking == crate::scene::Tracking::Sine => {
                 let (t, n) = Trajectory::tracking_test(&a.model);
                 notes.extend(n.into_iter().map(|s| format!("{}: {s}", a.name)));
                 t
             }
-            TrajectoryKind::Hold => Trajectory::Hold { q: a.model.home() },
+            _ => Trajectory::Hold { q: a.model.home() },
         })
         .collect();
     // The RCM of each arm: its insertion-axis frame's placement in its body, and the world point.
@@ -101,6 +108,19 @@ pub fn run(scene: &Scene, options: &RunOptions, mut progress: impl FnMut(f64)) -
             let body = m.frames[r.frame].body;
             let rel = fk[m.bodies[body].frames[0]].inverse() * fk[r.frame];
             Some((r.frame, rel, (m.base * nalgebra::Point3::from(r.point)).coords))
+        })
+        .collect();
+    // An arm carried by another (a PSM on its held SUJ) has its RCM fixed to the carrying body,
+    // which the position-held setup joints let sag slightly: the point, in that body's frame.
+    let carriers: Vec<Option<(usize, usize, nalgebra::Vector3<f64>)>> = sim
+        .arms
+        .iter()
+        .zip(&rcms)
+        .map(|(a, r)| {
+            let (pa, pf) = a.parent?;
+            let body = sim.arms[pa].model.frames[pf].body;
+            let local = sim.body_pose(pa, body).inverse() * nalgebra::Point3::from(r.as_ref()?.2);
+            Some((pa, body, local.coords))
         })
         .collect();
     let n = sim.nq();
@@ -125,6 +145,9 @@ pub fn run(scene: &Scene, options: &RunOptions, mut progress: impl FnMut(f64)) -
             sim.set_target(i, qr[i], qdr[i])?;
         }
         sim.step();
+        if let Some(r) = recorder.as_mut() {
+            r.after_step(&sim, s + 1)?;
+        }
         for i in 0..n {
             let e = sim.q()[i] - sim.actuator(i)?.target;
             if !e.is_finite() {
@@ -145,7 +168,11 @@ pub fn run(scene: &Scene, options: &RunOptions, mut progress: impl FnMut(f64)) -
         for (a, r) in rcms.iter().enumerate() {
             if let Some((frame, rel, point)) = r {
                 let pose = sim.frame_pose(a, *frame, rel);
-                max_rcm = max_rcm.max(distance_to_axis(&pose, point));
+                let point = match carriers[a] {
+                    Some((pa, body, local)) => (sim.body_pose(pa, body) * nalgebra::Point3::from(local)).coords,
+                    None => *point,
+                };
+                max_rcm = max_rcm.max(distance_to_axis(&pose, &point));
             }
         }
         if s % every == 0 {
@@ -153,6 +180,9 @@ pub fn run(scene: &Scene, options: &RunOptions, mut progress: impl FnMut(f64)) -
         }
     }
     let wall = start.elapsed().as_secs_f64();
+    if let Some(r) = recorder {
+        r.finish()?;
+    }
     progress(1.0);
     let mut joints = Vec::with_capacity(n);
     for arm in &sim.arms {

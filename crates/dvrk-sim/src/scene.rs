@@ -2,22 +2,30 @@
 //! and damping, and the solver settings. Built-in scenes are compiled in, so `dvrk sim` works on a
 //! fresh machine; a path loads a scene from disk.
 
-use crate::control::Gains;
+use crate::control::{Gains, Mode};
 use crate::error::{Result, SimError};
 use crate::inertials::Inertials;
-use dvrk_kin::{pose_from_rows, Model, Pose};
+use dvrk_kin::compose::{serial_base_transform, Attach};
+use dvrk_kin::{pose_from_rows, FrameRef, Model, Pose};
 use serde::Deserialize;
 
 /// Built-in scenes: (name, file text).
 const BUILTIN_SCENES: &[(&str, &str)] = &[
     ("psm", include_str!("../../../models/scenes/psm.toml")),
     ("ecm", include_str!("../../../models/scenes/ecm.toml")),
+    ("2psm-ecm", include_str!("../../../models/scenes/2psm-ecm.toml")),
+    ("3psm", include_str!("../../../models/scenes/3psm.toml")),
+    ("full", include_str!("../../../models/scenes/full.toml")),
 ];
 
 /// Built-in inertials: (name, file text).
 const BUILTIN_INERTIALS: &[(&str, &str)] = &[
     ("psm", include_str!("../../../models/inertials/psm.toml")),
     ("ecm", include_str!("../../../models/inertials/ecm.toml")),
+    ("suj-psm1", include_str!("../../../models/inertials/suj-psm1.toml")),
+    ("suj-psm2", include_str!("../../../models/inertials/suj-psm2.toml")),
+    ("suj-psm3", include_str!("../../../models/inertials/suj-psm3.toml")),
+    ("suj-ecm", include_str!("../../../models/inertials/suj-ecm.toml")),
 ];
 
 /// Names of the built-in scenes.
@@ -79,9 +87,42 @@ struct ArmFile {
     /// N·m s/rad or N s/m, every tree joint
     #[serde(default = "default_damping")]
     damping: f64,
+    /// `"world"` or the name of an arm listed before this one, which carries this arm.
+    #[serde(default = "default_parent")]
+    parent: String,
+    /// Frame of the parent arm the mount is relative to (paper number or name).
+    parent_frame: Option<FrameRef>,
+    /// Whether `mount` places frame 0 (`base`) or the serial dVRK base (`serial-base`, the RCM
+    /// frame, as the dVRK's `SUJ_tip_to_tool_origin` does).
+    #[serde(default)]
+    attach: Attach,
+    /// How the joints are driven from the start (`pid` or `position`).
+    #[serde(default = "default_mode")]
+    mode: Mode,
+    /// What the arm does in the tracking test (`sine` or `hold`).
+    #[serde(default)]
+    tracking: Tracking,
     #[serde(default)]
     #[allow(dead_code)]
     source: String,
+}
+
+fn default_parent() -> String {
+    "world".into()
+}
+fn default_mode() -> Mode {
+    Mode::Pid
+}
+
+/// What an arm does in the section 4.3 tracking test.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Tracking {
+    /// The paper's sines ([`crate::trajectory::Trajectory::tracking_test`]).
+    #[default]
+    Sine,
+    /// Hold home (the setup joints, the ECM of the cart scenes).
+    Hold,
 }
 
 fn default_damping() -> f64 {
@@ -101,6 +142,13 @@ pub struct Arm {
     pub armature: Vec<f64>,
     /// Viscous damping of every tree joint (N·m s/rad or N s/m).
     pub damping: f64,
+    /// The arm carrying this one and the frame (index into its `model.frames`) its mount is on;
+    /// `None`: mounted on the world.
+    pub parent: Option<(usize, usize)>,
+    /// Initial actuator mode of every joint.
+    pub mode: Mode,
+    /// What the arm does in the tracking test.
+    pub tracking: Tracking,
 }
 
 /// rapier solver settings of a scene (see `rapier3d::dynamics::IntegrationParameters`).
@@ -172,10 +220,30 @@ impl Scene {
         for (i, a) in f.arms.iter().enumerate() {
             let field = |x: &str| format!("arms[{i}] ({}).{x}", a.name);
             let mut model = dvrk_kin::load(&a.model, None).map_err(|e| SimError::field(file, field("model"), e.to_string()))?;
-            if let Some(m) = &a.mount {
-                let mount: Pose = pose_from_rows(m, "mount").map_err(|e| SimError::field(file, field("mount"), e.to_string()))?;
-                model.base = mount * model.base;
+            let mut mount = match &a.mount {
+                Some(m) => pose_from_rows(m, "mount").map_err(|e| SimError::field(file, field("mount"), e.to_string()))?,
+                None => Pose::identity(),
+            };
+            if a.attach == Attach::SerialBase {
+                mount *= serial_base_transform(&model).map_err(|e| SimError::field(file, field("attach"), e.to_string()))?.inverse();
             }
+            // An arm on another arm: its base sits on the parent's frame at the parent's home
+            // configuration (the world pose the sim starts from).
+            let parent = if a.parent == "world" {
+                None
+            } else {
+                let Some(pi) = arms.iter().position(|p: &Arm| p.name == a.parent) else {
+                    let valid: Vec<&str> = std::iter::once("world").chain(arms.iter().map(|p: &Arm| p.name.as_str())).collect();
+                    return Err(SimError::field(file, field("parent"), format!("`{}` is not an arm listed before this one (valid: {})", a.parent, valid.join(", "))));
+                };
+                let fr = a.parent_frame.as_ref().ok_or_else(|| SimError::field(file, field("parent_frame"), "missing (needed when parent is an arm)"))?;
+                let pm = &arms[pi].model;
+                let f = pm.frame_id(fr).map_err(|e| SimError::field(file, field("parent_frame"), e.to_string()))?;
+                let fk = pm.fk(&pm.home())?;
+                mount = fk[f] * mount;
+                Some((pi, f))
+            };
+            model.base = mount * model.base;
             let inertials = match BUILTIN_INERTIALS.iter().find(|(n, _)| *n == a.inertials) {
                 Some((n, text)) => Inertials::parse(text, &format!("built-in inertials {n}"), &model)?,
                 None => {
@@ -197,7 +265,10 @@ impl Scene {
                 return Err(SimError::field(file, field("damping"), format!("{} is not a finite non-negative number", a.damping)));
             }
             let gains = (0..n).map(|k| Gains { kp: a.kp[k], ki: a.ki[k], kd: a.kd[k] }).collect();
-            arms.push(Arm { name: a.name.clone(), model, inertials, gains, armature: a.armature.clone(), damping: a.damping });
+            if arms.iter().any(|p| p.name == a.name) {
+                return Err(SimError::field(file, field("name"), "two arms have this name"));
+            }
+            arms.push(Arm { name: a.name.clone(), model, inertials, gains, armature: a.armature.clone(), damping: a.damping, parent, mode: a.mode, tracking: a.tracking });
         }
         Ok(Scene { name: f.name, title: f.title, dt: f.dt, solver: SolverSettings {
                 iterations: f.solver_iterations,

@@ -14,6 +14,15 @@ use nalgebra::{Rotation3, Translation3, UnitQuaternion, Vector3};
 use rapier3d_f64::math::{Matrix as RMat, Pose as RPose, Rotation as RRot, Vector as RVec};
 use rapier3d_f64::prelude::*;
 
+/// Stiffness of the position-mode motor (1/s^2: rapier's acceleration-based motor scales it by
+/// the joint's effective mass). A held joint sags by load acceleration / stiffness: 1e5 let the
+/// cart's SUJ-ECM column (carrying the ECM) sink 0.11 mm under gravity, 1e6 keeps every setup
+/// joint within 1.2e-5 m / 4.3e-5 rad (measured, full scene). 1e7 is too stiff for 32 sweeps:
+/// the under-converged solve locks the PSM yaw joints carried by the SUJ (0.59 rad error in 1 s).
+const POSITION_STIFFNESS: f64 = 1.0e6;
+/// Damping of the position-mode motor (1/s): 3x critical (2 sqrt(k) = 2e3).
+const POSITION_DAMPING: f64 = 6.0e3;
+
 /// How the closed loops are represented.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "kebab-case")]
@@ -144,6 +153,10 @@ pub struct ArmState {
     closures: Vec<ClosurePoints>,
     cables: Vec<Cable>,
     pub actuators: Vec<Actuator>,
+    /// What the arm does in the tracking test.
+    pub tracking: crate::scene::Tracking,
+    /// The arm carrying this one and the frame its mount is on (`None`: the world).
+    pub parent: Option<(usize, usize)>,
 }
 
 /// A running simulation. Built once from a [`Scene`]; [`Sim::step`] allocates nothing of its own.
@@ -245,9 +258,16 @@ impl Sim {
                     return Err(SimError::Build(format!("body {} is fixed to its parent: fixed joints are not supported yet", b.name)));
                 };
                 let revolute = frame.joint == dvrk_kin::FrameJoint::Revolute;
-                let (parent_pose, parent_handle) = match frame.parent {
-                    Some(p) => (body_pose[model.frames[p].body], Some(handles[model.frames[p].body])),
-                    None => (Pose::identity(), None),
+                let (parent_pose, parent_handle) = match (frame.parent, arm.parent) {
+                    (Some(p), _) => (body_pose[model.frames[p].body], Some(handles[model.frames[p].body])),
+                    // The root of an arm carried by another (a PSM on its SUJ): jointed to the
+                    // parent arm's body, so both are one multibody and the SUJ feels the arm.
+                    (None, Some((pa, pf))) => {
+                        let parent_arm: &ArmState = &arms[pa];
+                        let h = parent_arm.bodies[parent_arm.model.frames[pf].body];
+                        (from_rapier(bodies[h].position()), Some(h))
+                    }
+                    (None, None) => (Pose::identity(), None),
                 };
                 let parent_frame = match frame.parent {
                     Some(p) => fk[p],
@@ -374,7 +394,7 @@ impl Sim {
                 .enumerate()
                 .map(|(k, j)| Actuator::new(arm.gains[k], j.effort_limit, home[k]))
                 .collect();
-            arms.push(ArmState { name: arm.name.clone(), model: model.clone(), q_offset, bodies: handles, dofs, drives, closures, cables, actuators });
+            arms.push(ArmState { name: arm.name.clone(), model: model.clone(), q_offset, bodies: handles, dofs, drives, closures, cables, actuators, tracking: arm.tracking, parent: arm.parent });
             q_offset += model.nq();
         }
         let mut params = IntegrationParameters { dt: scene.dt, ..IntegrationParameters::default() };
@@ -405,6 +425,13 @@ impl Sim {
             qd: vec![0.0; q_offset],
         };
         sim.read_state();
+        for (a, arm) in scene.arms.iter().enumerate() {
+            if arm.mode != Mode::Pid {
+                for k in 0..arm.model.nq() {
+                    sim.set_mode(sim.arms[a].q_offset + k, arm.mode)?;
+                }
+            }
+        }
         Ok(sim)
     }
 
@@ -502,7 +529,14 @@ impl Sim {
                 return Err(SimError::value(name, v, "must be finite and non-negative"));
             }
         }
+        // Arms carried by another arm share its multibody: scale each multibody's armature once.
+        let mut done: Vec<MultibodyIndex> = Vec::new();
         for arm in &self.arms {
+            let (index, _) = multibody_index(&self.multibody_joints, arm.dofs[0].handle)?;
+            if done.contains(&index) {
+                continue;
+            }
+            done.push(index);
             let (mb, _) = self.multibody_joints.get_mut(arm.dofs[0].handle).ok_or_else(|| SimError::Build("multibody vanished".into()))?;
             for x in mb.damping_mut().iter_mut() {
                 *x = damping;
@@ -526,7 +560,7 @@ impl Sim {
         if act.mode == Mode::Position {
             let target = dr.c * act.target + dr.b;
             l.joint.data.set_motor_model(axis, MotorModel::AccelerationBased);
-            l.joint.data.set_motor(axis, target, dr.c * act.target_velocity, 1.0e5, 2.0e3);
+            l.joint.data.set_motor(axis, target, dr.c * act.target_velocity, POSITION_STIFFNESS, POSITION_DAMPING);
             l.joint.data.set_motor_max_force(axis, Real::MAX);
         } else {
             l.joint.data.set_motor(axis, 0.0, 0.0, 0.0, 0.0);

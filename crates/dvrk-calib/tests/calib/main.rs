@@ -6,6 +6,7 @@
 //! - `bad_input`: recordings that cannot give a result give an error or a warning with numbers.
 //! - `formats`: MCAP (ROS 2 and Foxglove layouts), plain and raw-marker CSV round trips.
 //! - `python_mcap`: MCAP files written by the Python `mcap` / `mcap-ros2-support` packages.
+//! - `sim_recording`: an MCAP recorded by dvrk-sim (`dvrk sim --out`), read with this crate's reader.
 
 mod util;
 
@@ -15,3 +16,4 @@ mod noise_bound;
 mod paper;
 mod perturbed;
 mod python_mcap;
+mod sim_recording;

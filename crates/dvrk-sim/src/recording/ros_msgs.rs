@@ -2,7 +2,7 @@
 //! (one rigid body per topic), tf2_msgs/msg/TFMessage (many per message) and
 //! sensor_msgs/msg/JointState (the dVRK's `measured_js`), with their `ros2msg` schema texts.
 
-use crate::cdr::{CdrReader, CdrWriter};
+use super::cdr::{CdrReader, CdrWriter};
 
 /// std_msgs/Header.
 #[derive(Debug, Clone, Default, PartialEq)]

@@ -1,0 +1,10 @@
+//! Recording a run as MCAP: the dVRK's CRTK topics as ROS 2 CDR messages and every body's pose as
+//! a Foxglove frame transform. The CDR codec and the ROS 2 message types live here (dvrk-calib
+//! reads recordings with them: the dependency order is kin <- sim <- calib).
+
+pub mod cdr;
+pub mod frame_transform;
+pub mod ros_msgs;
+pub mod writer;
+
+pub use writer::{Recorder, RecordOptions};

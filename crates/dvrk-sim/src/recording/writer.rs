@@ -1,0 +1,244 @@
+//! The MCAP writer of a run. Per arm (`PSM1`; a SUJ arm `SUJ-PSM1` publishes under `/SUJ/PSM1`):
+//!
+//! - `/PSM1/measured_js`, sensor_msgs/msg/JointState: measured position (rad, m), velocity
+//!   (rad/s, m/s) and effort (N·m, N; the actuator's applied effort: the sim has no torque sensor);
+//! - `/PSM1/setpoint_js`, sensor_msgs/msg/JointState: the actuator's target position, velocity
+//!   feed-forward and applied effort;
+//! - `/PSM1/measured_cp`, geometry_msgs/msg/PoseStamped: the tool tip (the model's `tip` frame)
+//!   in the arm's base frame `PSM1_base`, which is the base of the arm's serial dVRK kinematics
+//!   (the RCM frame of a PSM or ECM, as the dVRK reports it) or frame 0 for other models;
+//!
+//! and on `/tf` one foxglove.FrameTransform (JSON) per body: `PSM1/yaw_link` in `world`.
+//! Samples are taken every whole number of steps nearest `1 / rate`. The file is written beside
+//! its destination and renamed over it by [`Recorder::finish`], so a reader never sees half a file.
+
+use crate::error::{Result, SimError};
+use crate::recording::frame_transform;
+use crate::recording::ros_msgs::{self, Header, JointState, PoseStamped};
+use crate::sim::Sim;
+use dvrk_kin::Pose;
+use nalgebra::{Point3, UnitQuaternion};
+use std::collections::BTreeMap;
+use std::fs::File;
+use std::io::BufWriter;
+use std::path::{Path, PathBuf};
+
+/// What to record.
+#[derive(Debug, Clone)]
+pub struct RecordOptions {
+    /// Destination `.mcap` file.
+    pub path: PathBuf,
+    /// Samples per second of simulated time (Hz); rounded to a whole number of steps.
+    pub rate: f64,
+}
+
+impl RecordOptions {
+    /// The default rate (Hz).
+    pub const DEFAULT_RATE: f64 = 100.0;
+}
+
+/// Where an arm's base frame is in the world: fixed, or fixed to a body of the arm carrying it.
+#[derive(Debug, Clone)]
+enum BaseRef {
+    World(Pose),
+    /// (arm, body, base pose in that body's frame)
+    Body(usize, usize, Pose),
+}
+
+/// Channels and constant placements of one arm.
+#[derive(Debug, Clone)]
+struct ArmChannels {
+    measured_js: u16,
+    setpoint_js: u16,
+    measured_cp: u16,
+    names: Vec<String>,
+    base_frame_id: String,
+    base: BaseRef,
+    /// The tip frame's body and its placement in that body.
+    tip_body: usize,
+    tip_rel: Pose,
+}
+
+/// Writes a run as MCAP; see the module documentation for the topics.
+pub struct Recorder {
+    writer: Option<mcap::Writer<BufWriter<File>>>,
+    tmp: PathBuf,
+    path: PathBuf,
+    /// Steps between samples.
+    stride: u64,
+    arms: Vec<ArmChannels>,
+    tf: u16,
+    /// Child frame name of every body, per arm.
+    body_names: Vec<Vec<String>>,
+    sequence: BTreeMap<u16, u32>,
+    samples: u64,
+}
+
+fn mcap_error(path: &Path, e: mcap::McapError) -> SimError {
+    SimError::Io { path: path.display().to_string(), source: std::io::Error::other(e.to_string()) }
+}
+
+impl Recorder {
+    /// Open a recording of `sim` (channels for each of its arms). Nothing appears at `options.path`
+    /// until [`Recorder::finish`].
+    pub fn create(sim: &Sim, options: &RecordOptions) -> Result<Recorder> {
+        let rate = options.rate;
+        if !(rate.is_finite() && rate > 0.0 && rate <= 1.0 / sim.dt + 1e-9) {
+            return Err(SimError::value("recording rate (Hz)", rate, format!("must be in (0, {}] (one sample per step of {} s at most)", 1.0 / sim.dt, sim.dt)));
+        }
+        let stride = (1.0 / (rate * sim.dt)).round().max(1.0) as u64;
+        let path = options.path.clone();
+        let name = path.file_name().ok_or_else(|| SimError::Io { path: path.display().to_string(), source: std::io::Error::other("not a file path") })?;
+        let tmp = path.with_file_name(format!(".{}.{}.tmp", name.to_string_lossy(), std::process::id()));
+        let file = File::create(&tmp).map_err(|e| SimError::Io { path: tmp.display().to_string(), source: e })?;
+        let mut w = mcap::Writer::with_options(BufWriter::new(file), mcap::WriteOptions::new().profile("ros2")).map_err(|e| mcap_error(&tmp, e))?;
+        let meta = BTreeMap::new();
+        let io = |e| mcap_error(&tmp, e);
+        let (n, t) = ros_msgs::joint_state_schema();
+        let js_schema = w.add_schema(n, "ros2msg", t.as_bytes()).map_err(io)?;
+        let (n, t) = ros_msgs::pose_stamped_schema();
+        let cp_schema = w.add_schema(n, "ros2msg", t.as_bytes()).map_err(io)?;
+        let tf_schema = w.add_schema("foxglove.FrameTransform", "jsonschema", frame_transform::SCHEMA.as_bytes()).map_err(io)?;
+        let tf = w.add_channel(tf_schema, "/tf", "json", &meta).map_err(io)?;
+        let mut arms = Vec::with_capacity(sim.arms.len());
+        let mut body_names = Vec::with_capacity(sim.arms.len());
+        for arm in &sim.arms {
+            let ns = arm.name.replace('-', "/");
+            let m = &arm.model;
+            // The serial dVRK base in frame 0 (identity when the model has no serial equivalent).
+            let mut unplaced = m.clone();
+            unplaced.base = Pose::identity();
+            let serial = dvrk_kin::compose::serial_base_transform(&unplaced).unwrap_or_else(|_| Pose::identity());
+            let base_world = m.base * serial;
+            let base = match arm.parent {
+                None => BaseRef::World(base_world),
+                Some((pa, pf)) => {
+                    let body = sim.arms[pa].model.frames[pf].body;
+                    BaseRef::Body(pa, body, sim.body_pose(pa, body).inverse() * base_world)
+                }
+            };
+            let fk = m.fk(&m.home())?;
+            let tip_body = m.frames[m.tip].body;
+            let tip_rel = fk[m.bodies[tip_body].frames[0]].inverse() * fk[m.tip];
+            arms.push(ArmChannels {
+                measured_js: w.add_channel(js_schema, &format!("/{ns}/measured_js"), "cdr", &meta).map_err(io)?,
+                setpoint_js: w.add_channel(js_schema, &format!("/{ns}/setpoint_js"), "cdr", &meta).map_err(io)?,
+                measured_cp: w.add_channel(cp_schema, &format!("/{ns}/measured_cp"), "cdr", &meta).map_err(io)?,
+                names: m.joints.iter().map(|j| j.name.clone()).collect(),
+                base_frame_id: format!("{}_base", arm.name.replace('-', "_")),
+                base,
+                tip_body,
+                tip_rel,
+            });
+            body_names.push(m.bodies.iter().map(|b| format!("{}/{}", arm.name, b.name)).collect());
+        }
+        Ok(Recorder { writer: Some(w), tmp, path, stride, arms, tf, body_names, sequence: BTreeMap::new(), samples: 0 })
+    }
+
+    /// Simulated time between samples (s) for a sim of time step `dt`.
+    pub fn period(&self, dt: f64) -> f64 {
+        self.stride as f64 * dt
+    }
+
+    /// Samples written so far.
+    pub fn samples(&self) -> u64 {
+        self.samples
+    }
+
+    /// Record `sim` if step number `step` (1 after the first step) falls on a sample.
+    pub fn after_step(&mut self, sim: &Sim, step: u64) -> Result<()> {
+        if step % self.stride == 0 {
+            self.sample(sim)?;
+        }
+        Ok(())
+    }
+
+    /// World pose of arm `a`'s base frame (the `frame_id` of its `measured_cp`).
+    pub fn base_pose(&self, sim: &Sim, a: usize) -> Pose {
+        match &self.arms[a].base {
+            BaseRef::World(p) => *p,
+            BaseRef::Body(pa, body, rel) => sim.body_pose(*pa, *body) * rel,
+        }
+    }
+
+    /// The tool tip of arm `a` in its base frame (what `measured_cp` holds), m.
+    pub fn tip_in_base(&self, sim: &Sim, a: usize) -> Pose {
+        let c = &self.arms[a];
+        self.base_pose(sim, a).inverse() * sim.body_pose(a, c.tip_body) * c.tip_rel
+    }
+
+    fn write(&mut self, channel: u16, t: f64, data: &[u8]) -> Result<()> {
+        let seq = self.sequence.entry(channel).or_default();
+        *seq += 1;
+        let ns = (t.max(0.0) * 1e9).round() as u64;
+        let header = mcap::records::MessageHeader { channel_id: channel, sequence: *seq, log_time: ns, publish_time: ns };
+        let Some(w) = self.writer.as_mut() else { return Ok(()) };
+        w.write_to_known_channel(&header, data).map_err(|e| mcap_error(&self.tmp, e))
+    }
+
+    /// Record the state of `sim` now.
+    pub fn sample(&mut self, sim: &Sim) -> Result<()> {
+        let t = sim.time;
+        for a in 0..self.arms.len() {
+            let arm = &sim.arms[a];
+            let (off, n) = (arm.q_offset, arm.model.nq());
+            let effort: Vec<f64> = arm.actuators.iter().map(|x| x.effort).collect();
+            let c = &self.arms[a];
+            let measured = JointState {
+                header: Header::at(t, ""),
+                name: c.names.clone(),
+                position: sim.q()[off..off + n].to_vec(),
+                velocity: sim.qd()[off..off + n].to_vec(),
+                effort: effort.clone(),
+            };
+            let setpoint = JointState {
+                header: Header::at(t, ""),
+                name: c.names.clone(),
+                position: arm.actuators.iter().map(|x| x.target).collect(),
+                velocity: arm.actuators.iter().map(|x| x.target_velocity).collect(),
+                effort,
+            };
+            let tip = self.tip_in_base(sim, a);
+            let q = UnitQuaternion::from_rotation_matrix(&tip.rotation);
+            let v = tip.translation.vector;
+            let cp = PoseStamped { header: Header::at(t, &c.base_frame_id), position: [v.x, v.y, v.z], orientation: [q.i, q.j, q.k, q.w] };
+            let (mj, sj, mc) = (c.measured_js, c.setpoint_js, c.measured_cp);
+            self.write(mj, t, &measured.encode())?;
+            self.write(sj, t, &setpoint.encode())?;
+            self.write(mc, t, &cp.encode())?;
+        }
+        for a in 0..self.arms.len() {
+            for b in 0..self.body_names[a].len() {
+                let p = sim.body_pose(a, b);
+                let q = UnitQuaternion::from_rotation_matrix(&p.rotation);
+                let o = p * Point3::origin();
+                let bytes = frame_transform::encode(t, "world", &self.body_names[a][b], [o.x, o.y, o.z], [q.i, q.j, q.k, q.w]);
+                self.write(self.tf, t, &bytes)?;
+            }
+        }
+        self.samples += 1;
+        Ok(())
+    }
+
+    /// Close the file and move it to its destination.
+    pub fn finish(mut self) -> Result<PathBuf> {
+        if let Some(mut w) = self.writer.take() {
+            w.finish().map_err(|e| mcap_error(&self.tmp, e))?;
+            let buf = w.into_inner();
+            let file = buf.into_inner().map_err(|e| SimError::Io { path: self.tmp.display().to_string(), source: e.into_error() })?;
+            file.sync_all().map_err(|e| SimError::Io { path: self.tmp.display().to_string(), source: e })?;
+        }
+        std::fs::rename(&self.tmp, &self.path).map_err(|e| SimError::Io { path: self.path.display().to_string(), source: e })?;
+        Ok(self.path.clone())
+    }
+}
+
+impl Drop for Recorder {
+    /// An unfinished recording (an error mid-run) leaves no file behind.
+    fn drop(&mut self) {
+        if self.writer.is_some() {
+            self.writer = None;
+            let _ = std::fs::remove_file(&self.tmp);
+        }
+    }
+}
