@@ -137,3 +137,20 @@ fn sim_and_calib_reject_bad_flags() {
     crate::util::dvrk_err(&["sim", "--scene", "no-such-scene", "--duration", "1"]);
     crate::util::dvrk_err(&["calib", "pivot", "--recording", "/nonexistent.mcap"]);
 }
+
+#[test]
+fn sim_writes_an_mcap_recording_whole() {
+    let dir = tempdir();
+    let out = dir.path().join("run.mcap");
+    let v: Value = serde_json::from_str(&dvrk_ok(&["sim", "--scene", "psm", "--duration", "0.5", "--out", out.to_str().unwrap(), "--json"])).unwrap();
+    assert_eq!(v["scene"], "psm");
+    // The calibration reader takes the simulator's recording: measured_js and measured_cp.
+    let rec = dvrk_calib::read_recording(&out, &dvrk_calib::McapOptions { topics: vec!["/PSM1/measured_cp".into()], joint_topic: Some("/PSM1/measured_js".into()) }).unwrap();
+    let tip = rec.body("/PSM1/measured_cp").unwrap();
+    assert!(tip.len() >= 45, "about 100 Hz for 0.5 s: {}", tip.len());
+    let joints = rec.joints.as_ref().unwrap();
+    assert_eq!(joints.names[0], "outer_yaw");
+    assert_eq!(joints.q.len(), tip.len());
+    // Nothing but the recording is left in the directory (written via a temporary file).
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+}
