@@ -10,7 +10,7 @@ use std::io::{IsTerminal, Write};
 /// The default scene: the whole cart (SUJ held, PSMs on the tracking test, ECM holding).
 const DEFAULT_SCENE: &str = "full";
 /// Default simulated time (s): one period of the 0.1 Hz tracking sine; the full scene runs at a
-/// real-time factor of ~0.7 (criterion bench `rtf/full_1s_sine`), so about 15 s of wall time.
+/// real-time factor of ~4 (criterion bench `rtf/full_1s_sine`), so a few seconds of wall time.
 const DEFAULT_DURATION: f64 = 10.0;
 
 #[derive(Debug, Args)]
@@ -36,6 +36,10 @@ pub struct SimArgs {
     /// Solver iterations (substeps) per step; the scene's value when absent.
     #[arg(long)]
     pub solver_iterations: Option<usize>,
+    /// Step the independent arm groups (each arm on the cart with what it carries) on separate
+    /// threads; results are the same as the sequential run.
+    #[arg(long)]
+    pub parallel: bool,
     /// Print the summary as one JSON object.
     #[arg(long)]
     pub json: bool,
@@ -61,7 +65,7 @@ pub fn run(args: &SimArgs) -> Result<()> {
     let options = RunOptions {
         duration: args.duration,
         trajectory,
-        sim: SimOptions { loops, solver_iterations: args.solver_iterations, ..Default::default() },
+        sim: SimOptions { loops, solver_iterations: args.solver_iterations, parallel: args.parallel, ..Default::default() },
     };
     if !(args.rate.is_finite() && args.rate > 0.0) {
         bail!("--rate {}: must be a positive number of samples per second", args.rate);

@@ -1,7 +1,8 @@
 //! Real-time factor of the Table 9 scenes (psm, ecm, 2psm-ecm, 3psm, full): one simulated second
 //! of the section 4.3 tracking test per iteration (each arm as its scene says: the PSMs on the
-//! sines, the ECM of the cart scenes and the setup joints holding), single thread, dt = 1 ms.
-//! RTF = 1 s / time per iteration.
+//! sines, the ECM of the cart scenes and the setup joints holding), dt = 1 ms: single thread
+//! (`{scene}_1s_sine`), and for the multi-arm scenes with the arm groups stepped in parallel
+//! (`{scene}_1s_sine_parallel`, `SimOptions::parallel`). RTF = 1 s / time per iteration.
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use dvrk_sim::scene::Tracking;
@@ -11,9 +12,10 @@ use dvrk_sim::{Scene, Sim, SimOptions};
 fn one_second(c: &mut Criterion) {
     let mut group = c.benchmark_group("rtf");
     group.sample_size(10);
-    for name in ["psm", "ecm", "2psm-ecm", "3psm", "full"] {
+    let runs = [("psm", false), ("ecm", false), ("2psm-ecm", false), ("3psm", false), ("full", false), ("2psm-ecm", true), ("3psm", true), ("full", true)];
+    for (name, parallel) in runs {
         let scene = Scene::load(name).unwrap();
-        let mut sim = Sim::new(&scene, &SimOptions::default()).unwrap();
+        let mut sim = Sim::new(&scene, &SimOptions { parallel, ..SimOptions::default() }).unwrap();
         let trajectories: Vec<(usize, usize, Trajectory)> = sim
             .arms
             .iter()
@@ -27,7 +29,7 @@ fn one_second(c: &mut Criterion) {
             .collect();
         let n = sim.nq();
         let (mut q, mut qd) = (vec![0.0; n], vec![0.0; n]);
-        group.bench_function(format!("{name}_1s_sine"), |b| {
+        group.bench_function(format!("{name}_1s_sine{}", if parallel { "_parallel" } else { "" }), |b| {
             b.iter(|| {
                 for _ in 0..1000 {
                     for (off, nk, traj) in &trajectories {

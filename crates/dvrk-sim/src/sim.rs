@@ -62,6 +62,9 @@ pub struct SimOptions {
     pub warmstart_joints: Option<bool>,
     /// Turn gravity off.
     pub no_gravity: bool,
+    /// Step the independent arm groups (each arm with the arms it carries, on its own rapier
+    /// world) on separate threads (rayon). Results are identical to the sequential step.
+    pub parallel: bool,
 }
 
 impl Default for SimOptions {
@@ -74,6 +77,7 @@ impl Default for SimOptions {
             stabilization_iterations: None,
             warmstart_joints: None,
             no_gravity: false,
+            parallel: false,
         }
     }
 }
@@ -157,14 +161,19 @@ pub struct ArmState {
     pub tracking: crate::scene::Tracking,
     /// The arm carrying this one and the frame its mount is on (`None`: the world).
     pub parent: Option<(usize, usize)>,
+    /// The rapier world of this arm's group (see [`Sim`]).
+    world: usize,
 }
 
-/// A running simulation. Built once from a [`Scene`]; [`Sim::step`] allocates nothing of its own.
-pub struct Sim {
-    pub scene_name: String,
-    pub dt: f64,
-    pub time: f64,
-    pub arms: Vec<ArmState>,
+/// One rapier world: an arm mounted on the fixed world and every arm it carries. Arms in
+/// different groups share no body, joint or contact, so each group is a world of its own. In one
+/// shared world every arm's root joint hangs off the same fixed ground body, and rapier's
+/// `MultibodyJointSet::insert` adds a joint to the multibody its first body already belongs to:
+/// all arms became ONE multibody (dense mass matrix factored every substep, every loop, limit and
+/// motor row spanning all its DoFs), costing ~3x the sum of the separate groups for 3 PSMs and
+/// ~6x for the full cart (rapier3d-f64 0.36.1). Separate worlds make the cost linear in the
+/// number of groups and let the groups step in parallel (`SimOptions::parallel`).
+struct World {
     bodies: RigidBodySet,
     colliders: ColliderSet,
     impulse_joints: ImpulseJointSet,
@@ -175,6 +184,57 @@ pub struct Sim {
     broad_phase: DefaultBroadPhase,
     narrow_phase: NarrowPhase,
     ccd: CCDSolver,
+    ground: RigidBodyHandle,
+}
+
+impl World {
+    fn new() -> World {
+        let mut bodies = RigidBodySet::new();
+        let ground = bodies.insert(RigidBodyBuilder::fixed());
+        World {
+            bodies,
+            colliders: ColliderSet::new(),
+            impulse_joints: ImpulseJointSet::new(),
+            multibody_joints: MultibodyJointSet::new(),
+            soft_bodies: SoftBodySet::new(),
+            pipeline: PhysicsPipeline::new(),
+            islands: IslandManager::new(),
+            broad_phase: DefaultBroadPhase::new(),
+            narrow_phase: NarrowPhase::new(),
+            ccd: CCDSolver::new(),
+            ground,
+        }
+    }
+
+    fn step(&mut self, gravity: RVec, params: &IntegrationParameters) {
+        self.pipeline.step(
+            gravity,
+            params,
+            &mut self.islands,
+            &mut self.broad_phase,
+            &mut self.narrow_phase,
+            &mut self.bodies,
+            &mut self.colliders,
+            &mut self.impulse_joints,
+            &mut self.multibody_joints,
+            &mut self.soft_bodies,
+            &mut self.ccd,
+            &(),
+            &(),
+        );
+    }
+}
+
+/// A running simulation. Built once from a [`Scene`]; [`Sim::step`] allocates nothing of its own.
+pub struct Sim {
+    pub scene_name: String,
+    pub dt: f64,
+    pub time: f64,
+    pub arms: Vec<ArmState>,
+    /// One rapier world per independent arm group (an arm on the fixed world and the arms it
+    /// carries); `ArmState::world` indexes it.
+    worlds: Vec<World>,
+    parallel: bool,
     params: IntegrationParameters,
     gravity: RVec,
     /// Measured q, qd and applied effort of every joint of the scene (rad, m; /s; N·m, N).
@@ -209,13 +269,21 @@ impl Sim {
     /// Build the rapier world of `scene` with every joint at its home position, in PID mode
     /// holding home.
     pub fn new(scene: &Scene, options: &SimOptions) -> Result<Sim> {
-        let mut bodies = RigidBodySet::new();
-        let mut impulse_joints = ImpulseJointSet::new();
-        let mut multibody_joints = MultibodyJointSet::new();
-        let ground = bodies.insert(RigidBodyBuilder::fixed());
-        let mut arms = Vec::with_capacity(scene.arms.len());
+        let mut worlds: Vec<World> = Vec::new();
+        let mut arms: Vec<ArmState> = Vec::with_capacity(scene.arms.len());
         let mut q_offset = 0;
         for arm in &scene.arms {
+            // An arm carried by another lives in its carrier's world; an arm on the fixed world
+            // starts a world of its own.
+            let world = match arm.parent {
+                Some((pa, _)) => arms[pa].world,
+                None => {
+                    worlds.push(World::new());
+                    worlds.len() - 1
+                }
+            };
+            let World { bodies, impulse_joints, multibody_joints, ground, .. } = &mut worlds[world];
+            let ground = *ground;
             let model = &arm.model;
             let home = model.home();
             let fk = model.fk(&home)?;
@@ -340,7 +408,7 @@ impl Sim {
                 }
             }
             // Passive tree joints not held by a loop follow their driving joint by a coupling.
-            let (mb_index, _) = multibody_index(&multibody_joints, dofs[0].handle)?;
+            let (mb_index, _) = multibody_index(multibody_joints, dofs[0].handle)?;
             let mut cables = Vec::new();
             for (i, d) in dofs.iter().enumerate() {
                 if drives.iter().any(|dr| dr.dof == i) || (in_loop[i] && options.loops == LoopMode::ImpulseJoints) {
@@ -386,15 +454,15 @@ impl Sim {
                 }
             }
             mb.apply_displacements(&disp);
-            mb.forward_kinematics(&bodies, true);
-            mb.update_rigid_bodies(&mut bodies, true);
+            mb.forward_kinematics(bodies, true);
+            mb.update_rigid_bodies(bodies, true);
             let actuators = model
                 .joints
                 .iter()
                 .enumerate()
                 .map(|(k, j)| Actuator::new(arm.gains[k], j.effort_limit, home[k]))
                 .collect();
-            arms.push(ArmState { name: arm.name.clone(), model: model.clone(), q_offset, bodies: handles, dofs, drives, closures, cables, actuators, tracking: arm.tracking, parent: arm.parent });
+            arms.push(ArmState { name: arm.name.clone(), model: model.clone(), q_offset, bodies: handles, dofs, drives, closures, cables, actuators, tracking: arm.tracking, parent: arm.parent, world });
             q_offset += model.nq();
         }
         let mut params = IntegrationParameters { dt: scene.dt, ..IntegrationParameters::default() };
@@ -409,16 +477,8 @@ impl Sim {
             dt: scene.dt,
             time: 0.0,
             arms,
-            bodies,
-            colliders: ColliderSet::new(),
-            impulse_joints,
-            multibody_joints,
-            soft_bodies: SoftBodySet::new(),
-            pipeline: PhysicsPipeline::new(),
-            islands: IslandManager::new(),
-            broad_phase: DefaultBroadPhase::new(),
-            narrow_phase: NarrowPhase::new(),
-            ccd: CCDSolver::new(),
+            worlds,
+            parallel: options.parallel,
             params,
             gravity: RVec::new(g[0], g[1], g[2]),
             q: vec![0.0; q_offset],
@@ -530,14 +590,15 @@ impl Sim {
             }
         }
         // Arms carried by another arm share its multibody: scale each multibody's armature once.
-        let mut done: Vec<MultibodyIndex> = Vec::new();
+        let mut done: Vec<(usize, MultibodyIndex)> = Vec::new();
         for arm in &self.arms {
-            let (index, _) = multibody_index(&self.multibody_joints, arm.dofs[0].handle)?;
-            if done.contains(&index) {
+            let mbs = &mut self.worlds[arm.world].multibody_joints;
+            let (index, _) = multibody_index(mbs, arm.dofs[0].handle)?;
+            if done.contains(&(arm.world, index)) {
                 continue;
             }
-            done.push(index);
-            let (mb, _) = self.multibody_joints.get_mut(arm.dofs[0].handle).ok_or_else(|| SimError::Build("multibody vanished".into()))?;
+            done.push((arm.world, index));
+            let (mb, _) = mbs.get_mut(arm.dofs[0].handle).ok_or_else(|| SimError::Build("multibody vanished".into()))?;
             for x in mb.damping_mut().iter_mut() {
                 *x = damping;
             }
@@ -555,7 +616,7 @@ impl Sim {
         let dr = &arm.drives[k];
         let dof = &arm.dofs[dr.dof];
         let axis = if dof.revolute { JointAxis::AngX } else { JointAxis::LinX };
-        let Some((mb, link)) = self.multibody_joints.get_mut(dof.handle) else { return };
+        let Some((mb, link)) = self.worlds[arm.world].multibody_joints.get_mut(dof.handle) else { return };
         let Some(l) = mb.link_mut(link) else { return };
         if act.mode == Mode::Position {
             let target = dr.c * act.target + dr.b;
@@ -573,7 +634,7 @@ impl Sim {
         for arm in &self.arms {
             for (k, dr) in arm.drives.iter().enumerate() {
                 let dof = &arm.dofs[dr.dof];
-                let Some((mb, link)) = self.multibody_joints.get(dof.handle) else { continue };
+                let Some((mb, link)) = self.worlds[arm.world].multibody_joints.get(dof.handle) else { continue };
                 let Some(l) = mb.link(link) else { continue };
                 let coord = l.joint().coords()[if dof.revolute { 3 } else { 0 }];
                 let q = (coord - dr.b) / dr.c;
@@ -590,9 +651,11 @@ impl Sim {
     /// Advance one time step: controllers, efforts applied as joint torques/forces, physics.
     pub fn step(&mut self) {
         // User forces and torques persist in rapier until cleared: clear both every step.
-        for (_, rb) in self.bodies.iter_mut() {
-            rb.reset_forces(false);
-            rb.reset_torques(false);
+        for w in self.worlds.iter_mut() {
+            for (_, rb) in w.bodies.iter_mut() {
+                rb.reset_forces(false);
+                rb.reset_torques(false);
+            }
         }
         for arm in self.arms.iter_mut() {
             for (k, dr) in arm.drives.iter().enumerate() {
@@ -602,25 +665,19 @@ impl Sim {
                     continue;
                 }
                 // Generalised force on the drive's coordinate: tau dq = f dcoord.
-                apply_generalized(&mut self.bodies, &arm.dofs[dr.dof], tau / dr.c);
+                apply_generalized(&mut self.worlds[arm.world].bodies, &arm.dofs[dr.dof], tau / dr.c);
             }
         }
         self.apply_cables();
-        self.pipeline.step(
-            self.gravity,
-            &self.params,
-            &mut self.islands,
-            &mut self.broad_phase,
-            &mut self.narrow_phase,
-            &mut self.bodies,
-            &mut self.colliders,
-            &mut self.impulse_joints,
-            &mut self.multibody_joints,
-            &mut self.soft_bodies,
-            &mut self.ccd,
-            &(),
-            &(),
-        );
+        let (gravity, params) = (self.gravity, &self.params);
+        if self.parallel && self.worlds.len() > 1 {
+            use rayon::prelude::*;
+            self.worlds.par_iter_mut().for_each(|w| w.step(gravity, params));
+        } else {
+            for w in self.worlds.iter_mut() {
+                w.step(gravity, params);
+            }
+        }
         self.time += self.dt;
         self.read_state();
     }
@@ -629,12 +686,13 @@ impl Sim {
     /// damper's feed-forward, and apply the cable tension back on the leader.
     fn apply_cables(&mut self) {
         for arm in &self.arms {
+            let w = &mut self.worlds[arm.world];
             for c in &arm.cables {
                 let (lead, fol) = (&arm.dofs[c.leader], &arm.dofs[c.follower]);
-                let Some((mb, ll)) = self.multibody_joints.get(lead.handle) else { continue };
+                let Some((mb, ll)) = w.multibody_joints.get(lead.handle) else { continue };
                 let Some(l) = mb.link(ll) else { continue };
                 let (xl, vl) = (l.joint().coords()[if lead.revolute { 3 } else { 0 }], mb.joint_velocity(l)[0]);
-                let Some((mb, fl)) = self.multibody_joints.get_mut(fol.handle) else { continue };
+                let Some((mb, fl)) = w.multibody_joints.get_mut(fol.handle) else { continue };
                 let axis = if fol.revolute { 3 } else { 0 };
                 let rest = c.coeff * xl + c.offset;
                 let Some(f) = mb.link_mut(fl) else { continue };
@@ -643,15 +701,16 @@ impl Sim {
                 let vf = mb.link(fl).map(|f| mb.joint_velocity(f)[0]).unwrap_or(0.0);
                 // Tension on the follower (spring + damper about the leader's motion), explicit part.
                 let tension = -c.stiffness * (xf - rest) - c.damping * (vf - c.coeff * vl);
-                apply_generalized(&mut self.bodies, fol, c.damping * c.coeff * vl);
-                apply_generalized(&mut self.bodies, lead, -c.coeff * tension);
+                apply_generalized(&mut w.bodies, fol, c.damping * c.coeff * vl);
+                apply_generalized(&mut w.bodies, lead, -c.coeff * tension);
             }
         }
     }
 
     /// World pose of dvrk-kin body `body` of arm `arm` (its first frame).
     pub fn body_pose(&self, arm: usize, body: usize) -> Pose {
-        from_rapier(self.bodies[self.arms[arm].bodies[body]].position())
+        let a = &self.arms[arm];
+        from_rapier(self.worlds[a.world].bodies[a.bodies[body]].position())
     }
 
     /// World pose of frame `frame` of arm `arm`, from its body's pose and the model's constant
@@ -667,8 +726,9 @@ impl Sim {
         let mut worst: f64 = 0.0;
         for arm in &self.arms {
             for c in &arm.closures {
-                let pa = self.bodies[c.a].position().transform_point(c.pa);
-                let pb = self.bodies[c.b].position().transform_point(c.pb);
+                let bodies = &self.worlds[arm.world].bodies;
+                let pa = bodies[c.a].position().transform_point(c.pa);
+                let pb = bodies[c.b].position().transform_point(c.pb);
                 worst = worst.max((pa - pb).length());
             }
         }
@@ -684,7 +744,7 @@ impl Sim {
     pub fn max_tree_velocity(&self) -> f64 {
         self.arms
             .iter()
-            .filter_map(|a| self.multibody_joints.get(a.dofs[0].handle))
+            .filter_map(|a| self.worlds[a.world].multibody_joints.get(a.dofs[0].handle))
             .map(|(mb, _)| mb.generalized_velocity().amax())
             .fold(0.0, f64::max)
     }
@@ -692,8 +752,9 @@ impl Sim {
     /// Total mechanical energy (J): kinetic plus gravitational potential of every body.
     pub fn energy(&self) -> f64 {
         let g = self.gravity;
-        self.bodies
+        self.worlds
             .iter()
+            .flat_map(|w| w.bodies.iter())
             .filter(|(_, rb)| rb.is_dynamic())
             .map(|(_, rb)| rb.kinetic_energy() - rb.mass() * g.dot(rb.center_of_mass()))
             .sum()
