@@ -40,6 +40,13 @@ pub struct SimArgs {
     /// threads; results are the same as the sequential run.
     #[arg(long)]
     pub parallel: bool,
+    /// Draw the tracking of the tracked joints (the PSMs on the sine) as a PNG or SVG like the
+    /// paper's Figure 10: per joint, commanded vs measured position (left) and the error (right).
+    #[arg(long)]
+    pub plot: Option<std::path::PathBuf>,
+    /// Sampling rate of --plot (Hz of simulated time).
+    #[arg(long, default_value_t = 50.0)]
+    pub plot_rate: f64,
     /// Print the summary as one JSON object.
     #[arg(long)]
     pub json: bool,
@@ -70,9 +77,19 @@ pub fn run(args: &SimArgs) -> Result<()> {
     if !(args.rate.is_finite() && args.rate > 0.0) {
         bail!("--rate {}: must be a positive number of samples per second", args.rate);
     }
+    if !(args.plot_rate.is_finite() && args.plot_rate > 0.0) {
+        bail!("--plot-rate {}: must be a positive number of samples per second", args.plot_rate);
+    }
+    if let Some(p) = &args.plot {
+        match p.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
+            Some("png" | "svg") => {}
+            _ => bail!("--plot {}: unknown image format; valid: .png, .svg", p.display()),
+        }
+    }
     let record = args.out.as_ref().map(|p| dvrk_sim::RecordOptions { path: p.clone(), rate: args.rate });
     let tty = std::io::stderr().is_terminal();
-    let summary = dvrk_sim::run_recorded(&scene, &options, record.as_ref(), |f| {
+    let trace_rate = args.plot.as_ref().map(|_| args.plot_rate);
+    let (summary, trace) = dvrk_sim::run_traced(&scene, &options, record.as_ref(), trace_rate, |f| {
         if tty {
             let n = (f * 40.0).round() as usize;
             eprint!("\r[{}{}] {:3.0}%", "#".repeat(n), " ".repeat(40 - n.min(40)), f * 100.0);
@@ -81,6 +98,11 @@ pub fn run(args: &SimArgs) -> Result<()> {
     })?;
     if tty {
         eprintln!();
+    }
+    if let (Some(p), Some(trace)) = (&args.plot, &trace) {
+        let title = format!("{} {}: commanded blue, measured orange, error green", summary.scene, summary.trajectory);
+        let image = trace.figure(&title);
+        crate::io::write_atomic(p, &image.encode(p)?).with_context(|| format!("--plot {}", p.display()))?;
     }
     if args.json {
         println!("{}", serde_json::to_string(&summary)?);
@@ -99,6 +121,9 @@ pub fn run(args: &SimArgs) -> Result<()> {
         "loop closure: max {:.3e} m, last 10% {:.3e} m; RCM: max {:.3e} m",
         summary.max_closure_error, summary.final_closure_error, summary.max_rcm_error
     );
+    if let Some(p) = &args.plot {
+        println!("plotted {}", p.display());
+    }
     if let Some(p) = &args.out {
         println!("recorded {} at {} Hz", p.display(), args.rate);
     }

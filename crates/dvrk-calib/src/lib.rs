@@ -29,7 +29,6 @@ pub mod motion_range;
 pub mod motive_csv;
 pub mod pivot;
 pub mod plain_csv;
-pub mod plot;
 pub mod psm_dh;
 pub mod read;
 pub mod recording;
@@ -40,6 +39,36 @@ pub mod synth;
 // The CDR codec and the ROS 2 messages live in dvrk-sim (which records them); re-exported here so
 // `dvrk_calib::cdr` and `dvrk_calib::ros_msgs` keep working.
 pub use dvrk_sim::recording::{cdr, ros_msgs};
+
+/// Plots (PNG / SVG): the figure renderer lives in dvrk-sim (`dvrk_sim::plot`, which also draws
+/// the tracking figure of a run) and is re-exported here, with the calibration-specific figures.
+pub mod plot {
+    pub use dvrk_sim::plot::*;
+
+    use crate::axes::AxesReport;
+    use crate::error::{CalibError, Result};
+
+    /// Per-sample residual (mm) of every axis against the sample number.
+    pub fn axis_residuals(report: &AxesReport) -> Result<Figure> {
+        if report.axes.is_empty() {
+            return Err(CalibError::data("plot", "no axis to draw"));
+        }
+        let panels = report
+            .axes
+            .iter()
+            .map(|a| Panel {
+                title: format!("axis {} ({} / {})", a.name, a.reference, a.moving),
+                x_label: "sample".into(),
+                y_label: format!("axis {} residual mm", a.name),
+                points: a.fit.residuals.iter().enumerate().map(|(i, r)| (i as f64, r * 1e3)).collect(),
+                marks: vec![],
+                equal: false,
+                lines: vec![],
+            })
+            .collect();
+        Ok(Figure { title: format!("axis residuals: {}", report.source), panels, columns: 0, panel_size: PANEL_SIZE })
+    }
+}
 
 pub use axes::{calibrate_axes, AxesOptions, AxesReport};
 pub use axes_config::AxesConfig;

@@ -72,13 +72,85 @@ pub struct Summary {
     pub notes: Vec<String>,
 }
 
+/// Commanded and measured positions of the tracked joints sampled over a run (for Figure 10).
+#[derive(Debug, Clone, Default)]
+pub struct Trace {
+    /// Sample times (s).
+    pub t: Vec<f64>,
+    pub joints: Vec<TraceJoint>,
+}
+
+/// One joint of a [`Trace`].
+#[derive(Debug, Clone)]
+pub struct TraceJoint {
+    pub arm: String,
+    pub joint: String,
+    /// `rad` or `m`
+    pub unit: &'static str,
+    /// Index in the simulation's joint vector.
+    pub index: usize,
+    pub commanded: Vec<f64>,
+    pub measured: Vec<f64>,
+}
+
+impl Trace {
+    /// The paper's Figure 10: per joint, commanded (blue) and measured (orange) position on the
+    /// left, the error (measured - commanded, green) on the right.
+    pub fn figure(&self, title: &str) -> crate::plot::Figure {
+        use crate::plot::{Figure, Line, Panel, BLUE, GREEN, ORANGE};
+        let series = |v: &[f64]| self.t.iter().copied().zip(v.iter().copied()).collect::<Vec<_>>();
+        let mut panels = Vec::with_capacity(2 * self.joints.len());
+        for j in &self.joints {
+            let name = format!("{} {}", j.arm, j.joint);
+            panels.push(Panel {
+                title: format!("{name} position"),
+                x_label: "t s".into(),
+                y_label: format!("{name} q {}", j.unit),
+                points: vec![],
+                marks: vec![],
+                equal: false,
+                lines: vec![Line { points: series(&j.commanded), color: BLUE, width: 3 }, Line { points: series(&j.measured), color: ORANGE, width: 1 }],
+            });
+            let err: Vec<f64> = j.measured.iter().zip(&j.commanded).map(|(m, c)| m - c).collect();
+            panels.push(Panel {
+                title: format!("{name} error"),
+                x_label: "t s".into(),
+                y_label: format!("{name} error {}", j.unit),
+                points: vec![],
+                marks: vec![],
+                equal: false,
+                lines: vec![Line { points: series(&err), color: GREEN, width: 1 }],
+            });
+        }
+        Figure { title: title.into(), panels, columns: 2, panel_size: (480, 200) }
+    }
+}
+
 /// Run `scene` as `options` say; `progress` is called with the fraction done every 1%.
 pub fn run(scene: &Scene, options: &RunOptions, progress: impl FnMut(f64)) -> Result<Summary> {
     run_recorded(scene, options, None, progress)
 }
 
 /// [`run`], recording the run as MCAP when `record` is given (see [`crate::recording::writer`]).
-pub fn run_recorded(scene: &Scene, options: &RunOptions, record: Option<&RecordOptions>, mut progress: impl FnMut(f64)) -> Result<Summary> {
+pub fn run_recorded(scene: &Scene, options: &RunOptions, record: Option<&RecordOptions>, progress: impl FnMut(f64)) -> Result<Summary> {
+    run_traced(scene, options, record, None, progress).map(|(s, _)| s)
+}
+
+/// [`run_recorded`], also sampling the commanded and measured positions of the tracked joints
+/// (those of arms on the sine; every joint when none is) at `trace_rate` Hz of simulated time
+/// when given, into buffers allocated before the run.
+pub fn run_traced(
+    scene: &Scene,
+    options: &RunOptions,
+    record: Option<&RecordOptions>,
+    trace_rate: Option<f64>,
+    mut progress: impl FnMut(f64),
+) -> Result<(Summary, Option<Trace>)> {
+    if let Some(r) = trace_rate {
+        if !(r.is_finite() && r > 0.0) {
+            return Err(SimError::value("trace rate (Hz)", r, "must be a positive finite number"));
+        }
+    }
     if !(options.duration.is_finite() && options.duration > 0.0) {
         return Err(SimError::value("duration (s)", options.duration, "must be a positive finite number"));
     }
@@ -133,6 +205,29 @@ pub fn run_recorded(scene: &Scene, options: &RunOptions, record: Option<&RecordO
     let mut max_closure_time = 0.0;
     let mut finite = true;
     let every = (steps / 100).max(1);
+    let mut trace = trace_rate.map(|rate| {
+        let sine: Vec<bool> = trajectories.iter().map(|t| !matches!(t, Trajectory::Hold { .. })).collect();
+        let any = sine.iter().any(|s| *s);
+        let stride = ((1.0 / (rate * sim.dt)).round() as u64).max(1);
+        let cap = (steps / stride + 2) as usize;
+        let mut joints = Vec::new();
+        for (a, arm) in sim.arms.iter().enumerate() {
+            if any && !sine[a] {
+                continue;
+            }
+            for (k, j) in arm.model.joints.iter().enumerate() {
+                joints.push(TraceJoint {
+                    arm: arm.name.clone(),
+                    joint: j.name.clone(),
+                    unit: j.unit(),
+                    index: arm.q_offset + k,
+                    commanded: Vec::with_capacity(cap),
+                    measured: Vec::with_capacity(cap),
+                });
+            }
+        }
+        (stride, Trace { t: Vec::with_capacity(cap), joints })
+    });
     let start = Instant::now();
     for s in 0..steps {
         let t = (s + 1) as f64 * sim.dt;
@@ -175,6 +270,15 @@ pub fn run_recorded(scene: &Scene, options: &RunOptions, record: Option<&RecordO
                 max_rcm = max_rcm.max(distance_to_axis(&pose, &point));
             }
         }
+        if let Some((stride, tr)) = trace.as_mut() {
+            if s % *stride == 0 || s + 1 == steps {
+                tr.t.push(t);
+                for j in &mut tr.joints {
+                    j.commanded.push(sim.actuator(j.index)?.target);
+                    j.measured.push(sim.q()[j.index]);
+                }
+            }
+        }
         if s % every == 0 {
             progress(s as f64 / steps as f64);
         }
@@ -199,7 +303,7 @@ pub fn run_recorded(scene: &Scene, options: &RunOptions, record: Option<&RecordO
         }
     }
     let simulated = steps as f64 * sim.dt;
-    Ok(Summary {
+    let summary = Summary {
         scene: scene.name.clone(),
         trajectory: match options.trajectory {
             TrajectoryKind::Sine => "sine".into(),
@@ -220,5 +324,6 @@ pub fn run_recorded(scene: &Scene, options: &RunOptions, record: Option<&RecordO
         max_rcm_error: max_rcm,
         finite,
         notes,
-    })
+    };
+    Ok((summary, trace.map(|(_, t)| t)))
 }

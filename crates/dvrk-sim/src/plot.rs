@@ -1,10 +1,11 @@
 //! Plots on request: the RCM point cloud of the paper's Figure 9 (three projections about the
-//! pivot) and the per-sample axis residuals. A figure is a list of scatter panels, rendered as
-//! SVG (with titles) or as PNG (uncompressed deflate, a 5x7 font for ticks and axis names), so
-//! no plotting or image library is needed.
+//! pivot), the per-sample axis residuals (built by dvrk-calib) and the joint tracking of Figure 10
+//! ([`crate::run::Trace::figure`]). A figure is a grid of panels of scatter points and lines,
+//! rendered as SVG (with titles) or as PNG (uncompressed deflate, a 5x7 font for ticks and axis
+//! names), so no plotting or image library is needed. Lives in dvrk-sim (dependency order
+//! kin <- sim <- calib); dvrk-calib re-exports it as `dvrk_calib::plot`.
 
-use crate::axes::AxesReport;
-use crate::error::{CalibError, Result};
+use crate::error::{Result, SimError};
 use nalgebra::Vector3;
 use std::fmt::Write as _;
 use std::path::Path;
@@ -21,23 +22,49 @@ pub struct Panel {
     pub marks: Vec<(f64, f64)>,
     /// Same scale on both axes (projections of a point cloud).
     pub equal: bool,
+    /// Polylines drawn over the points.
+    pub lines: Vec<Line>,
 }
 
-/// A row of panels.
+/// A polyline of a panel.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Line {
+    /// Vertices (x, y) in the panel's units.
+    pub points: Vec<(f64, f64)>,
+    /// RGB colour.
+    pub color: [u8; 3],
+    /// Stroke width (px, odd).
+    pub width: usize,
+}
+
+/// Panels in a grid, filled row by row.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Figure {
     pub title: String,
     pub panels: Vec<Panel>,
+    /// Panels per row; 0 puts every panel in one row.
+    pub columns: usize,
+    /// Width and height of one panel (px).
+    pub panel_size: (usize, usize),
 }
 
-const W: usize = 360;
-const H: usize = 340;
+/// The default panel size (px).
+pub const PANEL_SIZE: (usize, usize) = (360, 340);
 const M: usize = 46;
+/// Height of the title band above the panels (px).
+const TOP: usize = 20;
+
+/// Colour of the scatter points (and of the commanded trajectory in tracking plots).
+pub const BLUE: [u8; 3] = [31, 119, 180];
+/// Colour of a second series (the measured trajectory in tracking plots).
+pub const ORANGE: [u8; 3] = [255, 127, 14];
+/// Colour of a third series (the tracking error).
+pub const GREEN: [u8; 3] = [44, 160, 44];
 
 /// The RCM cloud (tracker frame, m) about `pivot`: x-y, x-z and y-z projections in mm.
 pub fn cloud(points: &[Vector3<f64>], pivot: &Vector3<f64>, title: &str) -> Result<Figure> {
     if points.is_empty() {
-        return Err(CalibError::data("plot", "no point to draw"));
+        return Err(SimError::Build("plot: no point to draw".into()));
     }
     let rel: Vec<Vector3<f64>> = points.iter().map(|p| (p - pivot) * 1e3).collect();
     let panel = |i: usize, j: usize, n: [&str; 2]| Panel {
@@ -47,28 +74,14 @@ pub fn cloud(points: &[Vector3<f64>], pivot: &Vector3<f64>, title: &str) -> Resu
         points: rel.iter().map(|p| (p[i], p[j])).collect(),
         marks: vec![(0.0, 0.0)],
         equal: true,
+        lines: vec![],
     };
-    Ok(Figure { title: title.into(), panels: vec![panel(0, 1, ["x", "y"]), panel(0, 2, ["x", "z"]), panel(1, 2, ["y", "z"])] })
-}
-
-/// Per-sample residual (mm) of every axis against the sample number.
-pub fn axis_residuals(report: &AxesReport) -> Result<Figure> {
-    if report.axes.is_empty() {
-        return Err(CalibError::data("plot", "no axis to draw"));
-    }
-    let panels = report
-        .axes
-        .iter()
-        .map(|a| Panel {
-            title: format!("axis {} ({} / {})", a.name, a.reference, a.moving),
-            x_label: "sample".into(),
-            y_label: format!("axis {} residual mm", a.name),
-            points: a.fit.residuals.iter().enumerate().map(|(i, r)| (i as f64, r * 1e3)).collect(),
-            marks: vec![],
-            equal: false,
-        })
-        .collect();
-    Ok(Figure { title: format!("axis residuals: {}", report.source), panels })
+    Ok(Figure {
+        title: title.into(),
+        panels: vec![panel(0, 1, ["x", "y"]), panel(0, 2, ["x", "z"]), panel(1, 2, ["y", "z"])],
+        columns: 0,
+        panel_size: PANEL_SIZE,
+    })
 }
 
 /// Axis range with a margin, never empty.
@@ -85,25 +98,32 @@ struct Frame {
     x: (f64, f64),
     y: (f64, f64),
     ox: usize,
+    oy: usize,
+    w: usize,
+    h: usize,
 }
 
 impl Frame {
-    fn new(p: &Panel, k: usize) -> Frame {
-        let mut x = range(p.points.iter().chain(&p.marks).map(|q| q.0));
-        let mut y = range(p.points.iter().chain(&p.marks).map(|q| q.1));
+    fn new(fig: &Figure, k: usize) -> Frame {
+        let p = &fig.panels[k];
+        let all = || p.points.iter().chain(&p.marks).chain(p.lines.iter().flat_map(|l| &l.points));
+        let mut x = range(all().map(|q| q.0));
+        let mut y = range(all().map(|q| q.1));
         if p.equal {
             let half = 0.5 * (x.1 - x.0).max(y.1 - y.0);
             let (cx, cy) = (0.5 * (x.0 + x.1), 0.5 * (y.0 + y.1));
             x = (cx - half, cx + half);
             y = (cy - half, cy + half);
         }
-        Frame { x, y, ox: k * W }
+        let cols = fig.cols();
+        let (w, h) = fig.panel_size;
+        Frame { x, y, ox: (k % cols) * w, oy: TOP + (k / cols) * h, w, h }
     }
     fn px(&self, v: f64) -> f64 {
-        self.ox as f64 + M as f64 + (v - self.x.0) / (self.x.1 - self.x.0) * (W - 2 * M) as f64
+        self.ox as f64 + M as f64 + (v - self.x.0) / (self.x.1 - self.x.0) * (self.w - 2 * M) as f64
     }
     fn py(&self, v: f64) -> f64 {
-        (H - M) as f64 - (v - self.y.0) / (self.y.1 - self.y.0) * (H - 2 * M) as f64
+        (self.oy + self.h - M) as f64 - (v - self.y.0) / (self.y.1 - self.y.0) * (self.h - 2 * M) as f64
     }
 }
 
@@ -112,29 +132,45 @@ fn tick(v: f64) -> String {
         format!("{v:.0}")
     } else if v.abs() >= 1.0 {
         format!("{v:.1}")
-    } else {
+    } else if v == 0.0 || v.abs() >= 1e-3 {
         format!("{v:.3}")
+    } else {
+        format!("{v:.1e}")
     }
 }
 
 impl Figure {
+    fn cols(&self) -> usize {
+        if self.columns == 0 {
+            self.panels.len().max(1)
+        } else {
+            self.columns
+        }
+    }
+
+    /// Image size (px): the panel grid and the title band above it.
+    pub fn size(&self) -> (usize, usize) {
+        let cols = self.cols();
+        let rows = self.panels.len().div_ceil(cols).max(1);
+        (cols.min(self.panels.len().max(1)) * self.panel_size.0, TOP + rows * self.panel_size.1)
+    }
+
     /// SVG or PNG bytes, chosen by `path`'s extension.
     pub fn encode(&self, path: &Path) -> Result<Vec<u8>> {
         match path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
             Some("svg") => Ok(self.svg().into_bytes()),
             Some("png") => Ok(self.png()),
-            _ => Err(CalibError::file(path, "--plot: unknown image format; valid: .png, .svg")),
+            _ => Err(SimError::field(path.display().to_string(), "--plot", "unknown image format; valid: .png, .svg")),
         }
     }
 
     /// The figure as SVG.
     pub fn svg(&self) -> String {
-        let width = W * self.panels.len();
-        let mut s = format!("<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{width}\" height=\"{}\" font-family=\"sans-serif\" font-size=\"11\">\n", H + 20);
+        let (width, height) = self.size();
+        let mut s = format!("<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{width}\" height=\"{height}\" font-family=\"sans-serif\" font-size=\"11\">\n");
         let _ = writeln!(s, "<rect width=\"100%\" height=\"100%\" fill=\"white\"/><text x=\"8\" y=\"14\" font-size=\"13\">{}</text>", xml(&self.title));
-        s += "<g transform=\"translate(0,20)\">\n";
         for (k, p) in self.panels.iter().enumerate() {
-            let f = Frame::new(p, k);
+            let f = Frame::new(self, k);
             let (x0, x1, y0, y1) = (f.px(f.x.0), f.px(f.x.1), f.py(f.y.0), f.py(f.y.1));
             let _ = writeln!(s, "<rect x=\"{x0:.1}\" y=\"{y1:.1}\" width=\"{:.1}\" height=\"{:.1}\" fill=\"none\" stroke=\"black\"/>", x1 - x0, y0 - y1);
             let _ = writeln!(s, "<text x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"middle\">{}</text>", (x0 + x1) / 2.0, y1 - 6.0, xml(&p.title));
@@ -146,26 +182,47 @@ impl Figure {
             for v in [f.y.0, f.y.1] {
                 let _ = writeln!(s, "<text x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"end\">{}</text>", x0 - 3.0, f.py(v) + 4.0, tick(v));
             }
-            s += "<g fill=\"#1f77b4\" fill-opacity=\"0.35\">";
-            for (x, y) in &p.points {
-                let _ = write!(s, "<circle cx=\"{:.1}\" cy=\"{:.1}\" r=\"1.3\"/>", f.px(*x), f.py(*y));
+            if !p.points.is_empty() {
+                s += "<g fill=\"#1f77b4\" fill-opacity=\"0.35\">";
+                for (x, y) in &p.points {
+                    let _ = write!(s, "<circle cx=\"{:.1}\" cy=\"{:.1}\" r=\"1.3\"/>", f.px(*x), f.py(*y));
+                }
+                s += "</g>\n";
             }
-            s += "</g>\n";
+            for l in &p.lines {
+                let [r, g, b] = l.color;
+                let _ = write!(s, "<polyline fill=\"none\" stroke=\"#{r:02x}{g:02x}{b:02x}\" stroke-width=\"{}\" points=\"", l.width.max(1));
+                for (x, y) in &l.points {
+                    let _ = write!(s, "{:.1},{:.1} ", f.px(*x), f.py(*y));
+                }
+                s += "\"/>\n";
+            }
             for (x, y) in &p.marks {
                 let (cx, cy) = (f.px(*x), f.py(*y));
                 let _ = writeln!(s, "<path d=\"M{:.1} {cy:.1}H{:.1}M{cx:.1} {:.1}V{:.1}\" stroke=\"red\" stroke-width=\"2\"/>", cx - 6.0, cx + 6.0, cy - 6.0, cy + 6.0);
             }
         }
-        s += "</g></svg>\n";
+        s += "</svg>\n";
         s
     }
 
     /// The figure as an RGB PNG.
     pub fn png(&self) -> Vec<u8> {
-        let width = W * self.panels.len();
-        let mut img = Raster { w: width, h: H, px: vec![255u8; width * H * 3] };
+        self.raster().encode()
+    }
+
+    /// The PNG's pixels: (width, height, RGB bytes row by row).
+    pub fn pixels(&self) -> (usize, usize, Vec<u8>) {
+        let r = self.raster();
+        (r.w, r.h, r.px)
+    }
+
+    fn raster(&self) -> Raster {
+        let (width, height) = self.size();
+        let mut img = Raster { w: width, h: height, px: vec![255u8; width * height * 3] };
+        img.text(8, 6, &self.title);
         for (k, p) in self.panels.iter().enumerate() {
-            let f = Frame::new(p, k);
+            let f = Frame::new(self, k);
             let (x0, x1, y0, y1) = (f.px(f.x.0) as i64, f.px(f.x.1) as i64, f.py(f.y.0) as i64, f.py(f.y.1) as i64);
             for x in x0..=x1 {
                 img.set(x, y0, [0, 0, 0]);
@@ -178,7 +235,26 @@ impl Figure {
             for (x, y) in &p.points {
                 let (cx, cy) = (f.px(*x).round() as i64, f.py(*y).round() as i64);
                 for (dx, dy) in [(0, 0), (1, 0), (0, 1), (-1, 0), (0, -1)] {
-                    img.blend(cx + dx, cy + dy, [31, 119, 180]);
+                    img.blend(cx + dx, cy + dy, BLUE);
+                }
+            }
+            for l in &p.lines {
+                let half = (l.width.max(1) as i64 - 1) / 2;
+                for seg in l.points.windows(2) {
+                    let (ax, ay, bx, by) = (f.px(seg[0].0), f.py(seg[0].1), f.px(seg[1].0), f.py(seg[1].1));
+                    if !(ax.is_finite() && ay.is_finite() && bx.is_finite() && by.is_finite()) {
+                        continue;
+                    }
+                    let n = (bx - ax).abs().max((by - ay).abs()).ceil().clamp(1.0, 1e5) as usize;
+                    for i in 0..=n {
+                        let u = i as f64 / n as f64;
+                        let (x, y) = ((ax + u * (bx - ax)).round() as i64, (ay + u * (by - ay)).round() as i64);
+                        for dy in -half..=half {
+                            for dx in -half..=half {
+                                img.set(x + dx, y + dy, l.color);
+                            }
+                        }
+                    }
                 }
             }
             for (x, y) in &p.marks {
@@ -200,7 +276,7 @@ impl Figure {
             img.text((x0 + x1) / 2 - 3 * p.x_label.len() as i64, y0 + 18, &p.x_label);
             img.text(x0, y1 - 12, &p.y_label);
         }
-        img.encode()
+        img
     }
 }
 
@@ -256,6 +332,12 @@ fn glyph(c: char) -> Option<[u8; 7]> {
         '(' => [2, 4, 8, 8, 8, 4, 2],
         ')' => [8, 4, 2, 2, 2, 4, 8],
         '/' => [0, 1, 2, 4, 8, 16, 0],
+        '_' => [0, 0, 0, 0, 0, 0, 31],
+        ':' => [0, 12, 12, 0, 12, 12, 0],
+        ',' => [0, 0, 0, 0, 12, 4, 8],
+        '+' => [0, 4, 4, 31, 4, 4, 0],
+        'j' => [2, 0, 6, 2, 2, 18, 12],
+        'q' => [0, 0, 13, 19, 15, 1, 1],
         _ => return None,
     })
 }
@@ -348,8 +430,8 @@ mod tests {
         let fig = cloud(&[Vector3::new(1.0, 2.0, 3.0), Vector3::new(1.001, 2.0, 3.0)], &Vector3::new(1.0005, 2.0, 3.0), "t").unwrap();
         let png = fig.png();
         assert_eq!(&png[png.len() - 12..], &[0, 0, 0, 0, b'I', b'E', b'N', b'D', 0xae, 0x42, 0x60, 0x82]);
-        // IHDR: 3 panels of 360 x 340.
-        assert_eq!(&png[16..24], &[0, 0, 4, 56, 0, 0, 1, 84]);
+        // IHDR: 3 panels of 360 x 340 under a 20 px title band.
+        assert_eq!(&png[16..24], &[0, 0, 4, 56, 0, 0, 1, 104]);
         assert!(fig.svg().contains("<circle"));
     }
 }
