@@ -21,12 +21,8 @@ use crate::motion_range::{motion_range, MotionRange};
 use dvrk_kin::Pose;
 use nalgebra::{Matrix3, Matrix6, Rotation3, SymmetricEigen, Vector3, Vector6};
 
-/// Below this rotation range (rad) between the clusters there is no axis to find: an error.
-pub const MIN_RANGE: f64 = 1.0 * std::f64::consts::PI / 180.0;
-/// Below this rotation range (rad) the axis is reported with a warning.
-pub const WARN_RANGE: f64 = 10.0 * std::f64::consts::PI / 180.0;
-/// Fewest common samples an axis fit accepts.
-pub const MIN_SAMPLES: usize = 10;
+// The motion thresholds are shared by the axis and pivot fits.
+pub use crate::motion_range::{MIN_RANGE, MIN_SAMPLES, WARN_RANGE};
 
 /// Which estimator.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]

@@ -8,6 +8,14 @@
 
 use nalgebra::{Matrix3, Rotation3, SymmetricEigen, Vector3};
 
+/// Below this rotation range (rad) a fit is undetermined: an error (axis: about the axis;
+/// pivot: about the second direction).
+pub const MIN_RANGE: f64 = 1.0 * std::f64::consts::PI / 180.0;
+/// Below this rotation range (rad) a fit is reported with a warning.
+pub const WARN_RANGE: f64 = 10.0 * std::f64::consts::PI / 180.0;
+/// Fewest samples (poses, or common samples of two clusters) a fit accepts.
+pub const MIN_SAMPLES: usize = 10;
+
 /// Rotation ranges of a sequence of orientations.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct MotionRange {
