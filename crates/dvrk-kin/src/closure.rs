@@ -2,7 +2,7 @@
 
 use crate::error::{KinError, Result};
 use crate::fk::{compute_frame_placements, Data};
-use crate::model::{Closure, Model, Motion};
+use crate::model::{Closure, Model};
 use nalgebra::{DMatrix, Vector3};
 
 pub(crate) fn compile_closures(model: &mut Model) -> Result<()> {
@@ -74,25 +74,13 @@ pub fn closure_jacobian(model: &Model, data: &Data) -> DMatrix<f64> {
         let pa = data.frames[c.frame] * nalgebra::Point3::from(c.point);
         for (col, frames) in piv.iter().enumerate() {
             for &j in frames {
-                let f = &model.frames[j];
-                let axis_frame = match f.parent {
-                    Some(p) => data.frames[p] * f.pre,
-                    None => model.base * f.pre,
-                };
-                let z = axis_frame.rotation.matrix().column(2).into_owned();
-                let o = axis_frame.translation.vector;
-                let sens = |p: &nalgebra::Point3<f64>| -> Vector3<f64> {
-                    match f.motion {
-                        Motion::Revolute { .. } => z.cross(&(p.coords - o)),
-                        _ => z,
-                    }
-                };
+                let (sens, _) = crate::jacobian::joint_motion_at(model, data, j, &pa.coords);
                 let mut v = Vector3::zeros();
                 if model.is_ancestor_or_self(j, c.frame) {
-                    v += sens(&pa);
+                    v += sens;
                 }
                 if model.is_ancestor_or_self(j, c.partner) {
-                    v -= sens(&pa);
+                    v -= sens;
                 }
                 for r in 0..3 {
                     g[(3 * k + r, col)] += v[r];

@@ -23,15 +23,7 @@ pub fn frame_jacobian(model: &Model, data: &Data, frame: usize, out: &mut Matrix
         let f = &model.frames[j];
         cur = f.parent;
         let Some(var) = f.variable() else { continue };
-        let axis_frame = match f.parent {
-            Some(pp) => data.frames[pp] * f.pre,
-            None => model.base * f.pre,
-        };
-        let z: Vector3<f64> = axis_frame.rotation.matrix().column(2).into();
-        let (lin, ang) = match f.motion {
-            Motion::Revolute { .. } => (z.cross(&(p - axis_frame.translation.vector)), z),
-            _ => (z, Vector3::zeros()),
-        };
+        let (lin, ang) = joint_motion_at(model, data, j, &p);
         for (k, c) in var.joints() {
             for r in 0..3 {
                 out[(r, k)] += c * lin[r];
@@ -50,5 +42,22 @@ impl Model {
         let mut j = Matrix6xX::zeros(self.nq());
         frame_jacobian(self, &data, frame, &mut j)?;
         Ok(j)
+    }
+}
+
+/// Velocity of world point `p` (linear, m per unit of the joint variable) and angular velocity
+/// (rad per unit) when the variable of moving frame `j` alone changes, for the placements in
+/// `data`. The joint axis is the z axis of `parent * pre` (before the motion, so standard-DH
+/// `post` transforms do not move it).
+pub(crate) fn joint_motion_at(model: &Model, data: &Data, j: usize, p: &Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
+    let f = &model.frames[j];
+    let axis_frame = match f.parent {
+        Some(pp) => data.frames[pp] * f.pre,
+        None => model.base * f.pre,
+    };
+    let z: Vector3<f64> = axis_frame.rotation.matrix().column(2).into();
+    match f.motion {
+        Motion::Revolute { .. } => (z.cross(&(p - axis_frame.translation.vector)), z),
+        _ => (z, Vector3::zeros()),
     }
 }
