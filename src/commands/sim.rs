@@ -27,9 +27,16 @@ pub struct SimArgs {
     /// Recording rate (Hz of simulated time), with --out.
     #[arg(long, default_value_t = dvrk_sim::RecordOptions::DEFAULT_RATE)]
     pub rate: f64,
-    /// sine (the paper's section 4.3 tracking test) or hold (home).
+    /// sine (the paper's section 4.3 tracking test), hold (home), or replay:FILE (the joint
+    /// setpoints of a recording: an MCAP's /<ARM>/setpoint_js, else /<ARM>/measured_js, for each
+    /// arm; or a plain CSV with time,q1..qN for the scene's one tracked arm). Replayed arms start
+    /// on their first sample; the others hold home.
     #[arg(long, default_value = "sine")]
     pub trajectory: String,
+    /// Use another model for an arm: ARM=MODEL (a built-in name or a model file, e.g. the
+    /// output of `dvrk calib apply`), keeping the arm's mount, inertials and gains. Repeatable.
+    #[arg(long, value_name = "ARM=MODEL")]
+    pub model: Vec<String>,
     /// Close the loops with impulse joints (default) or follow the passive joints by coupling.
     #[arg(long, default_value = "impulse-joints", value_parser = ["impulse-joints", "dof-coupling"])]
     pub loops: String,
@@ -53,12 +60,6 @@ pub struct SimArgs {
 }
 
 pub fn run(args: &SimArgs) -> Result<()> {
-    let trajectory = match args.trajectory.as_str() {
-        "sine" => TrajectoryKind::Sine,
-        "hold" => TrajectoryKind::Hold,
-        t if t.starts_with("replay:") => bail!("--trajectory {t}: replay is not built yet (sine, hold)"),
-        t => bail!("--trajectory {t}: unknown (valid: sine, hold)"),
-    };
     if !(args.duration.is_finite() && args.duration > 0.0) {
         bail!("--duration {}: must be a positive number of seconds", args.duration);
     }
@@ -67,7 +68,22 @@ pub fn run(args: &SimArgs) -> Result<()> {
             bail!("--solver-iterations {n}: must be in 1..=1000");
         }
     }
-    let scene = Scene::load(&args.scene).with_context(|| format!("--scene {}", args.scene))?;
+    let mut scene = Scene::load(&args.scene).with_context(|| format!("--scene {}", args.scene))?;
+    for m in &args.model {
+        let Some((arm, file)) = m.split_once('=') else { bail!("--model {m}: expected ARM=MODEL (a built-in model or a file), e.g. PSM1=my-psm.toml") };
+        let a = scene.arm_index(arm).with_context(|| format!("--model {m}"))?;
+        let model = dvrk_kin::load(file, None).with_context(|| format!("--model {m}"))?;
+        scene.set_model(a, model).with_context(|| format!("--model {m}"))?;
+    }
+    let trajectory = match args.trajectory.as_str() {
+        "sine" => TrajectoryKind::Sine,
+        "hold" => TrajectoryKind::Hold,
+        t if t.starts_with("replay:") => {
+            let path = std::path::Path::new(&t["replay:".len()..]);
+            TrajectoryKind::Replay(dvrk_calib::replay::read_replay(path, &scene).with_context(|| format!("--trajectory {t}"))?)
+        }
+        t => bail!("--trajectory {t}: unknown (valid: sine, hold, replay:FILE)"),
+    };
     let loops = if args.loops == "dof-coupling" { LoopMode::DofCoupling } else { LoopMode::ImpulseJoints };
     let options = RunOptions {
         duration: args.duration,

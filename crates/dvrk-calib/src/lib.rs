@@ -32,6 +32,7 @@ pub mod plain_csv;
 pub mod psm_dh;
 pub mod read;
 pub mod recording;
+pub mod replay;
 pub mod report_json;
 pub mod rigid_fit;
 pub mod synth;

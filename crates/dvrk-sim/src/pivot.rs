@@ -50,6 +50,37 @@ pub fn pivot_fit(poses: &[Pose]) -> Option<PivotFit> {
     Some(PivotFit { tip, post, rms, max })
 }
 
+/// The paper's section 4.2 experiment in simulation: arm `arm` of `scene` sweeps its first two
+/// joints over a 3 x 3 grid (`q1_amplitude`, `q2_amplitude` about home, rad, clamped to the
+/// limits) under PID, settling `settle` seconds at each point, and the pose of `frame`'s body is
+/// pivot-fitted. The fitted `post` is the arm's remote centre of motion in the world (m).
+pub fn simulated_rcm(scene: &crate::Scene, arm: usize, frame: &dvrk_kin::FrameRef, q1_amplitude: f64, q2_amplitude: f64, settle: f64) -> crate::Result<PivotFit> {
+    use crate::error::SimError;
+    let mut sim = crate::Sim::new(scene, &crate::SimOptions::default())?;
+    let a = sim.arms.get(arm).ok_or_else(|| SimError::value("arm index", arm as f64, format!("the scene has {} arms", scene.arms.len())))?;
+    let (model, off) = (a.model.clone(), a.q_offset);
+    if model.nq() < 2 {
+        return Err(SimError::field(&scene.name, &a.name, "a pivot sweep needs two joints"));
+    }
+    let body = model.frames[model.frame_id(frame)?].body;
+    let home = model.home();
+    let steps = (settle / sim.dt).round().max(1.0) as usize;
+    let mut poses = Vec::with_capacity(9);
+    for s1 in [-1.0, 0.0, 1.0] {
+        for s2 in [-1.0, 0.0, 1.0] {
+            for (k, s, amp) in [(0, s1, q1_amplitude), (1, s2, q2_amplitude)] {
+                let j = &model.joints[k];
+                sim.set_target(off + k, (home[k] + s * amp).clamp(j.lower, j.upper), 0.0)?;
+            }
+            for _ in 0..steps {
+                sim.step();
+            }
+            poses.push(sim.body_pose(arm, body));
+        }
+    }
+    pivot_fit(&poses).ok_or_else(|| SimError::field(&scene.name, &model.name, "the sweep did not determine a pivot (amplitudes too small?)"))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

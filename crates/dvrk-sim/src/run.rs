@@ -11,12 +11,34 @@ use serde::Serialize;
 use std::time::Instant;
 
 /// Which reference the arms follow.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq)]
 pub enum TrajectoryKind {
     /// The paper's tracking test ([`Trajectory::tracking_test`]).
     Sine,
     /// Hold home.
     Hold,
+    /// Recorded joint trajectories for some arms; the others hold home.
+    Replay(Replay),
+}
+
+/// Recorded joint trajectories replayed as setpoints. Each arm starts at its first sample.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Replay {
+    /// Where they came from (a file), for the summary.
+    pub source: String,
+    /// Arm name and its [`Trajectory::Samples`].
+    pub arms: Vec<(String, Trajectory)>,
+}
+
+impl TrajectoryKind {
+    /// `sine`, `hold` or `replay:SOURCE`.
+    pub fn label(&self) -> String {
+        match self {
+            TrajectoryKind::Sine => "sine".into(),
+            TrajectoryKind::Hold => "hold".into(),
+            TrajectoryKind::Replay(r) => format!("replay:{}", r.source),
+        }
+    }
 }
 
 /// What to run.
@@ -51,6 +73,9 @@ pub struct Summary {
     pub dt: f64,
     pub steps: u64,
     pub solver: crate::scene::SolverSettings,
+    /// Gauss-Seidel sweeps per substep of each arm group (rapier world), which override
+    /// `solver.pgs_iterations` for groups whose arms ask for more.
+    pub group_pgs_iterations: Vec<usize>,
     pub loops: crate::sim::LoopMode,
     pub closing_links: crate::sim::ClosingLinks,
     /// s of wall time
@@ -154,13 +179,38 @@ pub fn run_traced(
     if !(options.duration.is_finite() && options.duration > 0.0) {
         return Err(SimError::value("duration (s)", options.duration, "must be a positive finite number"));
     }
+    // A replayed arm starts on its first sample, so the run does not begin with a jump.
+    let mut replayed: Vec<Option<&Trajectory>> = vec![None; scene.arms.len()];
+    let started;
+    let scene = match &options.trajectory {
+        TrajectoryKind::Replay(r) => {
+            let mut s = scene.clone();
+            for (name, traj) in &r.arms {
+                let a = s.arm_index(name)?;
+                let (mut q0, mut qd0) = (vec![0.0; s.arms[a].model.nq()], vec![0.0; s.arms[a].model.nq()]);
+                if let Trajectory::Samples { q, .. } = traj {
+                    if q.first().map(|x| x.len()) != Some(q0.len()) {
+                        return Err(SimError::field(&r.source, name.as_str(), format!("samples are not {} joints long", q0.len())));
+                    }
+                }
+                traj.sample(0.0, &mut q0, &mut qd0);
+                s.set_start(a, &q0)?;
+                replayed[a] = Some(traj);
+            }
+            started = s;
+            &started
+        }
+        _ => scene,
+    };
     let mut sim = Sim::new(scene, &options.sim)?;
     let mut recorder = record.map(|r| Recorder::create(&sim, r)).transpose()?;
     let mut notes = Vec::new();
     let trajectories: Vec<Trajectory> = sim
         .arms
         .iter()
-        .map(|a| match options.trajectory {
+        .enumerate()
+        .map(|(i, a)| match &options.trajectory {
+            TrajectoryKind::Replay(_) => replayed[i].cloned().unwrap_or_else(|| Trajectory::Hold { q: a.model.home() }),
             TrajectoryKind::Sine if a.tracking == crate::scene::Tracking::Sine => {
                 let (t, n) = Trajectory::tracking_test(&a.model);
                 notes.extend(n.into_iter().map(|s| format!("{}: {s}", a.name)));
@@ -305,14 +355,12 @@ pub fn run_traced(
     let simulated = steps as f64 * sim.dt;
     let summary = Summary {
         scene: scene.name.clone(),
-        trajectory: match options.trajectory {
-            TrajectoryKind::Sine => "sine".into(),
-            TrajectoryKind::Hold => "hold".into(),
-        },
+        trajectory: options.trajectory.label(),
         duration: simulated,
         dt: sim.dt,
         steps,
         solver: options.sim.solver_settings(scene),
+        group_pgs_iterations: sim.group_pgs_iterations(),
         loops: options.sim.loops,
         closing_links: options.sim.closing_links,
         wall_time: wall,

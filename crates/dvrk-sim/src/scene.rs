@@ -102,6 +102,10 @@ struct ArmFile {
     /// What the arm does in the tracking test (`sine` or `hold`).
     #[serde(default)]
     tracking: Tracking,
+    /// Gauss-Seidel sweeps per substep this arm's loops need; the rapier world of its group
+    /// (the arm with its carrier and what it carries) uses the largest of its arms. The scene's
+    /// `pgs_iterations` when absent.
+    pgs_iterations: Option<usize>,
     #[serde(default)]
     #[allow(dead_code)]
     source: String,
@@ -135,6 +139,8 @@ pub struct Arm {
     pub name: String,
     /// The model, with `base` set to the arm's mount in the world.
     pub model: Model,
+    /// The model file's own `base` (the mount is `model.base * original_base^-1`).
+    pub original_base: Pose,
     pub inertials: Inertials,
     /// Per actuated joint.
     pub gains: Vec<Gains>,
@@ -149,6 +155,11 @@ pub struct Arm {
     pub mode: Mode,
     /// What the arm does in the tracking test.
     pub tracking: Tracking,
+    /// Gauss-Seidel sweeps per substep this arm needs (`None`: the scene's).
+    pub pgs_iterations: Option<usize>,
+    /// Joint positions the simulation starts from (rad, m): home unless set with
+    /// [`Scene::set_start`].
+    pub start: Vec<f64>,
 }
 
 /// rapier solver settings of a scene (see `rapier3d::dynamics::IntegrationParameters`).
@@ -178,6 +189,57 @@ pub struct Scene {
 }
 
 impl Scene {
+    /// The index of arm `name`, or an error listing the scene's arms.
+    pub fn arm_index(&self, name: &str) -> Result<usize> {
+        self.arms.iter().position(|a| a.name == name).ok_or_else(|| {
+            let names: Vec<&str> = self.arms.iter().map(|a| a.name.as_str()).collect();
+            SimError::field(&self.name, "arm", format!("`{name}` is not an arm of the scene (arms: {})", names.join(", ")))
+        })
+    }
+
+    /// Start arm `arm` at joint positions `q` (rad, m) instead of home: finite, one per joint,
+    /// within the limits. An arm that carries others keeps home (their mounts are placed on it
+    /// at home).
+    pub fn set_start(&mut self, arm: usize, q: &[f64]) -> Result<()> {
+        let a = &self.arms[arm];
+        let what = format!("{} start configuration", a.name);
+        if self.arms.iter().any(|b| b.parent.is_some_and(|(p, _)| p == arm)) {
+            return Err(SimError::field(&self.name, what, "the arm carries other arms, which are mounted on it at home; it cannot start elsewhere"));
+        }
+        if q.len() != a.model.nq() {
+            return Err(SimError::field(&self.name, what, format!("{} positions for {} joints", q.len(), a.model.nq())));
+        }
+        for (j, x) in a.model.joints.iter().zip(q) {
+            if !(x.is_finite() && *x >= j.lower - 1e-9 && *x <= j.upper + 1e-9) {
+                return Err(SimError::field(&self.name, what, format!("{} = {x} {} is outside its limits [{}, {}]", j.name, j.unit(), j.lower, j.upper)));
+            }
+        }
+        self.arms[arm].start = q.to_vec();
+        Ok(())
+    }
+
+    /// Replace arm `arm`'s model by `model` (a calibrated copy, say), keeping the arm's mount,
+    /// inertials (matched to the new model's bodies by name), gains and armature. The new model
+    /// must have the same joints.
+    pub fn set_model(&mut self, arm: usize, mut model: Model) -> Result<()> {
+        let a = &self.arms[arm];
+        let what = format!("{} model", a.name);
+        let names = |m: &Model| m.joints.iter().map(|j| j.name.clone()).collect::<Vec<_>>();
+        if names(&model) != names(&a.model) {
+            return Err(SimError::field(&self.name, what, format!("model `{}` has joints {:?}; the arm has {:?}", model.name, names(&model), names(&a.model))));
+        }
+        // The arm's base is mount * (the old model's own base): keep the mount.
+        let mount = a.model.base * a.original_base.inverse();
+        let original_base = model.base;
+        model.base = mount * model.base;
+        a.inertials.check(&format!("{} inertials", a.name), &model)?;
+        let a = &mut self.arms[arm];
+        a.start = model.home();
+        a.model = model;
+        a.original_base = original_base;
+        Ok(())
+    }
+
     /// A built-in scene by name, or a scene file by path.
     pub fn load(name_or_path: &str) -> Result<Scene> {
         if let Some((_, text)) = BUILTIN_SCENES.iter().find(|(n, _)| *n == name_or_path) {
@@ -219,7 +281,12 @@ impl Scene {
         let mut arms = Vec::with_capacity(f.arms.len());
         for (i, a) in f.arms.iter().enumerate() {
             let field = |x: &str| format!("arms[{i}] ({}).{x}", a.name);
-            let mut model = dvrk_kin::load(&a.model, None).map_err(|e| SimError::field(file, field("model"), e.to_string()))?;
+            // A model path is relative to the scene file, like its inertials path.
+            let model_path = match dir.map(|d| d.join(&a.model)) {
+                Some(p) if p.is_file() => p.display().to_string(),
+                _ => a.model.clone(),
+            };
+            let mut model = dvrk_kin::load(&model_path, None).map_err(|e| SimError::field(file, field("model"), e.to_string()))?;
             let mut mount = match &a.mount {
                 Some(m) => pose_from_rows(m, "mount").map_err(|e| SimError::field(file, field("mount"), e.to_string()))?,
                 None => Pose::identity(),
@@ -243,6 +310,7 @@ impl Scene {
                 mount = fk[f] * mount;
                 Some((pi, f))
             };
+            let original_base = model.base;
             model.base = mount * model.base;
             let inertials = match BUILTIN_INERTIALS.iter().find(|(n, _)| *n == a.inertials) {
                 Some((n, text)) => Inertials::parse(text, &format!("built-in inertials {n}"), &model)?,
@@ -261,6 +329,9 @@ impl Scene {
                     return Err(SimError::field(file, field(name), format!("{x} is not a finite non-negative number")));
                 }
             }
+            if let Some(v) = a.pgs_iterations.filter(|v| !(1..=1000).contains(v)) {
+                return Err(SimError::field(file, field("pgs_iterations"), format!("{v} is not in 1..=1000")));
+            }
             if !a.damping.is_finite() || a.damping < 0.0 {
                 return Err(SimError::field(file, field("damping"), format!("{} is not a finite non-negative number", a.damping)));
             }
@@ -268,7 +339,8 @@ impl Scene {
             if arms.iter().any(|p| p.name == a.name) {
                 return Err(SimError::field(file, field("name"), "two arms have this name"));
             }
-            arms.push(Arm { name: a.name.clone(), model, inertials, gains, armature: a.armature.clone(), damping: a.damping, parent, mode: a.mode, tracking: a.tracking });
+            let start = model.home();
+            arms.push(Arm { name: a.name.clone(), model, original_base, inertials, gains, armature: a.armature.clone(), damping: a.damping, parent, mode: a.mode, tracking: a.tracking, pgs_iterations: a.pgs_iterations, start });
         }
         Ok(Scene { name: f.name, title: f.title, dt: f.dt, solver: SolverSettings {
                 iterations: f.solver_iterations,

@@ -128,9 +128,12 @@ struct ClosurePoints {
 }
 
 /// A passive joint tied to a driving joint like a cable: `follower = coeff * leader + offset`,
-/// held by a stiff implicit spring-damper on the follower whose tension reacts on the leader.
-/// (rapier 0.36's `MultibodyDofCoupling` was tried first: with it the PSM yaw joint stops dead
-/// after a few centimetres of motion anywhere in the arm, so it is not used.)
+/// held by a stiff spring-damper whose tension acts on the follower and, through the ratio, back
+/// on the leader (action and reaction equal, so the cable does no net work but what its damper
+/// dissipates; the spring's energy is counted in [`Sim::energy`]). Explicit: a 200 rad/s mode at
+/// dt = 1 ms is well inside symplectic Euler's limit (w dt < 2). (rapier 0.36's
+/// `MultibodyDofCoupling` was tried first: with it the PSM yaw joint stops dead after a few
+/// centimetres of motion anywhere in the arm, so it is not used.)
 #[derive(Debug, Clone)]
 struct Cable {
     leader: usize,
@@ -141,6 +144,8 @@ struct Cable {
     stiffness: f64,
     /// N s/m or N·m s/rad
     damping: f64,
+    /// The damping it was built with (N s/m or N·m s/rad).
+    built_damping: f64,
 }
 
 /// Per-arm data.
@@ -185,10 +190,12 @@ struct World {
     narrow_phase: NarrowPhase,
     ccd: CCDSolver,
     ground: RigidBodyHandle,
+    /// Solver settings of this group: the sweeps its most demanding arm needs.
+    params: IntegrationParameters,
 }
 
 impl World {
-    fn new() -> World {
+    fn new(params: IntegrationParameters) -> World {
         let mut bodies = RigidBodySet::new();
         let ground = bodies.insert(RigidBodyBuilder::fixed());
         World {
@@ -203,13 +210,14 @@ impl World {
             narrow_phase: NarrowPhase::new(),
             ccd: CCDSolver::new(),
             ground,
+            params,
         }
     }
 
-    fn step(&mut self, gravity: RVec, params: &IntegrationParameters) {
+    fn step(&mut self, gravity: RVec) {
         self.pipeline.step(
             gravity,
-            params,
+            &self.params,
             &mut self.islands,
             &mut self.broad_phase,
             &mut self.narrow_phase,
@@ -235,7 +243,6 @@ pub struct Sim {
     /// carries); `ArmState::world` indexes it.
     worlds: Vec<World>,
     parallel: bool,
-    params: IntegrationParameters,
     gravity: RVec,
     /// Measured q, qd and applied effort of every joint of the scene (rad, m; /s; N·m, N).
     q: Vec<f64>,
@@ -269,6 +276,11 @@ impl Sim {
     /// Build the rapier world of `scene` with every joint at its home position, in PID mode
     /// holding home.
     pub fn new(scene: &Scene, options: &SimOptions) -> Result<Sim> {
+        let solver = options.solver_settings(scene);
+        let mut params = IntegrationParameters { dt: scene.dt, ..IntegrationParameters::default() };
+        params.num_solver_iterations = solver.iterations;
+        params.num_internal_stabilization_iterations = solver.stabilization_iterations;
+        params.warmstart_joints = solver.warmstart_joints;
         let mut worlds: Vec<World> = Vec::new();
         let mut arms: Vec<ArmState> = Vec::with_capacity(scene.arms.len());
         let mut q_offset = 0;
@@ -278,14 +290,19 @@ impl Sim {
             let world = match arm.parent {
                 Some((pa, _)) => arms[pa].world,
                 None => {
-                    worlds.push(World::new());
+                    worlds.push(World::new(params));
                     worlds.len() - 1
                 }
             };
+            // Sweeps: an explicit option wins; else the most demanding arm of the group.
+            let pgs = options.pgs_iterations.unwrap_or(arm.pgs_iterations.unwrap_or(scene.solver.pgs_iterations));
+            let wp = &mut worlds[world].params;
+            wp.num_internal_pgs_iterations = if arm.parent.is_some() { wp.num_internal_pgs_iterations.max(pgs) } else { pgs };
             let World { bodies, impulse_joints, multibody_joints, ground, .. } = &mut worlds[world];
             let ground = *ground;
             let model = &arm.model;
-            let home = model.home();
+            // Built at the arm's start configuration (home unless the scene says otherwise).
+            let home = arm.start.clone();
             let fk = model.fk(&home)?;
             // One rigid body per dvrk-kin body, placed at its first frame.
             let body_pose: Vec<Pose> = model.bodies.iter().map(|b| fk[b.frames[0]]).collect();
@@ -423,7 +440,7 @@ impl Sim {
                 // Stiffness for a 200 rad/s cable mode on the follower's own inertia, critically damped.
                 let inertia = axis_inertia(&arm.inertials, model, dof_body(&dof_of_body, i), &d.frame2, d.revolute);
                 let w = 200.0;
-                cables.push(Cable { leader: dr.dof, follower: i, coeff, offset: d.offset - coeff * dr.b, stiffness: inertia * w * w, damping: 2.0 * inertia * w });
+                cables.push(Cable { leader: dr.dof, follower: i, coeff, offset: d.offset - coeff * dr.b, stiffness: inertia * w * w, damping: 2.0 * inertia * w, built_damping: 2.0 * inertia * w });
             }
             let link_ids: Vec<usize> = dofs.iter().map(|d| multibody_joints.get(d.handle).map(|(_, l)| l).unwrap_or(0)).collect();
             let mb = multibody_joints.get_multibody_mut(mb_index).ok_or_else(|| SimError::Build("multibody vanished".into()))?;
@@ -434,10 +451,6 @@ impl Sim {
                 disp[assembly] = d.coef.iter().zip(&home).map(|(c, q)| c * q).sum::<f64>() + d.offset;
                 mb.damping_mut()[assembly] = arm.damping;
                 mb.armature_mut()[assembly] = 0.0;
-            }
-            for c in &cables {
-                let assembly = mb.link(link_ids[c.follower]).map(|l| l.assembly_id()).unwrap_or(0);
-                mb.damping_mut()[assembly] = arm.damping + c.damping;
             }
             for (k, dr) in drives.iter().enumerate() {
                 let assembly = mb.link(link_ids[dr.dof]).map(|l| l.assembly_id()).unwrap_or(0);
@@ -465,12 +478,6 @@ impl Sim {
             arms.push(ArmState { name: arm.name.clone(), model: model.clone(), q_offset, bodies: handles, dofs, drives, closures, cables, actuators, tracking: arm.tracking, parent: arm.parent, world });
             q_offset += model.nq();
         }
-        let mut params = IntegrationParameters { dt: scene.dt, ..IntegrationParameters::default() };
-        let solver = options.solver_settings(scene);
-        params.num_solver_iterations = solver.iterations;
-        params.num_internal_pgs_iterations = solver.pgs_iterations;
-        params.num_internal_stabilization_iterations = solver.stabilization_iterations;
-        params.warmstart_joints = solver.warmstart_joints;
         let g = if options.no_gravity { [0.0; 3] } else { scene.gravity };
         let mut sim = Sim {
             scene_name: scene.name.clone(),
@@ -479,7 +486,6 @@ impl Sim {
             arms,
             worlds,
             parallel: options.parallel,
-            params,
             gravity: RVec::new(g[0], g[1], g[2]),
             q: vec![0.0; q_offset],
             qd: vec![0.0; q_offset],
@@ -669,42 +675,45 @@ impl Sim {
             }
         }
         self.apply_cables();
-        let (gravity, params) = (self.gravity, &self.params);
+        let gravity = self.gravity;
         if self.parallel && self.worlds.len() > 1 {
             use rayon::prelude::*;
-            self.worlds.par_iter_mut().for_each(|w| w.step(gravity, params));
+            self.worlds.par_iter_mut().for_each(|w| w.step(gravity));
         } else {
             for w in self.worlds.iter_mut() {
-                w.step(gravity, params);
+                w.step(gravity);
             }
         }
         self.time += self.dt;
         self.read_state();
     }
 
-    /// Cables: move each follower's implicit spring rest to where the leader puts it, add the
-    /// damper's feed-forward, and apply the cable tension back on the leader.
+    /// Cables: the spring-damper tension on each follower and its reaction on the leader.
     fn apply_cables(&mut self) {
         for arm in &self.arms {
             let w = &mut self.worlds[arm.world];
             for c in &arm.cables {
-                let (lead, fol) = (&arm.dofs[c.leader], &arm.dofs[c.follower]);
-                let Some((mb, ll)) = w.multibody_joints.get(lead.handle) else { continue };
-                let Some(l) = mb.link(ll) else { continue };
-                let (xl, vl) = (l.joint().coords()[if lead.revolute { 3 } else { 0 }], mb.joint_velocity(l)[0]);
-                let Some((mb, fl)) = w.multibody_joints.get_mut(fol.handle) else { continue };
-                let axis = if fol.revolute { 3 } else { 0 };
-                let rest = c.coeff * xl + c.offset;
-                let Some(f) = mb.link_mut(fl) else { continue };
-                let xf = f.joint().coords()[axis];
-                f.joint.set_spring(axis, c.stiffness, rest);
-                let vf = mb.link(fl).map(|f| mb.joint_velocity(f)[0]).unwrap_or(0.0);
-                // Tension on the follower (spring + damper about the leader's motion), explicit part.
-                let tension = -c.stiffness * (xf - rest) - c.damping * (vf - c.coeff * vl);
-                apply_generalized(&mut w.bodies, fol, c.damping * c.coeff * vl);
-                apply_generalized(&mut w.bodies, lead, -c.coeff * tension);
+                let (Some((xl, vl)), Some((xf, vf))) = (coordinate(&w.multibody_joints, &arm.dofs[c.leader]), coordinate(&w.multibody_joints, &arm.dofs[c.follower])) else {
+                    continue;
+                };
+                let tension = -c.stiffness * (xf - (c.coeff * xl + c.offset)) - c.damping * (vf - c.coeff * vl);
+                apply_generalized(&mut w.bodies, &arm.dofs[c.follower], tension);
+                apply_generalized(&mut w.bodies, &arm.dofs[c.leader], -c.coeff * tension);
             }
         }
+    }
+
+    /// Scale every cable's damper (1: as built, 0: a lossless cable; the energy check uses 0).
+    pub fn set_cable_damping_scale(&mut self, scale: f64) -> Result<()> {
+        if !scale.is_finite() || scale < 0.0 {
+            return Err(SimError::value("cable damping scale", scale, "must be finite and non-negative"));
+        }
+        for arm in &mut self.arms {
+            for c in &mut arm.cables {
+                c.damping = c.built_damping * scale;
+            }
+        }
+        Ok(())
     }
 
     /// World pose of dvrk-kin body `body` of arm `arm` (its first frame).
@@ -718,6 +727,12 @@ impl Sim {
     pub fn frame_pose(&self, arm: usize, frame: usize, rel: &Pose) -> Pose {
         let b = self.arms[arm].model.frames[frame].body;
         self.body_pose(arm, b) * rel
+    }
+
+    /// Gauss-Seidel sweeps per substep of each rapier world (arm group), in the order the groups'
+    /// root arms appear in the scene.
+    pub fn group_pgs_iterations(&self) -> Vec<usize> {
+        self.worlds.iter().map(|w| w.params.num_internal_pgs_iterations).collect()
     }
 
     /// Largest loop-closure gap over all arms (m): distance between the two bodies' copies of
@@ -749,16 +764,45 @@ impl Sim {
             .fold(0.0, f64::max)
     }
 
-    /// Total mechanical energy (J): kinetic plus gravitational potential of every body.
+    /// Total mechanical energy (J): kinetic plus gravitational potential of every body, the
+    /// kinetic energy of the drives' armature (reflected rotor inertia) and the energy stored in
+    /// the cables' springs.
     pub fn energy(&self) -> f64 {
         let g = self.gravity;
-        self.worlds
+        let bodies: f64 = self
+            .worlds
             .iter()
             .flat_map(|w| w.bodies.iter())
             .filter(|(_, rb)| rb.is_dynamic())
             .map(|(_, rb)| rb.kinetic_energy() - rb.mass() * g.dot(rb.center_of_mass()))
-            .sum()
+            .sum();
+        let mut extra = 0.0;
+        for arm in &self.arms {
+            let mbs = &self.worlds[arm.world].multibody_joints;
+            for d in &arm.dofs {
+                if let Some((mb, link)) = mbs.get(d.handle) {
+                    if let Some(l) = mb.link(link) {
+                        let v = mb.joint_velocity(l)[0];
+                        extra += 0.5 * mb.armature()[l.assembly_id()] * v * v;
+                    }
+                }
+            }
+            for c in &arm.cables {
+                if let (Some((xl, _)), Some((xf, _))) = (coordinate(mbs, &arm.dofs[c.leader]), coordinate(mbs, &arm.dofs[c.follower])) {
+                    let stretch = xf - (c.coeff * xl + c.offset);
+                    extra += 0.5 * c.stiffness * stretch * stretch;
+                }
+            }
+        }
+        bodies + extra
     }
+}
+
+/// Coordinate (rad or m) and velocity of tree joint `dof`.
+fn coordinate(mbs: &MultibodyJointSet, dof: &TreeDof) -> Option<(f64, f64)> {
+    let (mb, link) = mbs.get(dof.handle)?;
+    let l = mb.link(link)?;
+    Some((l.joint().coords()[if dof.revolute { 3 } else { 0 }], mb.joint_velocity(l)[0]))
 }
 
 /// Apply generalised force `f` (N·m or N) on tree joint `dof`: a torque (force) on the child

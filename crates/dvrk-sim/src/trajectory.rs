@@ -1,4 +1,4 @@
-//! Joint trajectories: the paper's tracking test (section 4.3), hold.
+//! Joint trajectories: the paper's tracking test (section 4.3), hold, replay of recorded samples.
 
 use dvrk_kin::{JointType, Model};
 
@@ -9,6 +9,10 @@ pub enum Trajectory {
     Sine { center: Vec<f64>, amplitude: Vec<f64>, frequency: f64 },
     /// Constant positions.
     Hold { q: Vec<f64> },
+    /// Recorded samples (times `t` in s from the start, increasing; `q[i]` the positions at
+    /// `t[i]`, nq long), linearly interpolated, velocity the slope of the segment; held at the
+    /// first and last sample outside their span.
+    Samples { t: Vec<f64>, q: Vec<Vec<f64>> },
 }
 
 /// Room kept between a sine's extreme and the joint limit (rad or m), so PID overshoot does not
@@ -55,6 +59,54 @@ impl Trajectory {
                 q.copy_from_slice(h);
                 qd.fill(0.0);
             }
+            Trajectory::Samples { t: ts, q: qs } => {
+                // First sample after t; the segment [i-1, i] holds t.
+                let i = ts.partition_point(|&x| x <= t);
+                if i == 0 || i == ts.len() {
+                    q.copy_from_slice(&qs[if i == 0 { 0 } else { ts.len() - 1 }]);
+                    qd.fill(0.0);
+                    return;
+                }
+                let (t0, t1) = (ts[i - 1], ts[i]);
+                let s = (t - t0) / (t1 - t0);
+                for k in 0..q.len() {
+                    let (a, b) = (qs[i - 1][k], qs[i][k]);
+                    q[k] = a + s * (b - a);
+                    qd[k] = (b - a) / (t1 - t0);
+                }
+            }
+        }
+    }
+
+    /// Recorded samples as a trajectory: times shifted to start at 0, each row `nq` long, times
+    /// strictly increasing and every value finite. `what` names the source in errors.
+    pub fn samples(what: &str, t: &[f64], q: Vec<Vec<f64>>, nq: usize) -> Result<Trajectory, String> {
+        if t.len() != q.len() {
+            return Err(format!("{what}: {} times for {} samples", t.len(), q.len()));
+        }
+        if t.is_empty() {
+            return Err(format!("{what}: no samples"));
+        }
+        for (i, (ti, qi)) in t.iter().zip(&q).enumerate() {
+            if qi.len() != nq {
+                return Err(format!("{what}: sample {i} has {} positions, the arm has {nq} joints", qi.len()));
+            }
+            if !ti.is_finite() || qi.iter().any(|x| !x.is_finite()) {
+                return Err(format!("{what}: sample {i} (t = {ti} s) is not finite"));
+            }
+            if i > 0 && *ti <= t[i - 1] {
+                return Err(format!("{what}: time {ti} s of sample {i} does not increase (previous {} s)", t[i - 1]));
+            }
+        }
+        let t0 = t[0];
+        Ok(Trajectory::Samples { t: t.iter().map(|x| x - t0).collect(), q })
+    }
+
+    /// Duration covered (s): 0 for the periodic and constant references.
+    pub fn span(&self) -> f64 {
+        match self {
+            Trajectory::Samples { t, .. } => t.last().copied().unwrap_or(0.0),
+            _ => 0.0,
         }
     }
 }

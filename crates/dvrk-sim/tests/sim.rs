@@ -1,6 +1,5 @@
 //! Simulation checks (run in release: `cargo test -p dvrk-sim --release`).
 
-use dvrk_sim::pivot::pivot_fit;
 use dvrk_sim::run::TrajectoryKind;
 use dvrk_sim::{run, ClosingLinks, Gains, LoopMode, Mode, RunOptions, Scene, Sim, SimOptions};
 use rand::{Rng, SeedableRng};
@@ -164,21 +163,8 @@ fn yaw_accelerates_freely_under_a_constant_torque() {
 #[test]
 fn rcm_from_a_pivot_fit_of_link_8() {
     let scene = psm();
-    let mut sim = Sim::new(&scene, &SimOptions::default()).unwrap();
-    let model = sim.arms[0].model.clone();
-    let body8 = model.frames[model.frame_id(&dvrk_kin::FrameRef::Index(8)).unwrap()].body;
-    let mut poses = Vec::new();
-    for q1 in [-0.6, 0.0, 0.6] {
-        for q2 in [-0.5, 0.0, 0.5] {
-            sim.set_target(0, q1, 0.0).unwrap();
-            sim.set_target(1, q2, 0.0).unwrap();
-            for _ in 0..1500 {
-                sim.step();
-            }
-            poses.push(sim.body_pose(0, body8));
-        }
-    }
-    let fit = pivot_fit(&poses).unwrap();
+    let model = scene.arms[0].model.clone();
+    let fit = dvrk_sim::pivot::simulated_rcm(&scene, 0, &dvrk_kin::FrameRef::Index(8), 0.6, 0.5, 1.5).unwrap();
     let rcm = model.base * nalgebra::Point3::from(model.rcm.as_ref().unwrap().point);
     let offset = (fit.post - rcm.coords).norm();
     println!("RCM pivot fit: {offset:.3e} m from the kinematic RCM, RMS {:.3e} m, max {:.3e} m", fit.rms, fit.max);
