@@ -24,6 +24,7 @@ pub mod axes_config;
 pub mod axis;
 mod error;
 pub mod foxglove;
+pub mod identify;
 pub mod mcap_io;
 pub mod motion_range;
 pub mod motive_csv;

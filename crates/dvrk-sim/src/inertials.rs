@@ -176,6 +176,16 @@ impl Inertials {
         Ok(())
     }
 
+    /// Every body's inertia in [`Model::bodies`] order, for dvrk-kin's dynamics.
+    pub fn body_inertias(&self, model: &Model) -> Result<Vec<dvrk_kin::BodyInertia>> {
+        (0..model.bodies.len())
+            .map(|b| {
+                let e = self.body(model, b).ok_or_else(|| SimError::field(&self.model, "bodies", format!("no entry for body `{}`", model.bodies[b].name)))?;
+                Ok(dvrk_kin::BodyInertia::new(e.mass, e.com, e.inertia))
+            })
+            .collect()
+    }
+
     /// The entry of `body` (a position in `model.bodies`).
     pub fn body(&self, model: &Model, body: usize) -> Option<&BodyInertial> {
         self.bodies.iter().find(|b| b.name == model.bodies[body].name)

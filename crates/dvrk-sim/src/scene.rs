@@ -28,6 +28,15 @@ const BUILTIN_INERTIALS: &[(&str, &str)] = &[
     ("suj-ecm", include_str!("../../../models/inertials/suj-ecm.toml")),
 ];
 
+/// The built-in inertials `name` (`psm`, `ecm`, `suj-psm1`, ...) checked against `model`.
+pub fn builtin_inertials(name: &str, model: &Model) -> Result<Inertials> {
+    let (n, text) = BUILTIN_INERTIALS.iter().find(|(n, _)| *n == name).ok_or_else(|| {
+        let valid: Vec<&str> = BUILTIN_INERTIALS.iter().map(|(n, _)| *n).collect();
+        SimError::field(name, "inertials", format!("no built-in inertials `{name}` (built-in: {})", valid.join(", ")))
+    })?;
+    Inertials::parse(text, &format!("built-in inertials {n}"), model)
+}
+
 /// Names of the built-in scenes.
 pub fn builtin_scenes() -> Vec<&'static str> {
     BUILTIN_SCENES.iter().map(|(n, _)| *n).collect()

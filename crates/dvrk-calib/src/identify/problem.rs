@@ -1,0 +1,209 @@
+//! The identification problem: the parameters (every body's 10 inertial parameters and the
+//! effects of each recorded channel), and the regression `tau_channel = Y theta` over a
+//! recording, built from dvrk-kin's closed-loop regressor mapped to the recorded channels.
+
+use super::filter::{derivative, Butterworth2};
+use super::recording::TorqueRecording;
+use crate::error::{CalibError, Result};
+use dvrk_kin::dynamics::{PARAMETERS_PER_BODY, PARAMETER_NAMES};
+use dvrk_kin::{DynamicsData, DynamicsModel, Model};
+use nalgebra::{DMatrix, Vector3};
+use serde::Serialize;
+
+/// A per-channel effect term of the regression.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum EffectTerm {
+    /// Coulomb friction level `fc` (N·m, N) times the smoothed sign of the channel velocity.
+    Coulomb,
+    /// Constant effort offset (N·m, N): the Coulomb model's asymmetry, sensor zero.
+    Offset,
+    /// Viscous friction `fv` (N·m s/rad, N s/m) times the channel velocity.
+    Viscous,
+    /// Reflected motor (rotor) inertia `im` (kg m^2, kg) times the channel acceleration.
+    Armature,
+    /// Joint spring stiffness `k` (N·m/rad, N/m): effort `k q` (the tool's cables).
+    Spring,
+}
+
+impl EffectTerm {
+    /// Every term, in column order.
+    pub const ALL: [EffectTerm; 5] = [EffectTerm::Coulomb, EffectTerm::Offset, EffectTerm::Viscous, EffectTerm::Armature, EffectTerm::Spring];
+
+    /// Short parameter name and its unit for a revolute channel.
+    pub fn symbol(self) -> &'static str {
+        match self {
+            EffectTerm::Coulomb => "fc",
+            EffectTerm::Offset => "fo",
+            EffectTerm::Viscous => "fv",
+            EffectTerm::Armature => "im",
+            EffectTerm::Spring => "k",
+        }
+    }
+
+    /// Must the parameter be non-negative (physics)?
+    pub fn nonnegative(self) -> bool {
+        !matches!(self, EffectTerm::Offset)
+    }
+}
+
+/// What the regression contains.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Terms {
+    /// Effect terms added to every channel.
+    pub effects: Vec<EffectTerm>,
+    /// Channels that get the spring term (the tool's cable-driven joints); others do not.
+    pub spring_channels: Vec<usize>,
+}
+
+/// One unknown of the regression.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Param {
+    /// Parameter `k` (of [`PARAMETER_NAMES`]) of body `body`.
+    Body { body: usize, k: usize },
+    /// An effect term of channel `channel`.
+    Effect { term: EffectTerm, channel: usize },
+}
+
+/// The unknowns, in column order: bodies first (10 each, `Model::bodies` order), then the
+/// effects channel by channel.
+#[derive(Debug, Clone)]
+pub struct Layout {
+    pub params: Vec<Param>,
+    pub nbodies: usize,
+    pub nchannels: usize,
+}
+
+impl Layout {
+    /// The layout for `model` with `terms` on `nchannels` channels.
+    pub fn new(model: &Model, nchannels: usize, terms: &Terms) -> Layout {
+        let nb = model.bodies.len();
+        let mut params: Vec<Param> = (0..nb).flat_map(|b| (0..PARAMETERS_PER_BODY).map(move |k| Param::Body { body: b, k })).collect();
+        for channel in 0..nchannels {
+            for &term in &terms.effects {
+                if term == EffectTerm::Spring && !terms.spring_channels.contains(&channel) {
+                    continue;
+                }
+                params.push(Param::Effect { term, channel });
+            }
+        }
+        Layout { params, nbodies: nb, nchannels }
+    }
+
+    /// Number of unknowns.
+    pub fn len(&self) -> usize {
+        self.params.len()
+    }
+
+    /// True when there is nothing to identify.
+    pub fn is_empty(&self) -> bool {
+        self.params.is_empty()
+    }
+
+    /// A readable name: `pitch_back_link.mcx`, `outer_yaw.fc`.
+    pub fn name(&self, model: &Model, channels: &[String], i: usize) -> String {
+        match self.params[i] {
+            Param::Body { body, k } => format!("{}.{}", model.bodies[body].name, PARAMETER_NAMES[k]),
+            Param::Effect { term, channel } => format!("{}.{}", channels[channel], term.symbol()),
+        }
+    }
+}
+
+/// How recordings are turned into regressions.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Processing {
+    /// Low-pass cut-off (Hz) of the zero-phase filter applied to velocities (before
+    /// differentiating them into accelerations) and to efforts.
+    pub cutoff: f64,
+    /// Velocity scale of the Coulomb term's smoothed sign, `tanh(qd / v)` (rad/s, m/s).
+    pub coulomb_velocity: f64,
+    /// Gravity in the model's world frame (m/s^2).
+    pub gravity: Vector3<f64>,
+    /// Samples dropped at each end (filter edge transients).
+    pub trim: usize,
+}
+
+impl Default for Processing {
+    fn default() -> Self {
+        Processing { cutoff: 5.0, coulomb_velocity: 0.01, gravity: Vector3::new(0.0, 0.0, -9.81), trim: 100 }
+    }
+}
+
+/// A recording as a regression: per channel, `y[c]` (samples x parameters) and the efforts.
+#[derive(Debug, Clone)]
+pub struct Regression {
+    /// Per channel: the regressor rows.
+    pub y: Vec<DMatrix<f64>>,
+    /// Per channel: the measured efforts as recorded (N·m, N).
+    pub tau: Vec<Vec<f64>>,
+    /// Per channel: the efforts through the same zero-phase filter as the velocities.
+    pub tau_filtered: Vec<Vec<f64>>,
+    /// Per channel: velocity range seen (min, max), for excitation checks.
+    pub velocity_range: Vec<(f64, f64)>,
+}
+
+/// Build the regression of `rec` for `model`: filtered velocities, accelerations by
+/// differentiation, dvrk-kin's joint-space regressor mapped to the channels (`to_joint^T Y`),
+/// then the effect columns in channel coordinates.
+pub fn regression(model: &Model, rec: &TorqueRecording, layout: &Layout, processing: &Processing) -> Result<Regression> {
+    let nc = rec.channels.len();
+    let n = rec.len();
+    if n <= 2 * processing.trim + 10 {
+        return Err(CalibError::data(&rec.source, format!("{n} samples; {} are trimmed at the ends for the filter", 2 * processing.trim)));
+    }
+    let dt = (rec.t[n - 1] - rec.t[0]) / (n - 1) as f64;
+    let rate = 1.0 / dt;
+    if !(processing.cutoff > 0.0 && processing.cutoff < 0.45 * rate) {
+        return Err(CalibError::field("cutoff", format!("{} Hz is not in (0, {:.1}) Hz for a {rate:.1} Hz recording", processing.cutoff, 0.45 * rate)));
+    }
+    let filter = Butterworth2::new(processing.cutoff, rate);
+    let pad = (3.0 * rate / processing.cutoff) as usize;
+    let column = |m: &Vec<Vec<f64>>, c: usize| m.iter().map(|r| r[c]).collect::<Vec<f64>>();
+    let qd_f: Vec<Vec<f64>> = (0..nc).map(|c| filter.filtfilt(&column(&rec.qd, c), pad)).collect();
+    let qdd_f: Vec<Vec<f64>> = qd_f.iter().map(|v| derivative(v, dt)).collect();
+    let tau_f: Vec<Vec<f64>> = (0..nc).map(|c| filter.filtfilt(&column(&rec.tau, c), pad)).collect();
+    let keep = processing.trim..n - processing.trim;
+    let rows = keep.len();
+    let p = layout.len();
+    let mut y: Vec<DMatrix<f64>> = (0..nc).map(|_| DMatrix::zeros(rows, p)).collect();
+    let inertias = (0..model.bodies.len()).map(|_| dvrk_kin::BodyInertia::new(1.0, [0.0; 3], [[1e-3, 0.0, 0.0], [0.0, 1e-3, 0.0], [0.0, 0.0, 1e-3]])).collect();
+    let dm = DynamicsModel::new(model, inertias)?;
+    let mut data = DynamicsData::new(model);
+    let nq = model.nq();
+    let nbp = PARAMETERS_PER_BODY * model.bodies.len();
+    let mut yj = DMatrix::zeros(nq, nbp);
+    let (mut qj, mut qdj, mut qddj) = (vec![0.0; nq], vec![0.0; nq], vec![0.0; nq]);
+    let map = &rec.to_joint;
+    for (r, i) in keep.clone().enumerate() {
+        for j in 0..nq {
+            qj[j] = (0..nc).map(|c| map[(j, c)] * rec.q[i][c]).sum();
+            qdj[j] = (0..nc).map(|c| map[(j, c)] * qd_f[c][i]).sum();
+            qddj[j] = (0..nc).map(|c| map[(j, c)] * qdd_f[c][i]).sum();
+        }
+        dvrk_kin::regressor(model, &dm, &mut data, &qj, &qdj, &qddj, &processing.gravity, &mut yj)?;
+        for (c, yc) in y.iter_mut().enumerate() {
+            // Channel effort = sum over joints of to_joint[j][c] * joint effort.
+            for k in 0..nbp {
+                yc[(r, k)] = (0..nq).map(|j| map[(j, c)] * yj[(j, k)]).sum();
+            }
+        }
+        for (col, param) in layout.params.iter().enumerate().skip(nbp) {
+            let Param::Effect { term, channel } = *param else { continue };
+            let v = qd_f[channel][i];
+            y[channel][(r, col)] = match term {
+                EffectTerm::Coulomb => (v / processing.coulomb_velocity).tanh(),
+                EffectTerm::Offset => 1.0,
+                EffectTerm::Viscous => v,
+                EffectTerm::Armature => qdd_f[channel][i],
+                EffectTerm::Spring => rec.q[i][channel],
+            };
+        }
+    }
+    let velocity_range = qd_f.iter().map(|v| v[keep.clone()].iter().fold((f64::MAX, f64::MIN), |(a, b), x| (a.min(*x), b.max(*x)))).collect();
+    Ok(Regression {
+        y,
+        tau: (0..nc).map(|c| rec.tau[keep.clone()].iter().map(|r| r[c]).collect()).collect(),
+        tau_filtered: tau_f.iter().map(|v| v[keep.clone()].to_vec()).collect(),
+        velocity_range,
+    })
+}

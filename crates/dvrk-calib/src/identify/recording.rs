@@ -1,0 +1,101 @@
+//! Joint recordings with efforts, for identification: positions, velocities and efforts of every
+//! channel, and the map from the recorded channels to the model's joints.
+//!
+//! `wpi-csv` (WPI-AIM/dvrk_dynamics_identification's `*_results.csv`): no header, 21 columns
+//! q(7) qd(7) tau(7) at 200 Hz; channels 5..7 (wrist pitch, wrist yaw, jaw) are the tool's
+//! *actuators* (the recording converted positions with M^-1 and efforts with M^T, M the tool's
+//! actuator-to-joint coupling), channels 1..4 are joints (yaw, pitch rad; insertion m; roll rad).
+
+use crate::error::{CalibError, Result};
+use dvrk_kin::Model;
+use nalgebra::DMatrix;
+use std::path::Path;
+
+/// Sample rate of the wpi-csv recordings (Hz).
+pub const WPI_RATE: f64 = 200.0;
+
+/// A recording of joint motion and efforts.
+#[derive(Debug, Clone)]
+pub struct TorqueRecording {
+    /// The file, for messages and reports.
+    pub source: String,
+    /// Sample times (s).
+    pub t: Vec<f64>,
+    /// Recorded positions per sample, one per channel (rad, m).
+    pub q: Vec<Vec<f64>>,
+    /// Recorded velocities (rad/s, m/s).
+    pub qd: Vec<Vec<f64>>,
+    /// Recorded efforts (N·m, N).
+    pub tau: Vec<Vec<f64>>,
+    /// Channel names (the model's joint names; `wrist_pitch actuator` for actuator channels).
+    pub channels: Vec<String>,
+    /// Model joints = `to_joint` * channels, for positions and velocities; channel efforts =
+    /// `to_joint^T` * joint efforts (virtual work).
+    pub to_joint: DMatrix<f64>,
+}
+
+impl TorqueRecording {
+    /// Number of samples.
+    pub fn len(&self) -> usize {
+        self.t.len()
+    }
+
+    /// True when there are no samples.
+    pub fn is_empty(&self) -> bool {
+        self.t.is_empty()
+    }
+}
+
+/// Read a wpi-csv recording for `model` (which must have 7 joints and a tool coupling).
+pub fn read_wpi_csv(path: &Path, model: &Model) -> Result<TorqueRecording> {
+    let text = std::fs::read_to_string(path).map_err(|e| CalibError::file(path, format!("cannot read: {e}")))?;
+    parse_wpi_csv(&text, path, model)
+}
+
+/// Parse the text of a wpi-csv recording (see [`read_wpi_csv`]).
+pub fn parse_wpi_csv(text: &str, path: &Path, model: &Model) -> Result<TorqueRecording> {
+    let n = model.nq();
+    if n != 7 {
+        return Err(CalibError::file(path, format!("wpi-csv holds a PSM's 7 joints; model `{}` has {n}", model.name)));
+    }
+    let coupling = model
+        .coupling_matrix()
+        .ok_or_else(|| CalibError::file(path, format!("wpi-csv channels 5..7 are tool actuators, but model `{}` has no tool coupling", model.name)))?;
+    // Only channels 5..7 were converted to actuators: the roll channel is the joint.
+    let mut to_joint = coupling;
+    for k in 0..n {
+        to_joint[(3, k)] = if k == 3 { 1.0 } else { 0.0 };
+        to_joint[(k, 3)] = if k == 3 { 1.0 } else { 0.0 };
+    }
+    let mut rec = TorqueRecording {
+        source: path.display().to_string(),
+        t: Vec::new(),
+        q: Vec::new(),
+        qd: Vec::new(),
+        tau: Vec::new(),
+        channels: model.joints.iter().enumerate().map(|(k, j)| if k >= 4 { format!("{} actuator", j.name) } else { j.name.clone() }).collect(),
+        to_joint,
+    };
+    for (line, row) in text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty()) {
+        let cells: Vec<&str> = row.split(',').collect();
+        if cells.len() != 3 * n {
+            return Err(CalibError::file(path, format!("line {}: {} columns; wpi-csv has {} (q, qd, tau of {n} joints)", line + 1, cells.len(), 3 * n)));
+        }
+        let mut v = Vec::with_capacity(3 * n);
+        for (c, cell) in cells.iter().enumerate() {
+            let x: f64 = cell.trim().parse().map_err(|_| CalibError::file(path, format!("line {}, column {}: `{}` is not a number", line + 1, c + 1, cell.trim())))?;
+            if !x.is_finite() {
+                return Err(CalibError::file(path, format!("line {}, column {}: {x} is not finite", line + 1, c + 1)));
+            }
+            v.push(x);
+        }
+        rec.t.push(rec.t.len() as f64 / WPI_RATE);
+        rec.q.push(v[..n].to_vec());
+        rec.qd.push(v[n..2 * n].to_vec());
+        rec.tau.push(v[2 * n..].to_vec());
+    }
+    if rec.len() < 100 {
+        return Err(CalibError::file(path, format!("{} samples; identification needs at least 100", rec.len())));
+    }
+    Ok(rec)
+}
