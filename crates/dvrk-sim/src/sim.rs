@@ -703,7 +703,13 @@ impl Sim {
                 let vf = mb.link(fl).map(|f| mb.joint_velocity(f)[0]).unwrap_or(0.0);
                 // Tension on the follower (spring + damper about the leader's motion), explicit part.
                 let tension = -c.stiffness * (xf - rest) - c.damping * (vf - c.coeff * vl);
-                apply_generalized(&mut w.bodies, fol, c.damping * c.coeff * vl);
+                // rapier's implicit spring is backward Euler about a fixed rest, -k (x - rest) - k dt v+,
+                // so it also drags the follower by k dt v+. The rest moves with the leader: feed
+                // k dt times its velocity forward too, so the spring acts on v+ - coeff vl. Without it
+                // the PSM counterweight lagged and pulled the insertion 1 mm behind its target
+                // (0.73 mm RMS in the tracking test where MuJoCo, on the exported tendon, had 0.1 mm).
+                let feed_forward = (c.damping + c.stiffness * self.dt) * c.coeff * vl;
+                apply_generalized(&mut w.bodies, fol, feed_forward);
                 apply_generalized(&mut w.bodies, lead, -c.coeff * tension);
             }
         }
