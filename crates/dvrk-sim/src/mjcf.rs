@@ -18,7 +18,7 @@
 //! - each actuated joint a `<motor>` with `gear = 1/c` (ctrl is the effort in N·m or N of `q`) and
 //!   `ctrlrange` = the effort limit; the PID runs outside MuJoCo, as `control.rs` runs it outside
 //!   rapier. Joints the scene holds in position mode (setup joints) are also held by an
-//!   `<equality joint>` at home.
+//!   `<equality joint>` at home (`polycoef` 0: MuJoCo counts joint equalities from `ref`).
 //! - `<custom>` numerics `dvrk:ARM/joint` carry per actuated joint the drive map, gains, limits
 //!   and tracking-test sine ([`DRIVE_FIELDS`]), so a controller needs nothing but the file.
 //!
@@ -355,17 +355,16 @@ fn add_arm(scene: &Scene, arm: &Arm, arm_bodies: &[Vec<usize>], bodies: &mut Vec
         let (lo, hi) = (c * j.lower + b, c * j.upper + b);
         t.range = Some([lo.min(hi), lo.max(hi)]);
         let jname = t.name.clone();
-        let home_coord = t.home;
         let aname = named(&j.name);
         let ctrl = if j.effort_limit > 0.0 { format!(" ctrlrange=\"{} {}\"", num(-j.effort_limit), num(j.effort_limit)) } else { String::new() };
         extras.actuators.push(format!("<motor name=\"{}\" joint=\"{}\" gear=\"{}\"{ctrl}/>", esc(&aname), esc(&jname), num(1.0 / c)));
         let held = arm.mode == Mode::Position;
         if held {
+            // MuJoCo's joint equality acts on the offset from `ref` (home): hold it at 0.
             extras.equalities.push(format!(
-                "<joint name=\"{}\" joint1=\"{}\" polycoef=\"{} 0 0 0 0\" solref=\"{solref}\" solimp=\"{solimp}\"/>",
+                "<joint name=\"{}\" joint1=\"{}\" polycoef=\"0 0 0 0 0\" solref=\"{solref}\" solimp=\"{solimp}\"/>",
                 esc(&named(&format!("hold:{}", j.name))),
-                esc(&jname),
-                num(home_coord)
+                esc(&jname)
             ));
         }
         let (amplitude, frequency) = match (&traj, arm.tracking) {
