@@ -99,6 +99,7 @@ int main(int argc, char** argv) {
       qprev[i] = q;
       sumsq[i] += (q - qr) * (q - qr);
     }
+    // mj_step computes positions before it integrates: site_xpos lags qpos by one step.
     for (int k = 0; k < npair; k++) {
       const double *a = d->site_xpos + 3 * sa[k], *b = d->site_xpos + 3 * sb[k];
       double gap = sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) + (a[2] - b[2]) * (a[2] - b[2]));

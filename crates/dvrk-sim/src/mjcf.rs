@@ -34,7 +34,8 @@
 //! implicit in all terms (`implicitfast`). At dt = 1 ms the cable-driven joints' tracking RMS (PSM
 //! insertion, jaw) then differ by 5% and 26% (`implicitfast`: 18% and 19%), and the difference
 //! halves with each halving of dt (first-order discretisation error of a 200 rad/s cable at
-//! omega dt = 0.2); every other joint agrees within 0.1% (`tests/python/test_mujoco.py`).
+//! omega dt = 0.2); every other joint of every built-in scene agrees within 0.5%
+//! (`tests/python/test_mujoco.py`).
 
 use crate::error::{Result, SimError};
 use crate::scene::{Arm, Scene, Tracking};

@@ -123,6 +123,7 @@ def run_tracking(xml: str, duration: float, record: bool = False) -> Dict[str, A
         err = q - qr
         sum_sq += err * err
         np.maximum(max_err, np.abs(err), out=max_err)
+        # mj_step computes positions before it integrates: site_xpos lags qpos by one step.
         if len(sites):
             gap = float(np.max(np.linalg.norm(data.site_xpos[sa] - data.site_xpos[sb], axis=1)))
             max_closure = max(max_closure, gap)
