@@ -10,6 +10,10 @@ venv="${DVRK_VENV:-.venv}"
 venv="$(cd "$venv" && pwd)"
 py="$venv/bin/python"
 "$py" -m pip install --quiet --disable-pip-version-check "maturin>=1.5,<2" "pytest>=7" "numpy>=1.21" mcap mcap-ros2-support
+# MuJoCo for the second-engine cross-check (tests/python/test_mujoco.py); optional: where it cannot
+# be installed the test says so and skips.
+"$py" -m pip install --quiet --disable-pip-version-check mujoco \
+    || echo "note: could not install mujoco from PyPI: the MuJoCo cross-check will skip"
 
 # Rust: every crate but the Python binding (release: the simulation tests are heavy). The venv
 # comes first on PATH so tests that write fixtures with Python's mcap packages find them.

@@ -26,7 +26,8 @@ pub enum Command {
     Fk(FkArgs),
     /// Inverse kinematics of the tool tip.
     Ik(IkArgs),
-    /// Write a model as URDF (tree + mimic joints) or SDF (with the loop-closing joints).
+    /// Write a model as URDF (tree + mimic joints) or SDF (with the loop-closing joints), or a
+    /// scene or model as MJCF for MuJoCo (inertias, loop closures, cables, damping, limits, motors).
     Export(ExportArgs),
     /// Headless dynamic simulation of a scene (rapier): the project's main job.
     Sim(crate::commands::sim::SimArgs),
@@ -120,12 +121,17 @@ pub struct IkArgs {
 pub enum ExportFormat {
     Urdf,
     Sdf,
+    /// MuJoCo XML of a scene (built-in name or scene file) or of a model with its built-in
+    /// inertials and gains.
+    Mjcf,
 }
 
 #[derive(Debug, Args)]
 pub struct ExportArgs {
-    /// urdf or sdf.
+    /// urdf, sdf or mjcf.
     pub format: ExportFormat,
+    /// MODEL (urdf, sdf); for mjcf a scene (psm, ecm, 2psm-ecm, 3psm, full, or a scene file),
+    /// else a model.
     #[command(flatten)]
     pub model: ModelArgs,
     /// Output file (written whole or not at all).

@@ -186,4 +186,20 @@ fn sim_replays_its_own_recording() {
     std::fs::write(&csv, "time,q1,q2\n0.0,0.2,0.1\n1.0,0.3,0.1\n").unwrap();
     let e = crate::util::dvrk_err(&["sim", "--scene", "psm", "--trajectory", &format!("replay:{}", csv.display())]);
     assert!(e.contains("2 joint columns, arm PSM1 has 7 joints"), "{e}");
+
+#[test]
+fn export_mjcf_writes_a_scene_or_a_model_and_names_bad_input() {
+    let dir = tempdir();
+    let out = dir.path().join("psm.xml");
+    dvrk_ok(&["export", "mjcf", "psm", "-o", out.to_str().unwrap()]);
+    let xml = std::fs::read_to_string(&out).unwrap();
+    assert!(xml.starts_with("<mujoco model=\"psm\">") && xml.contains("<connect name=\"PSM1/c1\""), "{}", &xml[..200]);
+    // A model (no scene of that name): its built-in inertials, its scene arm's mode.
+    let out = dir.path().join("suj.xml");
+    dvrk_ok(&["export", "mjcf", "suj-ecm", "-o", out.to_str().unwrap()]);
+    assert_eq!(std::fs::read_to_string(&out).unwrap().matches("polycoef").count(), 4);
+    let err = crate::util::dvrk_err(&["export", "mjcf", "mtmr", "-o", out.to_str().unwrap()]);
+    assert!(err.contains("mtmr") && err.contains("no built-in inertials"), "{err}");
+    let err = crate::util::dvrk_err(&["export", "mjcf", "psm", "--q", "0", "-o", out.to_str().unwrap()]);
+    assert!(err.contains("--q"), "{err}");
 }

@@ -572,6 +572,7 @@ fn _dvrk_twin(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<sim::PySim>()?;
     m.add_function(wrap_pyfunction!(sim::run_scene, m)?)?;
     m.add_function(wrap_pyfunction!(sim::builtin_scenes, m)?)?;
+    m.add_function(wrap_pyfunction!(sim::export_mjcf, m)?)?;
     m.add_function(wrap_pyfunction!(calib::pivot, m)?)?;
     m.add_function(wrap_pyfunction!(calib::axis, m)?)?;
     m.add_function(wrap_pyfunction!(calib::read_recording, m)?)?;

@@ -186,6 +186,13 @@ pub fn run_scene<'py>(
     Ok(py.import("json")?.call_method1("loads", (text,))?)
 }
 
+/// The MJCF (MuJoCo XML) text of a scene (built-in name or scene file) or of a model with its
+/// built-in inertials and gains — what `dvrk export mjcf` writes.
+#[pyfunction]
+pub fn export_mjcf(name_or_path: &str) -> Result<String> {
+    Ok(dvrk_sim::mjcf::export_named(name_or_path)?)
+}
+
 /// Names of the built-in scenes.
 #[pyfunction]
 pub fn builtin_scenes() -> Vec<&'static str> {

@@ -17,6 +17,7 @@
 pub mod control;
 mod error;
 pub mod inertials;
+pub mod mjcf;
 pub mod pivot;
 pub mod plot;
 pub mod recipe;
@@ -28,6 +29,7 @@ pub mod trajectory;
 
 pub use control::{Actuator, Gains, Mode};
 pub use error::{Result, SimError};
+pub use mjcf::export_mjcf;
 pub use recording::{RecordOptions, Recorder};
 pub use run::{run, run_recorded, run_traced, RunOptions, Summary, Trace};
 pub use scene::{Scene, SolverSettings};

@@ -22,6 +22,8 @@ use rapier3d_f64::prelude::*;
 const POSITION_STIFFNESS: f64 = 1.0e6;
 /// Damping of the position-mode motor (1/s): 3x critical (2 sqrt(k) = 2e3).
 const POSITION_DAMPING: f64 = 6.0e3;
+/// Natural frequency of a cable's mode on its follower's own inertia (rad/s), critically damped.
+pub(crate) const CABLE_BANDWIDTH: f64 = 200.0;
 
 /// How the closed loops are represented.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
@@ -437,9 +439,9 @@ impl Sim {
                 };
                 let dr = &drives[*k];
                 let coeff = ci / dr.c;
-                // Stiffness for a 200 rad/s cable mode on the follower's own inertia, critically damped.
+                // Stiffness for a CABLE_BANDWIDTH cable mode on the follower's own inertia, critically damped.
                 let inertia = axis_inertia(&arm.inertials, model, dof_body(&dof_of_body, i), &d.frame2, d.revolute);
-                let w = 200.0;
+                let w = CABLE_BANDWIDTH;
                 cables.push(Cable { leader: dr.dof, follower: i, coeff, offset: d.offset - coeff * dr.b, stiffness: inertia * w * w, damping: 2.0 * inertia * w, built_damping: 2.0 * inertia * w });
             }
             let link_ids: Vec<usize> = dofs.iter().map(|d| multibody_joints.get(d.handle).map(|(_, l)| l).unwrap_or(0)).collect();
@@ -830,7 +832,7 @@ fn dof_body(dof_of_body: &[usize], dof: usize) -> usize {
 
 /// Inertia of body `body` about (mass along) the joint axis of `frame2` (x axis, body frame):
 /// kg m^2 or kg.
-fn axis_inertia(ine: &crate::inertials::Inertials, model: &Model, body: usize, frame2: &RPose, revolute: bool) -> f64 {
+pub(crate) fn axis_inertia(ine: &crate::inertials::Inertials, model: &Model, body: usize, frame2: &RPose, revolute: bool) -> f64 {
     let Some(b) = ine.body(model, body) else { return 1e-3 };
     if !revolute {
         return b.mass;

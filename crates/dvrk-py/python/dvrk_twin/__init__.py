@@ -2,7 +2,8 @@
 
 Closed-loop kinematic trees of the PSM, ECM, setup joints, the patient-side cart and the MTMs
 (:class:`Model`, crate ``dvrk-kin``), headless dynamic simulation of the paper's scenes
-(:class:`Sim`, :func:`run_scene`, crate ``dvrk-sim``) and motion-capture calibration
+(:class:`Sim`, :func:`run_scene`, crate ``dvrk-sim``; :func:`export_mjcf` and
+:mod:`dvrk_twin.mujoco_run` run the same scenes in MuJoCo) and motion-capture calibration
 (:func:`pivot`, :func:`axis`, :func:`read_recording`, crate ``dvrk-calib``), computed by a Rust core.
 
 Units: lengths in m, angles in rad. Poses are 4x4 homogeneous matrices (rotation, translation
@@ -30,6 +31,7 @@ from ._dvrk_twin import (
     axis as axis,
     builtin_models as builtin_models,
     builtin_scenes as builtin_scenes,
+    export_mjcf as export_mjcf,
     pivot as pivot,
     read_recording as read_recording,
     run_scene as run_scene,
@@ -47,6 +49,7 @@ __all__ = [
     "axis",
     "builtin_models",
     "builtin_scenes",
+    "export_mjcf",
     "pivot",
     "read_recording",
     "run_scene",

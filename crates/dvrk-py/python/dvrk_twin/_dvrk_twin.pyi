@@ -197,6 +197,10 @@ def run_scene(
 
 def builtin_scenes() -> List[str]: ...
 
+def export_mjcf(name_or_path: str) -> str:
+    """MJCF (MuJoCo XML) of a scene (built-in name or scene file) or of a model with its built-in
+    inertials and gains, as ``dvrk export mjcf`` writes it (m, rad, s, kg, N, N·m)."""
+
 def pivot(poses: ArrayLike, method: str = "one-step") -> Dict[str, Any]:
     """Pivot calibration (paper eq. 3-5) of marker poses (N, 4, 4) in the tracker frame (m):
     tip, pivot, rms_per_axis, rms, tip_std, pivot_std (m), samples, method, warnings."""
