@@ -28,14 +28,10 @@
 //! PSM's loops then open by at most 1.4e-3 mm in the tracking test (0.99 left 1.3e-2 mm).
 //!
 //! Integrator: `Euler`, MuJoCo's semi-implicit Euler with implicit joint damping, the scheme rapier
-//! steps (symplectic Euler, implicit joint damping). The one place the two still integrate
-//! differently is the cables: rapier's spring and damper are implicit on the follower alone and
-//! explicit across (leader reaction, feed-forward), MuJoCo's tendon is explicit (`Euler`) or
-//! implicit in all terms (`implicitfast`). At dt = 1 ms the cable-driven joints' tracking RMS (PSM
-//! insertion, jaw) then differ by 5% and 26% (`implicitfast`: 18% and 19%), and the difference
-//! halves with each halving of dt (first-order discretisation error of a 200 rad/s cable at
-//! omega dt = 0.2); every other joint of every built-in scene agrees within 0.5%
-//! (`tests/python/test_mujoco.py`).
+//! steps (symplectic Euler, implicit joint damping). The cables are explicit spring-dampers in
+//! both (dvrk-sim applies tension and reaction itself; MuJoCo's tendon under `Euler`), so every
+//! joint of every built-in scene agrees within 2% (cable-driven PSM insertion 0.3%, jaw 1.8%, the
+//! rest 0.1%; `tests/python/test_mujoco.py`).
 
 use crate::error::{Result, SimError};
 use crate::scene::{Arm, Scene, Tracking};
