@@ -36,6 +36,9 @@ pub enum Command {
         #[command(subcommand)]
         command: crate::commands::calib::CalibCommand,
     },
+    /// Dynamic identification: inertial parameters (physically consistent) and friction, offsets,
+    /// motor inertia and springs from a joint recording with efforts.
+    Identify(crate::commands::identify::IdentifyArgs),
     /// Synthetic recordings for tests and demos.
     Synth {
         #[command(subcommand)]

@@ -186,6 +186,7 @@ fn sim_replays_its_own_recording() {
     std::fs::write(&csv, "time,q1,q2\n0.0,0.2,0.1\n1.0,0.3,0.1\n").unwrap();
     let e = crate::util::dvrk_err(&["sim", "--scene", "psm", "--trajectory", &format!("replay:{}", csv.display())]);
     assert!(e.contains("2 joint columns, arm PSM1 has 7 joints"), "{e}");
+}
 
 #[test]
 fn export_mjcf_writes_a_scene_or_a_model_and_names_bad_input() {
@@ -202,4 +203,29 @@ fn export_mjcf_writes_a_scene_or_a_model_and_names_bad_input() {
     assert!(err.contains("mtmr") && err.contains("no built-in inertials"), "{err}");
     let err = crate::util::dvrk_err(&["export", "mjcf", "psm", "--q", "0", "-o", out.to_str().unwrap()]);
     assert!(err.contains("--q"), "{err}");
+}
+
+/// `dvrk identify` on the real WPI recordings (skipped when ../shared is absent): the JSON
+/// contract, the validation block and a model-update file the simulator reads as inertials.
+#[test]
+fn identify_json_and_output_file() {
+    let (Some(one), Some(two)) = (crate::util::external("wpi-dvrk-dynamics/psm_one_results.csv"), crate::util::external("wpi-dvrk-dynamics/psm_two_results.csv")) else { return };
+    let dir = tempdir();
+    let out = dir.path().join("psm-identified.toml");
+    let v: Value = serde_json::from_str(&dvrk_ok(&[
+        "identify", "--recording", one.to_str().unwrap(), "--format", "wpi-csv", "--model", "psm", "--validate", two.to_str().unwrap(), "-o", out.to_str().unwrap(), "--json",
+    ]))
+    .unwrap();
+    for key in ["relative_error", "rigid_body_only", "validation", "effects", "bodies", "physically_consistent", "unidentifiable", "base_parameters"] {
+        assert!(v.get(key).is_some(), "identify JSON has {key}");
+    }
+    assert_eq!(v["physically_consistent"], true);
+    assert_eq!(v["validation"]["relative_error"].as_array().unwrap().len(), 7);
+    let model = dvrk_kin::load("psm", None).unwrap();
+    let text = std::fs::read_to_string(&out).unwrap();
+    let ine = dvrk_sim::inertials::Inertials::parse(&text, "psm-identified.toml", &model).unwrap();
+    assert!(ine.bodies.iter().any(|b| b.provenance.starts_with("identified from")));
+    assert!(text.contains("[[effects]]") && text.contains("coulomb_friction"));
+    let e = crate::util::dvrk_err(&["identify", "--recording", one.to_str().unwrap(), "--format", "mcap"]);
+    assert!(e.contains("--format mcap"), "{e}");
 }

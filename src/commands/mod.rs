@@ -3,6 +3,7 @@
 pub mod calib;
 mod export;
 mod fk;
+pub mod identify;
 mod ik;
 mod model;
 pub mod sim;
@@ -26,6 +27,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Sim(a) => sim::run(&a),
         Command::Calib { command } => calib::run(&command),
         Command::Synth { command } => synth::run(&command),
+        Command::Identify(a) => identify::run(&a),
     }
 }
 

@@ -12,6 +12,7 @@
 pub mod filter;
 pub mod problem;
 pub mod recording;
+pub mod report;
 pub mod solve;
 
 use crate::error::{CalibError, Result};

@@ -125,7 +125,7 @@ pub struct Processing {
 
 impl Default for Processing {
     fn default() -> Self {
-        Processing { cutoff: 5.0, coulomb_velocity: 0.01, gravity: Vector3::new(0.0, 0.0, -9.81), trim: 100 }
+        Processing { cutoff: 10.0, coulomb_velocity: 0.01, gravity: Vector3::new(0.0, 0.0, -9.81), trim: 100 }
     }
 }
 

@@ -4,6 +4,7 @@
 //! - `noise_bound`: 100 seeded trials at 0.1 mm marker noise against the closed-form bound.
 //! - `perturbed`: a robot with link lengths off by 1-3 mm, calibrated and applied.
 //! - `bad_input`: recordings that cannot give a result give an error or a warning with numbers.
+//! - `identify`: dynamic identification on the real WPI recordings; bad wpi-csv files.
 //! - `formats`: MCAP (ROS 2 and Foxglove layouts), plain and raw-marker CSV round trips.
 //! - `python_mcap`: MCAP files written by the Python `mcap` / `mcap-ros2-support` packages.
 //! - `sim_recording`: an MCAP recorded by dvrk-sim (`dvrk sim --out`), read with this crate's reader.
@@ -12,6 +13,7 @@ mod util;
 
 mod bad_input;
 mod formats;
+mod identify;
 mod noise_bound;
 mod paper;
 mod perturbed;

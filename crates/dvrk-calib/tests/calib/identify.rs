@@ -1,0 +1,78 @@
+//! Identification on the real WPI recordings (../shared/data/external/wpi-dvrk-dynamics, skipped
+//! with a message when absent): fit on `one`, predict `two`.
+
+use crate::util::psm;
+use dvrk_calib::identify::{identify, read_wpi_csv, report, IdentifyOptions};
+use std::path::{Path, PathBuf};
+
+fn wpi(file: &str) -> Option<PathBuf> {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/external/wpi-dvrk-dynamics").join(file);
+    if p.exists() {
+        Some(p)
+    } else {
+        eprintln!("SKIPPED: {} is absent (external data, see ../shared/data/external/README.md)", p.display());
+        None
+    }
+}
+
+/// Published by the recordings' authors for their model on `two` (q1..q7).
+const PUBLISHED: [f64; 7] = [0.093, 0.178, 0.191, 0.134, 0.239, 0.213, 0.264];
+
+#[test]
+fn real_psm_recordings_identify_physically_and_predict_the_held_out_one() {
+    let (Some(one), Some(two), Some(params)) = (wpi("psm_one_results.csv"), wpi("psm_two_results.csv"), wpi("psm_params.json")) else { return };
+    let model = psm();
+    let prior = dvrk_sim::scene::builtin_inertials("psm", &model).unwrap().body_inertias(&model).unwrap();
+    let (r1, r2) = (read_wpi_csv(&one, &model).unwrap(), read_wpi_csv(&two, &model).unwrap());
+    assert_eq!((r1.len(), r2.len()), (5999, 5999));
+    let options = IdentifyOptions::full(vec![3, 4, 5, 6]);
+    let (id, _) = identify(&model, &prior, &r1, &options).unwrap();
+    let held_out = id.validate(&model, &r2, &options).unwrap();
+    let rigid_options = options.with_effects(&[]);
+    let (rigid, _) = identify(&model, &prior, &r1, &rigid_options).unwrap();
+    let rigid_held_out = rigid.validate(&model, &r2, &rigid_options).unwrap();
+    eprintln!("held-out relative error: {held_out:.3?}\nrigid body only:         {rigid_held_out:.3?}\npublished:               {PUBLISHED:.3?}");
+    // Every body's pseudo-inertia is positive semidefinite (the published parameters were not).
+    assert!(id.fit.min_eigen.iter().all(|l| *l > -1e-9), "{:?}", id.fit.min_eigen);
+    for (b, body) in model.bodies.iter().enumerate() {
+        if !id.fit.degenerate_bodies.contains(&b) {
+            id.body_inertia(b, &body.name).unwrap();
+        }
+    }
+    // The effects matter on every channel, and the held-out error stays within reach of the
+    // published figures (measured 0.112 0.166 0.239 0.200 0.248 0.292 0.347: pitch below them,
+    // roll 1.49x at worst). The target (at or below on every channel) is not met yet.
+    for c in 0..7 {
+        assert!(held_out[c] < 0.75 * rigid_held_out[c], "channel {c}: {} vs rigid {}", held_out[c], rigid_held_out[c]);
+        assert!(held_out[c] < 1.6 * PUBLISHED[c], "channel {c}: {} vs published {}", held_out[c], PUBLISHED[c]);
+    }
+    // Friction of the first three joints agrees with the original authors' own identification
+    // (psm_params.json links 1, 2 and 8: Fc, Fv) to 15%.
+    let p: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(params).unwrap()).unwrap();
+    let effects = report::effects(&id);
+    for (channel, link) in [("outer_yaw", "1"), ("outer_pitch", "2"), ("outer_insertion", "8")] {
+        for (ours, theirs) in [("coulomb_friction", "Fc"), ("viscous_friction", "Fv")] {
+            let e = effects.iter().find(|e| e.name == ours && e.joint == channel).unwrap();
+            let v = e.parameters.values().next().unwrap().as_f64().unwrap();
+            let w = p[link][theirs].as_f64().unwrap();
+            eprintln!("{channel} {ours}: ours {v:.4}, WPI {w:.4}");
+            assert!((v / w - 1.0).abs() < 0.15, "{channel} {ours}: {v} vs {w}");
+        }
+    }
+}
+
+#[test]
+fn bad_wpi_files_name_the_line_and_column() {
+    let model = psm();
+    let row = vec!["0.1"; 21].join(",");
+    let e = dvrk_calib::identify::recording::parse_wpi_csv(&format!("{row}\n0.1,0.2\n"), Path::new("r.csv"), &model).unwrap_err().to_string();
+    assert_eq!(e, "r.csv: line 2: 2 columns; wpi-csv has 21 (q, qd, tau of 7 joints)");
+    let bad = row.replacen("0.1", "nan", 1);
+    let e = dvrk_calib::identify::recording::parse_wpi_csv(&format!("{row}\n{bad}\n"), Path::new("r.csv"), &model).unwrap_err().to_string();
+    assert_eq!(e, "r.csv: line 2, column 1: NaN is not finite");
+    let e = dvrk_calib::identify::recording::parse_wpi_csv(&format!("{row}\n"), Path::new("r.csv"), &model).unwrap_err().to_string();
+    assert_eq!(e, "r.csv: 1 samples; identification needs at least 100");
+    let ecm = dvrk_kin::load("ecm", None).unwrap();
+    let e = dvrk_calib::identify::recording::parse_wpi_csv(&row, Path::new("r.csv"), &ecm).unwrap_err().to_string();
+    assert_eq!(e, "r.csv: wpi-csv holds a PSM's 7 joints; model `ecm` has 4");
+}

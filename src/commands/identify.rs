@@ -1,0 +1,100 @@
+//! `dvrk identify`: inertial parameters and effects of a model from a joint recording with
+//! efforts (dvrk-calib's identify module), a JSON or text summary, a model-update file.
+
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use dvrk_calib::identify::{identify, read_wpi_csv, report, IdentifyOptions, TorqueRecording};
+use dvrk_kin::Model;
+use std::path::{Path, PathBuf};
+
+#[derive(Debug, Args)]
+pub struct IdentifyArgs {
+    /// Joint recording with efforts.
+    #[arg(long)]
+    pub recording: PathBuf,
+    /// Recording format: wpi-csv (WPI-AIM dvrk_dynamics_identification: q, qd, tau of 7 joints
+    /// at 200 Hz, tool channels 5..7 in actuator space).
+    #[arg(long, default_value = "wpi-csv")]
+    pub format: String,
+    /// Model (built-in name or file); its CAD inertials are the prior.
+    #[arg(long, default_value = "psm")]
+    pub model: String,
+    /// Inertials file of the prior (models/inertials format); the built-in ones of --model when absent.
+    #[arg(long)]
+    pub inertials: Option<PathBuf>,
+    /// Write the identified inertials and effects (TOML) here.
+    #[arg(short = 'o', long)]
+    pub output: Option<PathBuf>,
+    /// A second recording the fit never sees: its relative errors go under `validation`.
+    #[arg(long)]
+    pub validate: Option<PathBuf>,
+    /// Zero-phase low-pass cut-off (Hz) for velocities (then differentiated) and efforts.
+    #[arg(long, default_value_t = 10.0)]
+    pub cutoff: f64,
+    /// Gravity in the model's base frame (m/s^2), `x,y,z`.
+    #[arg(long, default_value = "0,0,-9.81", allow_hyphen_values = true)]
+    pub gravity: String,
+    /// Print the summary as one JSON object.
+    #[arg(long)]
+    pub json: bool,
+}
+
+fn read(path: &Path, format: &str, model: &Model) -> Result<TorqueRecording> {
+    match format {
+        "wpi-csv" => Ok(read_wpi_csv(path, model)?),
+        "mcap" => bail!("--format mcap: reading JointState efforts from MCAP is not built yet (wpi-csv)"),
+        f => bail!("--format {f}: unknown (valid: wpi-csv, mcap)"),
+    }
+}
+
+pub fn run(args: &IdentifyArgs) -> Result<()> {
+    let model = dvrk_kin::load(&args.model, None).with_context(|| format!("--model {}", args.model))?;
+    let prior = match &args.inertials {
+        Some(p) => {
+            let text = std::fs::read_to_string(p).with_context(|| format!("--inertials {}", p.display()))?;
+            dvrk_sim::inertials::Inertials::parse(&text, &p.display().to_string(), &model)?
+        }
+        None => dvrk_sim::scene::builtin_inertials(&model.name, &model).with_context(|| format!("--model {}: no built-in inertials; give --inertials", args.model))?,
+    };
+    let g = crate::io::parse_list("--gravity", &args.gravity)?;
+    let [gx, gy, gz] = g[..] else { bail!("--gravity {}: three components x,y,z (m/s^2)", args.gravity) };
+    let mut options = IdentifyOptions::full((3..model.nq()).collect());
+    options.processing.cutoff = args.cutoff;
+    options.processing.gravity = nalgebra::Vector3::new(gx, gy, gz);
+    let rec = read(&args.recording, &args.format, &model)?;
+    let inertias = prior.body_inertias(&model)?;
+    let (id, _) = identify(&model, &inertias, &rec, &options).with_context(|| format!("--recording {}", args.recording.display()))?;
+    let rigid_options = options.with_effects(&[]);
+    let (rigid, _) = identify(&model, &inertias, &rec, &rigid_options)?;
+    let mut summary = report::summary(&model, &id, &args.recording.display().to_string(), &args.format, &rigid.relative_error);
+    if let Some(v) = &args.validate {
+        let rec2 = read(v, &args.format, &model).with_context(|| format!("--validate {}", v.display()))?;
+        let errors = id.validate(&model, &rec2, &options)?;
+        let rigid_errors = rigid.validate(&model, &rec2, &rigid_options)?;
+        summary["validation"] = serde_json::json!({"recording": v.display().to_string(), "relative_error": errors, "rigid_body_only": rigid_errors});
+    }
+    if let Some(o) = &args.output {
+        let text = report::output_toml(&model, &id, &prior, &args.recording.display().to_string())?;
+        crate::io::write_atomic(o, text.as_bytes()).with_context(|| format!("-o {}", o.display()))?;
+        summary["output"] = serde_json::json!(o.display().to_string());
+    }
+    if args.json {
+        println!("{}", serde_json::to_string(&summary)?);
+        return Ok(());
+    }
+    println!("identified {} from {} ({} samples): {} parameters, {} determined by the data", model.name, args.recording.display(), id.samples, id.layout.len(), id.base_parameters);
+    println!("{:<28} {:>10} {:>12} {:>12}", "channel", "rel. error", "rigid only", "validation");
+    for (c, name) in id.channels.iter().enumerate() {
+        let v = summary.get("validation").map(|v| format!("{:.3}", v["relative_error"][c].as_f64().unwrap_or(f64::NAN))).unwrap_or_default();
+        println!("{name:<28} {:>10.3} {:>12.3} {v:>12}", id.relative_error[c], rigid.relative_error[c]);
+    }
+    println!("physically consistent: {} ({} cutting-plane rounds)", summary["physically_consistent"], id.fit.rounds);
+    for e in report::effects(&id).iter().filter(|e| e.name != "armature") {
+        let ps: Vec<String> = e.parameters.iter().map(|(k, v)| format!("{k} {:.4}", v.as_f64().unwrap_or(f64::NAN))).collect();
+        println!("  {} {}: {}", e.name, e.joint, ps.join(", "));
+    }
+    if let Some(o) = &args.output {
+        println!("wrote {}", o.display());
+    }
+    Ok(())
+}
