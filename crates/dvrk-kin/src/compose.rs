@@ -206,6 +206,7 @@ pub fn compose(spec: &SystemSpec, dir: Option<&Path>) -> Result<Model> {
         spec: ModelSpec { title: spec.title.clone(), notes: spec.notes.clone(), ..ModelSpec::empty(&spec.name, &spec.source) },
         origin: None,
         tool_file: None,
+        effects: Vec::new(),
         parts,
         eval: Default::default(),
     };

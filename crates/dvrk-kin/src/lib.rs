@@ -27,6 +27,7 @@ pub mod closure;
 pub mod compose;
 pub mod dvrk_json;
 pub mod dynamics;
+pub mod effects;
 mod error;
 pub mod expr;
 mod fk;

@@ -192,6 +192,9 @@ pub struct Model {
     pub tool_file: Option<std::path::PathBuf>,
     /// The arms of a composed system (empty for a single model).
     pub parts: Vec<Part>,
+    /// Physical effects from the file's `[[effects]]`, checked; the kinematic ones are already
+    /// applied to the frames and base.
+    pub effects: Vec<crate::effects::Effect>,
     /// Sparse evaluation data, built by [`Model::finalize`].
     pub(crate) eval: Eval,
 }
@@ -339,8 +342,11 @@ impl Model {
 
     /// Compile a model file. `load_serial` is not needed here: serial equivalence is checked by
     /// [`crate::check`].
-    pub fn compile(spec: ModelSpec) -> Result<Model> {
+    pub fn compile(mut spec: ModelSpec) -> Result<Model> {
         let n = spec.joints.len();
+        // A link_length effect edits the DH table itself; the spec keeps the file's numbers.
+        let file_spec = spec.clone();
+        crate::effects::apply_link_lengths(&mut spec)?;
         let mut parameters = BTreeMap::new();
         for (k, p) in &spec.parameters {
             if !p.value.is_finite() {
@@ -502,10 +508,11 @@ impl Model {
             tip: 0,
             base: Pose::identity(),
             coupling,
-            spec: spec.clone(),
+            spec: file_spec,
             origin: None,
             tool_file: None,
             parts: Vec::new(),
+            effects: Vec::new(),
             eval: Eval::default(),
         };
         model.tip = match &spec.tip {
@@ -515,6 +522,9 @@ impl Model {
         if model.frames.is_empty() {
             return Err(KinError::field("frames", "a model needs at least one frame"));
         }
+        let effects = crate::effects::check_effects(&model)?;
+        crate::effects::apply_kinematic(&mut model, &effects);
+        model.effects = effects;
         let declared: Vec<Option<String>> =
             (0..model.frames.len()).map(|i| model.spec_frame(i).and_then(|f| f.body.clone())).collect();
         model.finalize(&declared)?;

@@ -237,6 +237,9 @@ pub struct ModelSpec {
     /// ActuatorToJointPosition (rows: joints, columns: actuators), as in dVRK files.
     #[serde(default)]
     pub coupling: Option<Vec<Vec<f64>>>,
+    /// Physical effects: friction, springs, offsets, compliance... ([`crate::effects`]).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub effects: Vec<crate::effects::EffectSpec>,
 }
 
 impl ModelSpec {
@@ -257,6 +260,7 @@ impl ModelSpec {
             serial_equivalent: None,
             tool: None,
             coupling: None,
+            effects: vec![],
         }
     }
 

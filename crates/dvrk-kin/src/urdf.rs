@@ -572,6 +572,7 @@ fn build_model(robot: &urdf_rs::Robot, name_hint: &str) -> std::result::Result<M
         origin: None,
         tool_file: None,
         parts: Vec::new(),
+        effects: Vec::new(),
         eval: Default::default(),
     };
     let declared = vec![None; model.frames.len()];

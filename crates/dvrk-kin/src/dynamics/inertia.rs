@@ -68,6 +68,19 @@ impl BodyInertia {
         Ok(())
     }
 
+    /// This body with a point mass `mass` (kg) added at `at` (m, body frame): the combined mass,
+    /// centre of mass and inertia about it (parallel-axis theorem).
+    pub fn with_point_mass(&self, mass: f64, at: &Vector3<f64>) -> BodyInertia {
+        if mass <= 0.0 {
+            return self.clone();
+        }
+        let m = self.mass + mass;
+        let c = (self.com * self.mass + at * mass) / m;
+        let shift = |mk: f64, r: Vector3<f64>| (Matrix3::identity() * r.norm_squared() - r * r.transpose()) * mk;
+        let inertia = self.inertia + shift(self.mass, self.com - c) + shift(mass, at - c);
+        BodyInertia { mass: m, com: c, inertia }
+    }
+
     /// The standard linear form, about the body-frame origin in body-frame axes:
     /// `[m, m cx, m cy, m cz, Ixx, Ixy, Ixz, Iyy, Iyz, Izz]` (kg, kg m, kg m^2), where the `I`
     /// are entries of the inertia matrix about the origin, `J = Ic + m (|c|^2 1 - c c^T)`

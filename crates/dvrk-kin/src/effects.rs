@@ -1,0 +1,352 @@
+//! Physical effects of a model: the `[[effects]]` section of a model file.
+//!
+//! The rigid-body model is not the robot: cables, friction and springs are. Each effect has a
+//! name from a fixed vocabulary, the joint or link it acts on, parameters with units and
+//! physical bounds. Where they act:
+//! - kinematics (applied when the model is compiled): `joint_offset` (the encoder's zero: the
+//!   joint's true angle is the reading plus `offset`), `link_length` (a DH `a` or `d` changed by
+//!   `a`, `d` metres), `base_registration` (the base frame moved by `x y z`, rotation vector
+//!   `rx ry rz`);
+//! - dynamics (dvrk-kin's [`effort`] and [`payload_inertias`], and dvrk-sim's physics):
+//!   `coulomb_friction`, `viscous_friction`, `spring`, `payload_mass`;
+//! - the simulated drive and sensors (dvrk-sim): `joint_compliance`, `backlash`, `latency`;
+//! - `coupling_error`, `counterweight_error`: parsed and checked; not simulated yet (dvrk-sim
+//!   refuses a model that has them rather than ignoring them).
+//!
+//! ```toml
+//! [[effects]]
+//! name = "coulomb_friction"
+//! joint = "outer_yaw"
+//! parameters = { fc = 0.05, offset = -0.01 }   # N·m
+//! source = "dvrk identify on psm_one_results.csv"
+//! ```
+
+use crate::error::{KinError, Result};
+use crate::model::Model;
+use crate::spec::FrameRef;
+use crate::JointType;
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+
+/// An effect as a model file writes it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EffectSpec {
+    /// A name of the vocabulary ([`EffectKind::ALL`]).
+    pub name: String,
+    /// The joint it acts on (joint effects).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub joint: Option<String>,
+    /// The link (frame number or name) it acts on (link effects).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub link: Option<FrameRef>,
+    /// Parameter values in the units of [`EffectKind::parameters`].
+    #[serde(default)]
+    pub parameters: BTreeMap<String, f64>,
+    /// Where the figures come from.
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub source: String,
+}
+
+/// The vocabulary.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum EffectKind {
+    JointOffset,
+    LinkLength,
+    BaseRegistration,
+    Latency,
+    JointCompliance,
+    Backlash,
+    CoulombFriction,
+    ViscousFriction,
+    PayloadMass,
+    CouplingError,
+    CounterweightError,
+    Spring,
+}
+
+/// What an effect is attached to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Target {
+    Joint,
+    Link,
+    Model,
+}
+
+/// One parameter of an effect: name, unit (for a revolute joint / for a prismatic joint when
+/// they differ), bounds, default (`None`: required).
+#[derive(Debug, Clone, Copy)]
+pub struct ParameterInfo {
+    pub name: &'static str,
+    pub unit: &'static str,
+    pub prismatic_unit: &'static str,
+    pub lower: f64,
+    pub upper: f64,
+    pub default: Option<f64>,
+}
+
+const fn p(name: &'static str, unit: &'static str, prismatic_unit: &'static str, lower: f64, upper: f64, default: Option<f64>) -> ParameterInfo {
+    ParameterInfo { name, unit, prismatic_unit, lower, upper, default }
+}
+
+impl EffectKind {
+    /// The whole vocabulary.
+    pub const ALL: [EffectKind; 12] = [
+        EffectKind::JointOffset,
+        EffectKind::LinkLength,
+        EffectKind::BaseRegistration,
+        EffectKind::Latency,
+        EffectKind::JointCompliance,
+        EffectKind::Backlash,
+        EffectKind::CoulombFriction,
+        EffectKind::ViscousFriction,
+        EffectKind::PayloadMass,
+        EffectKind::CouplingError,
+        EffectKind::CounterweightError,
+        EffectKind::Spring,
+    ];
+
+    /// The name model files use.
+    pub fn name(self) -> &'static str {
+        match self {
+            EffectKind::JointOffset => "joint_offset",
+            EffectKind::LinkLength => "link_length",
+            EffectKind::BaseRegistration => "base_registration",
+            EffectKind::Latency => "latency",
+            EffectKind::JointCompliance => "joint_compliance",
+            EffectKind::Backlash => "backlash",
+            EffectKind::CoulombFriction => "coulomb_friction",
+            EffectKind::ViscousFriction => "viscous_friction",
+            EffectKind::PayloadMass => "payload_mass",
+            EffectKind::CouplingError => "coupling_error",
+            EffectKind::CounterweightError => "counterweight_error",
+            EffectKind::Spring => "spring",
+        }
+    }
+
+    /// The kind called `name`.
+    pub fn from_name(name: &str) -> Option<EffectKind> {
+        EffectKind::ALL.into_iter().find(|k| k.name() == name)
+    }
+
+    /// What it acts on.
+    pub fn target(self) -> Target {
+        match self {
+            EffectKind::JointOffset | EffectKind::JointCompliance | EffectKind::Backlash | EffectKind::CoulombFriction | EffectKind::ViscousFriction | EffectKind::Spring => Target::Joint,
+            EffectKind::LinkLength | EffectKind::PayloadMass => Target::Link,
+            EffectKind::BaseRegistration | EffectKind::Latency | EffectKind::CouplingError | EffectKind::CounterweightError => Target::Model,
+        }
+    }
+
+    /// Its parameters (a `coupling_error` takes `dRC`, 1-based row and column of the coupling
+    /// matrix, checked against the model's, instead).
+    pub fn parameters(self) -> &'static [ParameterInfo] {
+        match self {
+            EffectKind::JointOffset => JOINT_OFFSET,
+            EffectKind::LinkLength => LINK_LENGTH,
+            EffectKind::BaseRegistration => BASE_REGISTRATION,
+            EffectKind::Latency => LATENCY,
+            EffectKind::JointCompliance => JOINT_COMPLIANCE,
+            EffectKind::Backlash => BACKLASH,
+            EffectKind::CoulombFriction => COULOMB,
+            EffectKind::ViscousFriction => VISCOUS,
+            EffectKind::PayloadMass => PAYLOAD,
+            EffectKind::CouplingError => &[],
+            EffectKind::CounterweightError => COUNTERWEIGHT,
+            EffectKind::Spring => SPRING,
+        }
+    }
+}
+
+const PI: f64 = std::f64::consts::PI;
+const JOINT_OFFSET: &[ParameterInfo] = &[p("offset", "rad", "m", -PI, PI, None)];
+const LINK_LENGTH: &[ParameterInfo] = &[p("a", "m", "m", -0.05, 0.05, Some(0.0)), p("d", "m", "m", -0.05, 0.05, Some(0.0))];
+const BASE_REGISTRATION: &[ParameterInfo] = &[
+    p("x", "m", "m", -10.0, 10.0, Some(0.0)),
+    p("y", "m", "m", -10.0, 10.0, Some(0.0)),
+    p("z", "m", "m", -10.0, 10.0, Some(0.0)),
+    p("rx", "rad", "rad", -PI, PI, Some(0.0)),
+    p("ry", "rad", "rad", -PI, PI, Some(0.0)),
+    p("rz", "rad", "rad", -PI, PI, Some(0.0)),
+];
+const LATENCY: &[ParameterInfo] = &[p("seconds", "s", "s", 0.0, 1.0, None)];
+const JOINT_COMPLIANCE: &[ParameterInfo] = &[p("stiffness", "N·m/rad", "N/m", 1e-3, 1e8, None)];
+const BACKLASH: &[ParameterInfo] = &[p("b", "rad", "m", 0.0, 0.2, None)];
+const COULOMB: &[ParameterInfo] = &[p("fc", "N·m", "N", 0.0, 100.0, None), p("offset", "N·m", "N", -100.0, 100.0, Some(0.0))];
+const VISCOUS: &[ParameterInfo] = &[p("fv", "N·m s/rad", "N s/m", 0.0, 1000.0, None)];
+const PAYLOAD: &[ParameterInfo] = &[p("mass", "kg", "kg", 0.0, 20.0, None), p("x", "m", "m", -1.0, 1.0, Some(0.0)), p("y", "m", "m", -1.0, 1.0, Some(0.0)), p("z", "m", "m", -1.0, 1.0, Some(0.0))];
+const COUNTERWEIGHT: &[ParameterInfo] = &[p("mu", "1", "1", 0.0, 2.0, None), p("mass", "kg", "kg", 0.0, 10.0, None)];
+const SPRING: &[ParameterInfo] = &[p("k", "N·m/rad", "N/m", 0.0, 1e5, None), p("rest", "rad", "m", -10.0, 10.0, Some(0.0))];
+
+/// A checked effect of a compiled model.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Effect {
+    pub kind: EffectKind,
+    /// The joint (position in [`Model::joints`]) of a joint effect.
+    pub joint: Option<usize>,
+    /// The frame (position in [`Model::frames`]) of a link effect.
+    pub frame: Option<usize>,
+    /// Every parameter, defaults filled in.
+    pub parameters: BTreeMap<String, f64>,
+}
+
+impl Effect {
+    /// Parameter `name` (it exists: checked at compile time; 0 otherwise).
+    pub fn get(&self, name: &str) -> f64 {
+        self.parameters.get(name).copied().unwrap_or(0.0)
+    }
+}
+
+/// Check the model's `[[effects]]` against the vocabulary, the model's joints and frames and the
+/// physical bounds; `field` errors name `effects[i] (name)` and the parameter.
+pub fn check_effects(model: &Model) -> Result<Vec<Effect>> {
+    let mut out = Vec::with_capacity(model.spec.effects.len());
+    for (i, e) in model.spec.effects.iter().enumerate() {
+        let field = |f: &str| format!("effects[{i}] ({}).{f}", e.name);
+        let kind = EffectKind::from_name(&e.name).ok_or_else(|| {
+            let names: Vec<&str> = EffectKind::ALL.iter().map(|k| k.name()).collect();
+            KinError::field(format!("effects[{i}].name"), format!("`{}` is not an effect (vocabulary: {})", e.name, names.join(", ")))
+        })?;
+        let joint = match (kind.target(), &e.joint) {
+            (Target::Joint, Some(j)) => Some(model.joint_id(j).map_err(|err| KinError::field(field("joint"), err.to_string()))?),
+            (Target::Joint, None) => return Err(KinError::field(field("joint"), "missing: this effect acts on a joint")),
+            (_, Some(j)) => return Err(KinError::field(field("joint"), format!("`{j}` given, but {} does not act on a joint", e.name))),
+            (_, None) => None,
+        };
+        let frame = match (kind.target(), &e.link) {
+            (Target::Link, Some(l)) => Some(model.frame_id(l).map_err(|err| KinError::field(field("link"), err.to_string()))?),
+            (Target::Link, None) => return Err(KinError::field(field("link"), "missing: this effect acts on a link (frame number or name)")),
+            (_, Some(l)) => return Err(KinError::field(field("link"), format!("`{l}` given, but {} does not act on a link", e.name))),
+            (_, None) => None,
+        };
+        let prismatic = joint.is_some_and(|j| model.joints[j].kind == JointType::Prismatic);
+        let mut parameters = BTreeMap::new();
+        if kind == EffectKind::CouplingError {
+            let c = model.coupling_matrix().ok_or_else(|| KinError::field(field("name"), format!("model `{}` has no actuator coupling to be in error", model.name)))?;
+            for (name, v) in &e.parameters {
+                let rc = name.strip_prefix('d').and_then(|s| {
+                    let (r, c) = s.split_at(s.len() / 2);
+                    Some((r.parse::<usize>().ok()?, c.parse::<usize>().ok()?))
+                });
+                match rc {
+                    Some((r, col)) if (1..=c.nrows()).contains(&r) && (1..=c.ncols()).contains(&col) && v.is_finite() && v.abs() <= 0.5 => {
+                        parameters.insert(name.clone(), *v);
+                    }
+                    _ => return Err(KinError::field(field(&format!("parameters.{name}")), format!("{v}: expected dRC (1-based row, column of the {}x{} coupling) with |value| <= 0.5", c.nrows(), c.ncols()))),
+                }
+            }
+        } else {
+            let infos = kind.parameters();
+            if let Some(unknown) = e.parameters.keys().find(|k| !infos.iter().any(|p| p.name == k.as_str())) {
+                let names: Vec<&str> = infos.iter().map(|p| p.name).collect();
+                return Err(KinError::field(field(&format!("parameters.{unknown}")), format!("not a parameter of {} (parameters: {})", e.name, names.join(", "))));
+            }
+            for info in infos {
+                let unit = if prismatic { info.prismatic_unit } else { info.unit };
+                let v = match (e.parameters.get(info.name), info.default) {
+                    (Some(v), _) => *v,
+                    (None, Some(d)) => d,
+                    (None, None) => return Err(KinError::field(field(&format!("parameters.{}", info.name)), format!("missing ({unit})"))),
+                };
+                if !(v.is_finite() && v >= info.lower && v <= info.upper) {
+                    return Err(KinError::field(field(&format!("parameters.{}", info.name)), format!("{v} {unit} is outside its physical bounds [{}, {}]", info.lower, info.upper)));
+                }
+                parameters.insert(info.name.to_string(), v);
+            }
+        }
+        out.push(Effect { kind, joint, frame, parameters });
+    }
+    Ok(out)
+}
+
+/// Joint-space effort (N·m, N) of the friction and spring effects at `q`, `qd`, added to `out`:
+/// `-(fc sign(qd) + offset) - fv qd - k (q - rest)` per joint, the force the effect exerts on the
+/// joint. `velocity_scale` (rad/s, m/s) smooths the sign (`tanh(qd / scale)`; 0: a hard sign).
+pub fn effort(effects: &[Effect], q: &[f64], qd: &[f64], velocity_scale: f64, out: &mut [f64]) {
+    for e in effects {
+        let Some(j) = e.joint else { continue };
+        match e.kind {
+            EffectKind::CoulombFriction => {
+                let s = if velocity_scale > 0.0 { (qd[j] / velocity_scale).tanh() } else { qd[j].signum() * (qd[j] != 0.0) as i32 as f64 };
+                out[j] -= e.get("fc") * s + e.get("offset");
+            }
+            EffectKind::ViscousFriction => out[j] -= e.get("fv") * qd[j],
+            EffectKind::Spring => out[j] -= e.get("k") * (q[j] - e.get("rest")),
+            _ => {}
+        }
+    }
+}
+
+/// `inertias` with every `payload_mass` added as a point mass on its link's body (each inertia in
+/// its body's first frame, [`crate::Model::bodies`] order).
+pub fn payload_inertias(model: &Model, effects: &[Effect], inertias: &[crate::BodyInertia]) -> Result<Vec<crate::BodyInertia>> {
+    let mut out = inertias.to_vec();
+    let fk = model.fk(&model.home())?;
+    for e in effects.iter().filter(|e| e.kind == EffectKind::PayloadMass) {
+        let Some(f) = e.frame else { continue };
+        let b = model.frames[f].body;
+        let first = model.bodies[b].frames[0];
+        // The point in the body's first frame (constant: both frames are on one body).
+        let local = (fk[first].inverse() * fk[f]) * nalgebra::Point3::new(e.get("x"), e.get("y"), e.get("z"));
+        out[b] = out[b].with_point_mass(e.get("mass"), &local.coords);
+    }
+    Ok(out)
+}
+
+/// Apply the kinematic effects to a model being compiled: the joint offsets enter every frame
+/// variable that depends on the joint (`phi = c (q + offset) + b`), the registration the base.
+pub(crate) fn apply_kinematic(model: &mut Model, effects: &[Effect]) {
+    for e in effects {
+        match e.kind {
+            EffectKind::JointOffset => {
+                let (Some(j), off) = (e.joint, e.get("offset")) else { continue };
+                for f in &mut model.frames {
+                    f.theta.offset += f.theta.coef[j] * off;
+                    f.d.offset += f.d.coef[j] * off;
+                    if let crate::model::Motion::Revolute { d0 } = &mut f.motion {
+                        *d0 = f.d.offset;
+                    }
+                }
+            }
+            EffectKind::BaseRegistration => {
+                let r = nalgebra::Rotation3::new(nalgebra::Vector3::new(e.get("rx"), e.get("ry"), e.get("rz")));
+                let t = nalgebra::Translation3::new(e.get("x"), e.get("y"), e.get("z"));
+                model.base = crate::Pose::from_parts(t, r) * model.base;
+            }
+            _ => {}
+        }
+    }
+}
+
+/// The spec with every `link_length` applied to its frame's `a` and `d` (before compiling).
+pub(crate) fn apply_link_lengths(spec: &mut crate::ModelSpec) -> Result<()> {
+    use crate::spec::Value;
+    let edits: Vec<(usize, FrameRef, f64, f64)> = spec
+        .effects
+        .iter()
+        .enumerate()
+        .filter(|(_, e)| e.name == "link_length")
+        .map(|(i, e)| {
+            let link = e.link.clone().ok_or_else(|| KinError::field(format!("effects[{i}] (link_length).link"), "missing: this effect acts on a link (frame number or name)"))?;
+            Ok((i, link, e.parameters.get("a").copied().unwrap_or(0.0), e.parameters.get("d").copied().unwrap_or(0.0)))
+        })
+        .collect::<Result<_>>()?;
+    for (i, link, da, dd) in edits {
+        let pos = spec.frames.iter().enumerate().position(|(k, f)| match &link {
+            FrameRef::Index(x) => f.index.unwrap_or(k as i64 + 1) == *x,
+            FrameRef::Name(s) => f.name == *s,
+        });
+        let Some(pos) = pos else { return Err(KinError::field(format!("effects[{i}] (link_length).link"), format!("no frame `{link}`"))) };
+        let add = |v: &Value, delta: f64| match v {
+            _ if delta == 0.0 => v.clone(),
+            Value::Number(x) => Value::Number(x + delta),
+            Value::Expr(e) if delta < 0.0 => Value::Expr(format!("{e} - {:e}", -delta)),
+            Value::Expr(e) => Value::Expr(format!("{e} + {delta:e}")),
+        };
+        let f = &mut spec.frames[pos];
+        f.a = add(&f.a, da);
+        f.d = add(&f.d, dd);
+    }
+    Ok(())
+}
