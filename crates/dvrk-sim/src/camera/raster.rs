@@ -14,7 +14,7 @@ use dvrk_kin::Pose;
 use nalgebra::{Point3, Vector3};
 
 /// Share of the light that reaches faces seen edge-on.
-const AMBIENT: f32 = 0.2;
+const AMBIENT: f32 = 0.3;
 
 /// The triangles of one body, in its body frame.
 #[derive(Debug, Clone)]
@@ -105,7 +105,8 @@ fn draw_clipped(p: [Vector3<f64>; 3], color: [f32; 3], k: &Intrinsics, (near, fa
         return;
     }
     let lambert = (n.dot(&c) / (nn * cn)).abs() as f32;
-    let shade = AMBIENT + (1.0 - AMBIENT) * lambert;
+    // Markers (no depth test) keep their exact colour, so they can be found in the image.
+    let shade = if depth_test { AMBIENT + (1.0 - AMBIENT) * lambert } else { 1.0 };
     let rgb = color.map(|x| to_u8(x * shade));
     if inside.iter().all(|x| *x) {
         raster(p, rgb, k, far, depth_test, out);
@@ -132,7 +133,8 @@ fn draw_clipped(p: [Vector3<f64>; 3], color: [f32; 3], k: &Intrinsics, (near, fa
     }
 }
 
-/// Fill the pixels whose centres lie in the projected triangle, nearer than what is there.
+/// Fill the pixels whose centres lie in the projected triangle, nearer than what is there (or
+/// all of them without the depth test).
 fn raster(p: [Vector3<f64>; 3], rgb: [u8; 3], k: &Intrinsics, far: f64, depth_test: bool, out: &mut EyeImage) {
     let w = p.map(|v| 1.0 / v.z);
     let u = p.map(|v| k.fx * v.x / v.z + k.cx);
@@ -150,33 +152,53 @@ fn raster(p: [Vector3<f64>; 3], rgb: [u8; 3], k: &Intrinsics, far: f64, depth_te
         return;
     }
     let inv_area = 1.0 / area;
-    // Barycentric weight of vertex i at (x, y): edge function of the opposite edge / area, affine
-    // in x and y, so stepped by constants along a row.
-    let edge = |i: usize, x: f64, y: f64| {
+    // Barycentric weight of vertex i at (x, y): the edge function of the opposite edge over the
+    // area, affine in x and y: l_i = ax[i] x + ay[i] y + c[i].
+    let mut ax = [0.0; 3];
+    let mut ay = [0.0; 3];
+    let mut c0 = [0.0; 3];
+    for i in 0..3 {
         let (a, b) = ((i + 1) % 3, (i + 2) % 3);
-        ((u[b] - u[a]) * (y - v[a]) - (v[b] - v[a]) * (x - u[a])) * inv_area
-    };
-    let dx = [0, 1, 2].map(|i| -(v[(i + 2) % 3] - v[(i + 1) % 3]) * inv_area);
+        ax[i] = -(v[b] - v[a]) * inv_area;
+        ay[i] = (u[b] - u[a]) * inv_area;
+        c0[i] = -(ax[i] * u[a] + ay[i] * v[a]);
+    }
     let min_w = (1.0 / far) as f32;
     let width = out.width as usize;
     for y in y0 as usize..=y1 as usize {
         let yf = y as f64;
-        let mut b = [0, 1, 2].map(|i| edge(i, x0, yf));
-        let row = y * width;
-        for x in x0 as usize..=x1 as usize {
-            if b[0] >= 0.0 && b[1] >= 0.0 && b[2] >= 0.0 {
-                let iz = (b[0] * w[0] + b[1] * w[1] + b[2] * w[2]) as f32;
-                let i = row + x;
-                if !depth_test || (iz > out.inv_depth[i] && iz >= min_w) {
-                    if depth_test {
-                        out.inv_depth[i] = iz;
-                    }
-                    out.rgb[3 * i..3 * i + 3].copy_from_slice(&rgb);
-                }
+        // The row's span inside all three half-planes, so long thin triangles (a tool shaft seen
+        // obliquely) cost their pixels, not their bounding box.
+        let (mut xa, mut xb) = (x0, x1);
+        let mut empty = false;
+        for i in 0..3 {
+            let r = ay[i] * yf + c0[i];
+            if ax[i] > 0.0 {
+                xa = xa.max((-r / ax[i]).ceil());
+            } else if ax[i] < 0.0 {
+                xb = xb.min((-r / ax[i]).floor());
+            } else if r < 0.0 {
+                empty = true;
             }
-            b[0] += dx[0];
-            b[1] += dx[1];
-            b[2] += dx[2];
+        }
+        if empty || xa > xb {
+            continue;
+        }
+        let row = y * width;
+        // 1/z is affine in (x, y) too: its value at the span's start and its step along x.
+        let l = [0, 1, 2].map(|i| ax[i] * xa + ay[i] * yf + c0[i]);
+        let mut iz = l[0] * w[0] + l[1] * w[1] + l[2] * w[2];
+        let step = w[0] * ax[0] + w[1] * ax[1] + w[2] * ax[2];
+        for x in xa as usize..=xb as usize {
+            let z = iz as f32;
+            let i = row + x;
+            if !depth_test || (z > out.inv_depth[i] && z >= min_w) {
+                if depth_test {
+                    out.inv_depth[i] = z;
+                }
+                out.rgb[3 * i..3 * i + 3].copy_from_slice(&rgb);
+            }
+            iz += step;
         }
     }
 }

@@ -94,7 +94,7 @@ impl StereoCamera {
                         Part::Setup => SETUP_COLOR,
                         Part::Jaw => JAW_COLOR,
                         // The tool shaft a darker shade of its arm's colour.
-                        Part::Tool => base.map(|c| 0.55 * c),
+                        Part::Tool => base.map(|c| 0.75 * c),
                         Part::Link | Part::Mesh => base,
                     };
                     let off = mesh.vertices.len() as u32;
