@@ -200,6 +200,9 @@ pub fn run_with(scene: &Scene, options: &RunOptions, outputs: &Outputs, mut prog
     let mut sim = Sim::new(scene, &options.sim)?;
     let mut recorder = record.map(|r| Recorder::create(&sim, r)).transpose()?;
     let mut camera = scene.camera.as_ref().map(|c| StereoCamera::new(c, &sim, &scene.file)).transpose()?;
+    if let Some(c) = camera.as_mut() {
+        c.parallel = options.sim.parallel;
+    }
     if let (Some(r), Some(_)) = (recorder.as_mut(), camera.as_ref()) {
         r.add_camera()?;
     }

@@ -49,12 +49,16 @@ pub struct StereoCamera {
     arm: usize,
     tip_body: usize,
     tip_rel: Pose,
-    renderer: Renderer,
+    /// One renderer (scratch buffers) and one noise stream per eye, so the eyes can render on
+    /// two threads with the same result.
+    renderers: [Renderer; 2],
+    noise: [Noise; 2],
     pub left: EyeImage,
     pub right: EyeImage,
+    /// Render the two eyes on two threads (rayon).
+    pub parallel: bool,
     /// Drawn over both eyes (tool-tip marks).
     pub markers: Vec<Marker>,
-    noise: Noise,
     /// Frames captured so far.
     pub frames: u64,
     /// Simulated time of the last frame (s).
@@ -114,11 +118,13 @@ impl StereoCamera {
             arm,
             tip_body,
             tip_rel,
-            renderer: Renderer::new(meshes),
+            renderers: [Renderer::new(meshes.clone()), Renderer::new(meshes)],
             left: EyeImage::new(w, h),
             right: EyeImage::new(w, h),
             markers: Vec::new(),
-            noise: Noise::new(params.noise_sigma, params.seed),
+            // The right eye's stream from another seed (golden-ratio offset).
+            noise: [Noise::new(params.noise_sigma, params.seed), Noise::new(params.noise_sigma, params.seed ^ 0x9e37_79b9_7f4a_7c15)],
+            parallel: false,
             frames: 0,
             time: f64::NEG_INFINITY,
             render_seconds: 0.0,
@@ -168,10 +174,25 @@ impl StereoCamera {
         let clip = (self.params.clip_near_m, self.params.clip_far_m);
         let pose = |a: usize, b: usize| sim.body_pose(a, b);
         let (l, r) = (self.eye_pose(sim, Eye::Left), self.eye_pose(sim, Eye::Right));
-        self.renderer.render(pose, &l, &self.intrinsics, clip, &self.markers, &mut self.left);
-        self.renderer.render(pose, &r, &self.intrinsics, clip, &self.markers, &mut self.right);
-        self.left.add_noise(&mut self.noise);
-        self.right.add_noise(&mut self.noise);
+        let k = self.intrinsics;
+        let markers = &self.markers;
+        let [rl, rr] = &mut self.renderers;
+        let [nl, nr] = &mut self.noise;
+        let (left, right) = (&mut self.left, &mut self.right);
+        let mut left_eye = || {
+            rl.render(pose, &l, &k, clip, markers, left);
+            left.add_noise(nl);
+        };
+        let mut right_eye = || {
+            rr.render(pose, &r, &k, clip, markers, right);
+            right.add_noise(nr);
+        };
+        if self.parallel {
+            rayon::join(left_eye, right_eye);
+        } else {
+            left_eye();
+            right_eye();
+        }
         self.frames += 1;
         self.time = sim.time;
         self.render_seconds += start.elapsed().as_secs_f64();
