@@ -32,8 +32,13 @@ impl EyeImage {
     /// Fill with the background: no depth.
     pub fn clear(&mut self) {
         let bg = BACKGROUND.map(to_u8);
-        for px in self.rgb.chunks_exact_mut(3) {
+        // One row pixel by pixel, then row copies (memcpy).
+        let row = 3 * self.width as usize;
+        for px in self.rgb[..row].chunks_exact_mut(3) {
             px.copy_from_slice(&bg);
+        }
+        for r in 1..self.height as usize {
+            self.rgb.copy_within(..row, r * row);
         }
         self.inv_depth.fill(0.0);
     }
