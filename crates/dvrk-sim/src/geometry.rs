@@ -161,6 +161,9 @@ fn joint_point(model: &Model, fk: &[Pose], f: usize) -> Point3<f64> {
     }
 }
 
+/// A capsule's axis (world, m) and its part.
+type Segment = (Point3<f64>, Point3<f64>, Part);
+
 /// Solids from the kinematics (see the module documentation), per body, in body frames.
 fn kinematic_solids(model: &Model) -> Result<Vec<Vec<Solid>>> {
     let fk = model.fk(&model.home())?;
@@ -168,7 +171,7 @@ fn kinematic_solids(model: &Model) -> Result<Vec<Vec<Solid>>> {
     let has_rcm = model.rcm.is_some();
     let nb = model.bodies.len();
     // Segments per body in world coordinates at home, with the part they belong to.
-    let mut segments: Vec<Vec<(Point3<f64>, Point3<f64>, Part)>> = vec![Vec::new(); nb];
+    let mut segments: Vec<Vec<Segment>> = vec![Vec::new(); nb];
     let part_of = |f: usize| match (has_rcm, tool[f]) {
         (false, _) => Part::Setup,
         (true, true) => Part::Tool,

@@ -66,7 +66,7 @@ fn each_psm_tool_tip_is_at_its_pinhole_pixel_in_both_eyes_and_disparity_gives_it
         let tip = fk_tip(&sim, arm(&sim, name));
         for eye in [Eye::Left, Eye::Right] {
             let (u, v, z) = pinhole(&sim, &params, eye, &tip);
-            assert!(u >= 0.0 && u < 800.0 && v >= 0.0 && v < 800.0, "{name} tip at ({u}, {v}) px is out of the {eye:?} image");
+            assert!((0.0..800.0).contains(&u) && (0.0..800.0).contains(&v), "{name} tip at ({u}, {v}) px is out of the {eye:?} image");
             let (pu, pv) = (u.round(), v.round());
             let d = cam.image(eye).depth_at(pu as u32, pv as u32) as f64;
             // Back-projected, the pixel's depth lands on the wrist (a ball of the tool radius at
@@ -132,7 +132,7 @@ fn camera_error(field: &str, value: &str) -> String {
     let text = Scene::load("full-camera").map(|_| include_str!("../../../models/scenes/full-camera.toml")).unwrap();
     let line = text.lines().find(|l| l.starts_with(&format!("{field} ="))).unwrap();
     let bad = text.replacen(line, &format!("{field} = {value}"), 1);
-    Scene::parse(&bad, "bad.toml", None).err().expect("rejected").to_string()
+    Scene::parse(&bad, "bad.toml", None).expect_err("rejected").to_string()
 }
 
 #[test]

@@ -63,24 +63,22 @@ impl EyeImage {
 
     /// Add the Gaussian noise of `noise` to every colour channel, saturating at 0 and 255.
     pub fn add_noise(&mut self, noise: &mut Noise) {
-        if noise.table.is_empty() {
-            return;
-        }
-        // xorshift64* from a seed drawn from the ChaCha stream: four 16-bit table indices per draw.
+        let Some(table) = noise.table.as_deref() else { return };
+        // xorshift64* seeded from the ChaCha stream each frame: five 12-bit table indices per draw.
         let mut x = noise.rng.next_u64() | 1;
-        let mut chunks = self.rgb.chunks_exact_mut(4);
+        let mut chunks = self.rgb.chunks_exact_mut(5);
         for c in &mut chunks {
             x ^= x >> 12;
             x ^= x << 25;
             x ^= x >> 27;
             let r = x.wrapping_mul(0x2545_f491_4f6c_dd1d);
             for (k, v) in c.iter_mut().enumerate() {
-                let n = noise.table[((r >> (16 * k)) & 0xffff) as usize];
+                let n = table[((r >> (12 * k)) as usize) & (NOISE_TABLE - 1)];
                 *v = (*v as i16 + n).clamp(0, 255) as u8;
             }
         }
         for v in chunks.into_remainder() {
-            let n = noise.table[(noise.rng.next_u32() & 0xffff) as usize];
+            let n = table[(noise.rng.next_u32() as usize) & (NOISE_TABLE - 1)];
             *v = (*v as i16 + n).clamp(0, 255) as u8;
         }
     }
@@ -102,27 +100,35 @@ impl EyeImage {
 /// Gaussian image noise of standard deviation `sigma` (fraction of full scale), seeded.
 ///
 /// Drawing 3.84 M normal samples per stereo frame (2 x 800 x 800 x 3) took 28 ms with rand_distr's
-/// ziggurat on ChaCha8, more than the rendering. Instead, 65536 normal samples are drawn once from
-/// the seeded ChaCha8 stream (rounded to whole levels: a channel is an integer, so
-/// `round(v + n) = v + round(n)` exactly), and each channel picks one by a 16-bit index from a
+/// ziggurat on ChaCha8, more than the rendering. Instead, 4096 normal samples are drawn once from
+/// the seeded ChaCha8 stream as 2048 antithetic pairs (rounded to whole levels: a channel is an integer, so
+/// `round(v + n) = v + round(n)` exactly), and each channel picks one by a 12-bit index from a
 /// xorshift64* generator reseeded from the ChaCha stream every frame: the marginal distribution is
-/// that of 65536 Gaussian draws, and the same seed gives the same images.
+/// that of 4096 Gaussian draws (the rounded noise takes ~15 values, each with its probability to
+/// about 1/4096), and the same seed gives the same images. About 1.5 ms per eye at 800 x 800.
 #[derive(Debug, Clone)]
 pub struct Noise {
-    /// Rounded noise in levels of 255 (empty: no noise).
-    table: Vec<i16>,
+    /// Rounded noise in levels of 255 (`None`: no noise).
+    table: Option<Box<[i16; NOISE_TABLE]>>,
     rng: ChaCha8Rng,
 }
+
+/// Entries of the noise table (a power of two).
+const NOISE_TABLE: usize = 4096;
 
 impl Noise {
     /// Noise of standard deviation `sigma` (fraction of full scale) from `seed`.
     pub fn new(sigma: f64, seed: u64) -> Noise {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
-        let table = if sigma > 0.0 {
-            (0..1 << 16).map(|_| (sigma * 255.0 * rng.sample::<f64, _>(StandardNormal)).round().clamp(-255.0, 255.0) as i16).collect()
-        } else {
-            Vec::new()
-        };
+        let table = (sigma > 0.0).then(|| {
+            // Antithetic pairs (n, -n): the table's mean is exactly zero, so no brightness bias.
+            let mut t = Box::new([0i16; NOISE_TABLE]);
+            for pair in t.chunks_exact_mut(2) {
+                let n = (sigma * 255.0 * rng.sample::<f64, _>(StandardNormal)).round().clamp(-255.0, 255.0) as i16;
+                pair.copy_from_slice(&[n, -n]);
+            }
+            t
+        });
         Noise { table, rng }
     }
 }
