@@ -332,3 +332,21 @@ fn full_camera_runs_one_second_with_the_ecm_holding_its_aim() {
         assert!(j.max_error < bound, "ECM {} drifts {} {} from its aim", j.joint, j.max_error, j.unit);
     }
 }
+
+/// Every built-in model (the MTMs' standard DH, the composed cart) gets a solid on every body,
+/// each a finite shape placed in its body.
+#[test]
+fn every_builtin_model_has_link_geometry() {
+    for name in dvrk_sim::dvrk_kin::builtin_names() {
+        let m = dvrk_sim::dvrk_kin::load(name, None).unwrap();
+        let g = ArmGeometry::new(&m).unwrap();
+        assert_eq!(g.bodies.len(), m.bodies.len(), "{name}");
+        for (b, solids) in g.bodies.iter().enumerate() {
+            assert!(!solids.is_empty(), "{name}: body {} has no solid", m.bodies[b].name);
+            for s in solids {
+                let (v, t) = dvrk_sim::geometry::tessellate(s);
+                assert!(!t.is_empty() && v.iter().all(|p| p.iter().all(|x| x.is_finite()) && p.norm() < 2.0), "{name}: {s:?}");
+            }
+        }
+    }
+}
