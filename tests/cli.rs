@@ -229,3 +229,22 @@ fn identify_json_and_output_file() {
     let e = crate::util::dvrk_err(&["identify", "--recording", one.to_str().unwrap(), "--format", "mcap"]);
     assert!(e.contains("--format mcap"), "{e}");
 }
+
+#[test]
+fn sim_full_camera_writes_the_frames_as_png_files() {
+    let dir = tempdir();
+    let frames = dir.path().join("frames");
+    let v: Value = serde_json::from_str(&dvrk_ok(&["sim", "--scene", "full-camera", "--duration", "0.04", "--frames-dir", frames.to_str().unwrap(), "--json"])).unwrap();
+    // Frames at the first step and at 1/30 s.
+    assert_eq!(v["camera"]["frames"], 2);
+    assert_eq!(v["camera"]["rate_hz"], 30.0);
+    let mut names: Vec<String> = std::fs::read_dir(&frames).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().to_string()).collect();
+    names.sort();
+    assert_eq!(names, ["left_000001.png", "left_000002.png", "left_depth_000001.png", "left_depth_000002.png", "right_000001.png", "right_000002.png", "right_depth_000001.png", "right_depth_000002.png"]);
+    let png = std::fs::read(frames.join("left_000001.png")).unwrap();
+    assert_eq!(&png[..8], &[0x89, b'P', b'N', b'G', 0x0d, 0x0a, 0x1a, 0x0a]);
+    // IHDR: 800 x 800.
+    assert_eq!(&png[16..24], &[0, 0, 3, 32, 0, 0, 3, 32]);
+    let err = crate::util::dvrk_err(&["sim", "--scene", "psm", "--duration", "0.01", "--frames-dir", frames.to_str().unwrap()]);
+    assert!(err.contains("--frames-dir") && err.contains("scene psm has no camera (full-camera has one)"), "{err}");
+}

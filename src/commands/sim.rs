@@ -4,7 +4,7 @@
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use dvrk_sim::run::TrajectoryKind;
-use dvrk_sim::{LoopMode, RunOptions, Scene, SimOptions};
+use dvrk_sim::{Colliders, LoopMode, Outputs, RunOptions, Scene, SimOptions};
 use std::io::{IsTerminal, Write};
 
 /// The default scene: the whole cart (SUJ held, PSMs on the tracking test, ECM holding).
@@ -15,7 +15,7 @@ const DEFAULT_DURATION: f64 = 10.0;
 
 #[derive(Debug, Args)]
 pub struct SimArgs {
-    /// Built-in scene (full, 3psm, 2psm-ecm, psm, ecm) or a scene file (.toml).
+    /// Built-in scene (full, full-camera, 3psm, 2psm-ecm, psm, ecm) or a scene file (.toml).
     #[arg(long, default_value = DEFAULT_SCENE)]
     pub scene: String,
     /// Simulated time (s).
@@ -54,6 +54,15 @@ pub struct SimArgs {
     /// Sampling rate of --plot (Hz of simulated time).
     #[arg(long, default_value_t = 50.0)]
     pub plot_rate: f64,
+    /// Write each camera frame of a scene with a camera (full-camera) as PNG files in this directory:
+    /// left_000001.png, right_000001.png (colour) and left_depth_000001.png, right_depth_000001.png
+    /// (16-bit depth in mm).
+    #[arg(long)]
+    pub frames_dir: Option<std::path::PathBuf>,
+    /// Let the link geometry of different arms in one rapier world touch (contacts are off by
+    /// default, as in the paper).
+    #[arg(long)]
+    pub contacts: bool,
     /// Print the summary as one JSON object.
     #[arg(long)]
     pub json: bool,
@@ -88,7 +97,13 @@ pub fn run(args: &SimArgs) -> Result<()> {
     let options = RunOptions {
         duration: args.duration,
         trajectory,
-        sim: SimOptions { loops, solver_iterations: args.solver_iterations, parallel: args.parallel, ..Default::default() },
+        sim: SimOptions {
+            loops,
+            solver_iterations: args.solver_iterations,
+            parallel: args.parallel,
+            colliders: if args.contacts { Colliders::Contacts } else { Colliders::NoContacts },
+            ..Default::default()
+        },
     };
     if !(args.rate.is_finite() && args.rate > 0.0) {
         bail!("--rate {}: must be a positive number of samples per second", args.rate);
@@ -105,7 +120,14 @@ pub fn run(args: &SimArgs) -> Result<()> {
     let record = args.out.as_ref().map(|p| dvrk_sim::RecordOptions { path: p.clone(), rate: args.rate });
     let tty = std::io::stderr().is_terminal();
     let trace_rate = args.plot.as_ref().map(|_| args.plot_rate);
-    let (summary, trace) = dvrk_sim::run_traced(&scene, &options, record.as_ref(), trace_rate, |f| {
+    if let Some(d) = &args.frames_dir {
+        if scene.camera.is_none() {
+            bail!("--frames-dir {}: scene {} has no camera (full-camera has one)", d.display(), args.scene);
+        }
+        std::fs::create_dir_all(d).with_context(|| format!("--frames-dir {}", d.display()))?;
+    }
+    let outputs = Outputs { record: record.as_ref(), trace_rate, frames_dir: args.frames_dir.as_deref() };
+    let (summary, trace) = dvrk_sim::run_with(&scene, &options, &outputs, |f| {
         if tty {
             let n = (f * 40.0).round() as usize;
             eprint!("\r[{}{}] {:3.0}%", "#".repeat(n), " ".repeat(40 - n.min(40)), f * 100.0);
@@ -137,6 +159,18 @@ pub fn run(args: &SimArgs) -> Result<()> {
         "loop closure: max {:.3e} m, last 10% {:.3e} m; RCM: max {:.3e} m",
         summary.max_closure_error, summary.final_closure_error, summary.max_rcm_error
     );
+    if let Some(c) = &summary.camera {
+        println!(
+            "camera: {} stereo frames at {} Hz, {:.1} ms per frame (both eyes), {:.2} s of the wall time",
+            c.frames,
+            c.rate_hz,
+            c.time_per_frame * 1e3,
+            c.render_time
+        );
+    }
+    if let Some(d) = &args.frames_dir {
+        println!("wrote the camera frames to {}", d.display());
+    }
     if let Some(p) = &args.plot {
         println!("plotted {}", p.display());
     }

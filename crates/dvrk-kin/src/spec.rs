@@ -205,6 +205,30 @@ pub struct ToolSpec {
     pub coupling: Option<Vec<Vec<f64>>>,
 }
 
+/// A mesh file drawn (and available as a collision shape) for one body instead of the solids
+/// the simulator builds from the kinematics.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MeshSpec {
+    /// The body it belongs to (a `body` name of the frames).
+    pub body: String,
+    /// STL (binary or ASCII) or OBJ file, relative to the model file.
+    pub file: String,
+    /// Metres per file unit (0.001 for a mesh in mm).
+    #[serde(default = "unit_scale")]
+    pub scale: f64,
+    /// Placement of the mesh in the body frame (the body's first frame; row-major 4x4, m);
+    /// identity when absent.
+    #[serde(default)]
+    pub transform: Option<[[f64; 4]; 4]>,
+    #[serde(default)]
+    pub source: String,
+}
+
+fn unit_scale() -> f64 {
+    1.0
+}
+
 /// A whole model file.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -240,6 +264,9 @@ pub struct ModelSpec {
     /// Physical effects: friction, springs, offsets, compliance... ([`crate::effects`]).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub effects: Vec<crate::effects::EffectSpec>,
+    /// Mesh files of bodies (`[[meshes]]`); bodies without one get solids from the kinematics.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub meshes: Vec<MeshSpec>,
 }
 
 impl ModelSpec {
@@ -261,6 +288,7 @@ impl ModelSpec {
             tool: None,
             coupling: None,
             effects: vec![],
+            meshes: vec![],
         }
     }
 

@@ -1,10 +1,13 @@
-//! Real-time factor of the Table 9 scenes (psm, ecm, 2psm-ecm, 3psm, full): one simulated second
+//! Real-time factor of the Table 9 scenes (psm, ecm, 2psm-ecm, 3psm, full, full-camera): one simulated second
 //! of the section 4.3 tracking test per iteration (each arm as its scene says: the PSMs on the
 //! sines, the ECM of the cart scenes and the setup joints holding), dt = 1 ms: single thread
 //! (`{scene}_1s_sine`), and for the multi-arm scenes with the arm groups stepped in parallel
 //! (`{scene}_1s_sine_parallel`, `SimOptions::parallel`). RTF = 1 s / time per iteration.
+//! full-camera is full plus the stereo camera rendering both eyes at 30 Hz inside the loop (no
+//! files written); `camera/stereo_frame` times one frame of it (both eyes, with noise).
 
 use criterion::{criterion_group, criterion_main, Criterion};
+use dvrk_sim::camera::StereoCamera;
 use dvrk_sim::scene::Tracking;
 use dvrk_sim::trajectory::Trajectory;
 use dvrk_sim::{Scene, Sim, SimOptions};
@@ -12,7 +15,18 @@ use dvrk_sim::{Scene, Sim, SimOptions};
 fn one_second(c: &mut Criterion) {
     let mut group = c.benchmark_group("rtf");
     group.sample_size(10);
-    let runs = [("psm", false), ("ecm", false), ("2psm-ecm", false), ("3psm", false), ("full", false), ("2psm-ecm", true), ("3psm", true), ("full", true)];
+    let runs = [
+        ("psm", false),
+        ("ecm", false),
+        ("2psm-ecm", false),
+        ("3psm", false),
+        ("full", false),
+        ("full-camera", false),
+        ("2psm-ecm", true),
+        ("3psm", true),
+        ("full", true),
+        ("full-camera", true),
+    ];
     for (name, parallel) in runs {
         let scene = Scene::load(name).unwrap();
         let mut sim = Sim::new(&scene, &SimOptions { parallel, ..SimOptions::default() }).unwrap();
@@ -27,6 +41,10 @@ fn one_second(c: &mut Criterion) {
                 (a.q_offset, a.model.nq(), t)
             })
             .collect();
+        let mut camera = scene.camera.as_ref().map(|c| StereoCamera::new(c, &sim, name).unwrap());
+        if let Some(c) = camera.as_mut() {
+            c.parallel = parallel;
+        }
         let n = sim.nq();
         let (mut q, mut qd) = (vec![0.0; n], vec![0.0; n]);
         group.bench_function(format!("{name}_1s_sine{}", if parallel { "_parallel" } else { "" }), |b| {
@@ -39,6 +57,9 @@ fn one_second(c: &mut Criterion) {
                         sim.set_target(i, q[i], qd[i]).unwrap();
                     }
                     sim.step();
+                    if let Some(c) = camera.as_mut() {
+                        c.after_step(&sim);
+                    }
                 }
             })
         });
@@ -46,5 +67,15 @@ fn one_second(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, one_second);
+fn stereo_frame(c: &mut Criterion) {
+    let scene = Scene::load("full-camera").unwrap();
+    let sim = Sim::new(&scene, &SimOptions::default()).unwrap();
+    let mut camera = StereoCamera::new(scene.camera.as_ref().unwrap(), &sim, "full-camera").unwrap();
+    let mut group = c.benchmark_group("camera");
+    group.sample_size(20);
+    group.bench_function("stereo_frame", |b| b.iter(|| camera.capture(&sim)));
+    group.finish();
+}
+
+criterion_group!(benches, one_second, stereo_frame);
 criterion_main!(benches);

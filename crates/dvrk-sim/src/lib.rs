@@ -14,8 +14,10 @@
 //!
 //! Units: m, rad, s, kg, N, N·m.
 
+pub mod camera;
 pub mod control;
 mod error;
+pub mod geometry;
 pub mod inertials;
 pub mod mjcf;
 pub mod pivot;
@@ -31,7 +33,7 @@ pub use control::{Actuator, Gains, Mode};
 pub use error::{Result, SimError};
 pub use mjcf::export_mjcf;
 pub use recording::{RecordOptions, Recorder};
-pub use run::{run, run_recorded, run_traced, RunOptions, Summary, Trace};
+pub use run::{run, run_recorded, run_traced, run_with, CameraSummary, Outputs, RunOptions, Summary, Trace};
 pub use scene::{Scene, SolverSettings};
-pub use sim::{ClosingLinks, LoopMode, Sim, SimOptions};
+pub use sim::{ClosingLinks, Colliders, LoopMode, Sim, SimOptions};
 pub use dvrk_kin;

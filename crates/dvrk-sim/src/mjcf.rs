@@ -415,7 +415,7 @@ fn single_model(model: Model, what: &str) -> Result<Scene> {
                 a.name = model.name.clone();
                 a.model = model;
                 a.parent = None;
-                return Ok(Scene { name: a.name.clone(), title: format!("{} alone ({})", a.name, model_title(&a.model)), dt: scene.dt, solver: scene.solver, gravity: scene.gravity, arms: vec![a] });
+                return Ok(Scene { name: a.name.clone(), title: format!("{} alone ({})", a.name, model_title(&a.model)), dt: scene.dt, solver: scene.solver, gravity: scene.gravity, arms: vec![a], camera: None, file: scene.file.clone() });
             }
             if !with.contains(&arm.model.name) {
                 with.push(arm.model.name.clone());

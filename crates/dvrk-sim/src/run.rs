@@ -1,6 +1,7 @@
 //! Running a scene for a duration under a trajectory and summarising it: real-time factor,
 //! tracking RMS / max per joint, loop-closure error, RCM error.
 
+use crate::camera::{write_frame_files, StereoCamera};
 use crate::error::{Result, SimError};
 use crate::recording::{RecordOptions, Recorder};
 use crate::sim::{Sim, SimOptions};
@@ -95,6 +96,33 @@ pub struct Summary {
     pub finite: bool,
     /// Amplitudes scaled to the joint limits, and other remarks.
     pub notes: Vec<String>,
+    /// The scene's camera, if it has one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub camera: Option<CameraSummary>,
+}
+
+/// What the camera cost in a run.
+#[derive(Debug, Clone, Serialize)]
+pub struct CameraSummary {
+    /// Stereo frames rendered.
+    pub frames: u64,
+    /// Hz
+    pub rate_hz: f64,
+    /// Wall time spent rendering both eyes (s), included in `wall_time`.
+    pub render_time: f64,
+    /// Mean wall time per stereo frame (s).
+    pub time_per_frame: f64,
+}
+
+/// Files a run writes besides its summary.
+#[derive(Debug, Clone, Default)]
+pub struct Outputs<'a> {
+    /// Record the run as MCAP.
+    pub record: Option<&'a RecordOptions>,
+    /// Sample the tracked joints at this rate (Hz) for [`Trace`].
+    pub trace_rate: Option<f64>,
+    /// Write each camera frame as PNG files here ([`crate::camera::write_frame_files`]).
+    pub frames_dir: Option<&'a std::path::Path>,
 }
 
 /// Commanded and measured positions of the tracked joints sampled over a run (for Figure 10).
@@ -169,8 +197,23 @@ pub fn run_traced(
     options: &RunOptions,
     record: Option<&RecordOptions>,
     trace_rate: Option<f64>,
-    mut progress: impl FnMut(f64),
+    progress: impl FnMut(f64),
 ) -> Result<(Summary, Option<Trace>)> {
+    run_with(scene, options, &Outputs { record, trace_rate, frames_dir: None }, progress)
+}
+
+/// [`run_traced`] with every output; the scene's camera (if any) renders at its own rate inside
+/// the loop whether or not its frames are written.
+pub fn run_with(scene: &Scene, options: &RunOptions, outputs: &Outputs, mut progress: impl FnMut(f64)) -> Result<(Summary, Option<Trace>)> {
+    let (record, trace_rate) = (outputs.record, outputs.trace_rate);
+    if let Some(d) = outputs.frames_dir {
+        if scene.camera.is_none() {
+            return Err(SimError::field(&scene.file, "camera", format!("--frames-dir {}: the scene has no camera", d.display())));
+        }
+        if !d.is_dir() {
+            return Err(SimError::Io { path: d.display().to_string(), source: std::io::Error::new(std::io::ErrorKind::NotFound, "not a directory") });
+        }
+    }
     if let Some(r) = trace_rate {
         if !(r.is_finite() && r > 0.0) {
             return Err(SimError::value("trace rate (Hz)", r, "must be a positive finite number"));
@@ -204,6 +247,14 @@ pub fn run_traced(
     };
     let mut sim = Sim::new(scene, &options.sim)?;
     let mut recorder = record.map(|r| Recorder::create(&sim, r)).transpose()?;
+    let mut camera = scene.camera.as_ref().map(|c| StereoCamera::new(c, &sim, &scene.file)).transpose()?;
+    if let Some(c) = camera.as_mut() {
+        c.parallel = options.sim.parallel;
+    }
+    if let (Some(r), Some(_)) = (recorder.as_mut(), camera.as_ref()) {
+        r.add_camera()?;
+    }
+    let (mut png, mut scratch) = (Vec::new(), Vec::new());
     let mut notes = Vec::new();
     let trajectories: Vec<Trajectory> = sim
         .arms
@@ -293,6 +344,16 @@ pub fn run_traced(
         if let Some(r) = recorder.as_mut() {
             r.after_step(&sim, s + 1)?;
         }
+        if let Some(cam) = camera.as_mut() {
+            if cam.after_step(&sim) {
+                if let Some(r) = recorder.as_mut() {
+                    r.write_camera(&sim, cam)?;
+                }
+                if let Some(d) = outputs.frames_dir {
+                    write_frame_files(cam, d, &mut png, &mut scratch)?;
+                }
+            }
+        }
         for i in 0..n {
             let e = sim.q()[i] - sim.actuator(i)?.target;
             if !e.is_finite() {
@@ -372,6 +433,12 @@ pub fn run_traced(
         max_rcm_error: max_rcm,
         finite,
         notes,
+        camera: camera.map(|c| CameraSummary {
+            frames: c.frames,
+            rate_hz: c.params.rate_hz,
+            render_time: c.render_seconds,
+            time_per_frame: c.render_seconds / c.frames.max(1) as f64,
+        }),
     };
     Ok((summary, trace.map(|(_, t)| t)))
 }

@@ -2,6 +2,7 @@
 //! and damping, and the solver settings. Built-in scenes are compiled in, so `dvrk sim` works on a
 //! fresh machine; a path loads a scene from disk.
 
+use crate::camera::CameraParams;
 use crate::control::{Gains, Mode};
 use crate::error::{Result, SimError};
 use crate::inertials::Inertials;
@@ -16,6 +17,7 @@ const BUILTIN_SCENES: &[(&str, &str)] = &[
     ("2psm-ecm", include_str!("../../../models/scenes/2psm-ecm.toml")),
     ("3psm", include_str!("../../../models/scenes/3psm.toml")),
     ("full", include_str!("../../../models/scenes/full.toml")),
+    ("full-camera", include_str!("../../../models/scenes/full-camera.toml")),
 ];
 
 /// Built-in inertials: (name, file text).
@@ -66,6 +68,9 @@ struct SceneFile {
     #[allow(dead_code)]
     notes: String,
     arms: Vec<ArmFile>,
+    /// A stereo camera on an arm's tip.
+    #[serde(default)]
+    camera: Option<CameraParams>,
 }
 
 fn default_dt() -> f64 {
@@ -115,6 +120,10 @@ struct ArmFile {
     /// (the arm with its carrier and what it carries) uses the largest of its arms. The scene's
     /// `pgs_iterations` when absent.
     pgs_iterations: Option<usize>,
+    /// The arm's home in this scene (rad, m per joint): where it starts and what it holds;
+    /// the model's home when absent.
+    #[serde(default)]
+    home: Option<Vec<f64>>,
     #[serde(default)]
     #[allow(dead_code)]
     source: String,
@@ -195,6 +204,10 @@ pub struct Scene {
     /// m/s^2
     pub gravity: [f64; 3],
     pub arms: Vec<Arm>,
+    /// The stereo camera, if the scene has one (checked: valid parameters on an arm of the scene).
+    pub camera: Option<CameraParams>,
+    /// The file (or built-in name) the scene came from, for errors.
+    pub file: String,
 }
 
 impl Scene {
@@ -296,6 +309,17 @@ impl Scene {
                 _ => a.model.clone(),
             };
             let mut model = dvrk_kin::load(&model_path, None).map_err(|e| SimError::field(file, field("model"), e.to_string()))?;
+            if let Some(h) = &a.home {
+                if h.len() != model.nq() {
+                    return Err(SimError::field(file, field("home"), format!("has {} entries, model {} has {} joints", h.len(), model.name, model.nq())));
+                }
+                for (j, x) in model.joints.iter_mut().zip(h) {
+                    if !(x.is_finite() && *x >= j.lower && *x <= j.upper) {
+                        return Err(SimError::field(file, field("home"), format!("{} = {x} {} is outside its limits [{}, {}]", j.name, j.unit(), j.lower, j.upper)));
+                    }
+                    j.home = *x;
+                }
+            }
             let mut mount = match &a.mount {
                 Some(m) => pose_from_rows(m, "mount").map_err(|e| SimError::field(file, field("mount"), e.to_string()))?,
                 None => Pose::identity(),
@@ -351,7 +375,14 @@ impl Scene {
             let start = model.home();
             arms.push(Arm { name: a.name.clone(), model, original_base, inertials, gains, armature: a.armature.clone(), damping: a.damping, parent, mode: a.mode, tracking: a.tracking, pgs_iterations: a.pgs_iterations, start });
         }
-        Ok(Scene { name: f.name, title: f.title, dt: f.dt, solver: SolverSettings {
+        if let Some(c) = &f.camera {
+            c.check(file)?;
+            if !arms.iter().any(|a| a.name == c.arm) {
+                let valid: Vec<&str> = arms.iter().map(|a| a.name.as_str()).collect();
+                return Err(SimError::field(file, "camera.arm", format!("`{}` is not an arm of the scene (valid: {})", c.arm, valid.join(", "))));
+            }
+        }
+        Ok(Scene { name: f.name, title: f.title, dt: f.dt, camera: f.camera, file: file.to_string(), solver: SolverSettings {
                 iterations: f.solver_iterations,
                 pgs_iterations: f.pgs_iterations,
                 stabilization_iterations: f.stabilization_iterations,

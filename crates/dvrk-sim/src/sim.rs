@@ -67,6 +67,24 @@ pub struct SimOptions {
     /// Step the independent arm groups (each arm with the arms it carries, on its own rapier
     /// world) on separate threads (rayon). Results are identical to the sequential step.
     pub parallel: bool,
+    /// Link geometry as rapier colliders (see [`crate::geometry`]).
+    pub colliders: Colliders,
+}
+
+/// Whether the link geometry is attached to the rapier bodies as colliders, and whether they touch.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Colliders {
+    /// No colliders.
+    Off,
+    /// Massless colliders that generate no contact (as the paper's simulation runs): available to
+    /// scene queries, the dynamics unchanged.
+    #[default]
+    NoContacts,
+    /// Massless colliders in contact with the other arms of their rapier world (not with their own
+    /// arm, whose neighbouring links overlap at every joint, nor with the arm carrying them or
+    /// carried by them). Arms on different setup joints live in different worlds and never touch.
+    Contacts,
 }
 
 impl Default for SimOptions {
@@ -80,6 +98,7 @@ impl Default for SimOptions {
             warmstart_joints: None,
             no_gravity: false,
             parallel: false,
+            colliders: Colliders::default(),
         }
     }
 }
@@ -300,7 +319,7 @@ impl Sim {
             let pgs = options.pgs_iterations.unwrap_or(arm.pgs_iterations.unwrap_or(scene.solver.pgs_iterations));
             let wp = &mut worlds[world].params;
             wp.num_internal_pgs_iterations = if arm.parent.is_some() { wp.num_internal_pgs_iterations.max(pgs) } else { pgs };
-            let World { bodies, impulse_joints, multibody_joints, ground, .. } = &mut worlds[world];
+            let World { bodies, colliders, impulse_joints, multibody_joints, ground, .. } = &mut worlds[world];
             let ground = *ground;
             let model = &arm.model;
             // Built at the arm's start configuration (home unless the scene says otherwise).
@@ -318,6 +337,18 @@ impl Sim {
                 );
                 let rb = RigidBodyBuilder::dynamic().pose(to_rapier(&body_pose[bi])).additional_mass_properties(mp).can_sleep(false);
                 handles.push(bodies.insert(rb));
+            }
+            if options.colliders != Colliders::Off {
+                let geometry = crate::geometry::ArmGeometry::new(model)?;
+                let a = arms.len();
+                let groups = collision_groups(scene, a, options.colliders);
+                for (bi, solids) in geometry.bodies.iter().enumerate() {
+                    for s in solids {
+                        // Massless: the CAD inertials stay the bodies' only mass.
+                        let c = ColliderBuilder::new(s.shape.clone()).position(to_rapier(&s.pose)).density(0.0).collision_groups(groups).solver_groups(groups);
+                        colliders.insert_with_parent(c, handles[bi], bodies);
+                    }
+                }
             }
             // Tree joints: for each body, the first moving frame whose parent lies in another body.
             let ry = Pose::from_parts(Translation3::identity(), Rotation3::from_axis_angle(&Vector3::y_axis(), -std::f64::consts::FRAC_PI_2));
@@ -824,6 +855,24 @@ fn apply_generalized(bodies: &mut RigidBodySet, dof: &TreeDof, f: f64) {
             bodies[p].add_force_at_point(-axis * f, at, false);
         }
     }
+}
+
+/// Collision groups of arm `a`'s colliders: none for [`Colliders::NoContacts`]; otherwise its own
+/// group, filtering out itself and the arms it carries or is carried by.
+fn collision_groups(scene: &Scene, a: usize, mode: Colliders) -> InteractionGroups {
+    if mode != Colliders::Contacts {
+        return InteractionGroups::none();
+    }
+    let bit = |i: usize| Group::from_bits_truncate(1u32 << (i % 32));
+    let mut filter = Group::ALL.difference(bit(a));
+    for (i, arm) in scene.arms.iter().enumerate() {
+        let carries = arm.parent.is_some_and(|(p, _)| p == a);
+        let carried = scene.arms[a].parent.is_some_and(|(p, _)| p == i);
+        if carries || carried {
+            filter = filter.difference(bit(i));
+        }
+    }
+    InteractionGroups::new(bit(a), filter, InteractionTestMode::And)
 }
 
 fn dof_body(dof_of_body: &[usize], dof: usize) -> usize {

@@ -2,6 +2,7 @@
 //! a Foxglove frame transform. The CDR codec and the ROS 2 message types live here (dvrk-calib
 //! reads recordings with them: the dependency order is kin <- sim <- calib).
 
+pub mod camera_msgs;
 pub mod cdr;
 pub mod frame_transform;
 pub mod ros_msgs;

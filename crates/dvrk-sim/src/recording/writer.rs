@@ -9,11 +9,17 @@
 //!   (the RCM frame of a PSM or ECM, as the dVRK reports it) or frame 0 for other models;
 //!
 //! and on `/tf` one foxglove.FrameTransform (JSON) per body: `PSM1/yaw_link` in `world`.
+//!
+//! With a camera ([`Recorder::add_camera`]), per eye at the camera's own rate: `/camera/left/image`
+//! (foxglove.CompressedImage, PNG colour), `/camera/left/depth` (foxglove.CompressedImage, 16-bit
+//! PNG depth in mm, ROS `16UC1`), `/camera/left/calibration` (foxglove.CameraCalibration), all in
+//! the frame `camera_left`, whose pose in `world` goes on `/tf` with each frame; the same for `right`.
 //! Samples are taken every whole number of steps nearest `1 / rate`. The file is written beside
 //! its destination and renamed over it by [`Recorder::finish`], so a reader never sees half a file.
 
 use crate::error::{Result, SimError};
-use crate::recording::frame_transform;
+use crate::camera::{Eye, StereoCamera};
+use crate::recording::{camera_msgs, frame_transform};
 use crate::recording::ros_msgs::{self, Header, JointState, PoseStamped};
 use crate::sim::Sim;
 use dvrk_kin::Pose;
@@ -72,6 +78,17 @@ pub struct Recorder {
     body_names: Vec<Vec<String>>,
     sequence: BTreeMap<u16, u32>,
     samples: u64,
+    camera: Option<CameraChannels>,
+}
+
+/// Channels of the camera: per eye (left, right) image, depth and calibration.
+struct CameraChannels {
+    image: [u16; 2],
+    depth: [u16; 2],
+    calibration: [u16; 2],
+    /// Encoding buffers reused between frames.
+    png: Vec<u8>,
+    scratch: Vec<u8>,
 }
 
 fn mcap_error(path: &Path, e: mcap::McapError) -> SimError {
@@ -132,7 +149,7 @@ impl Recorder {
             });
             body_names.push(m.bodies.iter().map(|b| format!("{}/{}", arm.name, b.name)).collect());
         }
-        Ok(Recorder { writer: Some(w), tmp, path, stride, arms, tf, body_names, sequence: BTreeMap::new(), samples: 0 })
+        Ok(Recorder { writer: Some(w), tmp, path, stride, arms, tf, body_names, sequence: BTreeMap::new(), samples: 0, camera: None })
     }
 
     /// Simulated time between samples (s) for a sim of time step `dt`.
@@ -218,6 +235,61 @@ impl Recorder {
         }
         self.samples += 1;
         Ok(())
+    }
+
+    /// Add the camera's channels (see the module documentation).
+    pub fn add_camera(&mut self) -> Result<()> {
+        let tmp = self.tmp.clone();
+        let io = |e| mcap_error(&tmp, e);
+        let Some(w) = self.writer.as_mut() else { return Ok(()) };
+        let meta = BTreeMap::new();
+        let img = w.add_schema("foxglove.CompressedImage", "jsonschema", camera_msgs::IMAGE_SCHEMA.as_bytes()).map_err(io)?;
+        let cal = w.add_schema("foxglove.CameraCalibration", "jsonschema", camera_msgs::CALIBRATION_SCHEMA.as_bytes()).map_err(io)?;
+        let mut ch = CameraChannels { image: [0; 2], depth: [0; 2], calibration: [0; 2], png: Vec::new(), scratch: Vec::new() };
+        for (i, eye) in [Eye::Left, Eye::Right].into_iter().enumerate() {
+            let e = eye.name();
+            ch.image[i] = w.add_channel(img, &format!("/camera/{e}/image"), "json", &meta).map_err(io)?;
+            ch.depth[i] = w.add_channel(img, &format!("/camera/{e}/depth"), "json", &meta).map_err(io)?;
+            ch.calibration[i] = w.add_channel(cal, &format!("/camera/{e}/calibration"), "json", &meta).map_err(io)?;
+        }
+        self.camera = Some(ch);
+        Ok(())
+    }
+
+    /// Record the camera's current frame (both eyes), taken at `camera.time`.
+    pub fn write_camera(&mut self, sim: &Sim, camera: &StereoCamera) -> Result<()> {
+        let Some(mut ch) = self.camera.take() else {
+            return Err(SimError::Build("write_camera before add_camera".into()));
+        };
+        let t = camera.time;
+        let k = camera.intrinsics;
+        let tmp = self.tmp.display().to_string();
+        let png_err = |e: png::EncodingError| SimError::Io { path: tmp.clone(), source: std::io::Error::other(e.to_string()) };
+        let result = (|| {
+            for (i, eye) in [Eye::Left, Eye::Right].into_iter().enumerate() {
+                let frame = format!("camera_{}", eye.name());
+                let img = camera.image(eye);
+                ch.png.clear();
+                img.encode_rgb_png(&mut ch.png).map_err(png_err)?;
+                let m = camera_msgs::compressed_image(t, &frame, "png", &ch.png);
+                self.write(ch.image[i], t, &m)?;
+                ch.png.clear();
+                img.encode_depth_png(&mut ch.png, &mut ch.scratch).map_err(png_err)?;
+                let m = camera_msgs::compressed_image(t, &frame, "png", &ch.png);
+                self.write(ch.depth[i], t, &m)?;
+                // ROS stereo: the right eye's P[3] = -fx * (baseline between the eyes).
+                let tx = if eye == Eye::Right { -k.fx * 2.0 * camera.params.baseline_m } else { 0.0 };
+                self.write(ch.calibration[i], t, &camera_msgs::camera_calibration(t, &frame, &k, tx))?;
+                let p = camera.eye_pose(sim, eye);
+                let q = UnitQuaternion::from_rotation_matrix(&p.rotation);
+                let o = p.translation.vector;
+                let tf = frame_transform::encode(t, "world", &frame, [o.x, o.y, o.z], [q.i, q.j, q.k, q.w]);
+                self.write(self.tf, t, &tf)?;
+            }
+            Ok(())
+        })();
+        self.camera = Some(ch);
+        result
     }
 
     /// Close the file and move it to its destination.
