@@ -16,6 +16,7 @@
 
 pub mod camera;
 pub mod control;
+pub mod effects;
 mod error;
 pub mod geometry;
 pub mod inertials;

@@ -189,6 +189,8 @@ pub struct ArmState {
     pub parent: Option<(usize, usize)>,
     /// The rapier world of this arm's group (see [`Sim`]).
     world: usize,
+    /// The model's friction, springs, two-mass drives and latency ([`crate::effects`]).
+    pub effects: crate::effects::ArmEffects,
 }
 
 /// One rapier world: an arm mounted on the fixed world and every arm it carries. Arms in
@@ -268,6 +270,10 @@ pub struct Sim {
     /// Measured q, qd and applied effort of every joint of the scene (rad, m; /s; N·m, N).
     q: Vec<f64>,
     qd: Vec<f64>,
+    /// The links' own joint positions and velocities (rad, m; /s): equal to `q`, `qd` unless an
+    /// effect (a compliant drive, play, latency) separates what is measured from the link.
+    q_link: Vec<f64>,
+    qd_link: Vec<f64>,
 }
 
 /// nalgebra pose to rapier pose.
@@ -328,13 +334,12 @@ impl Sim {
             // One rigid body per dvrk-kin body, placed at its first frame.
             let body_pose: Vec<Pose> = model.bodies.iter().map(|b| fk[b.frames[0]]).collect();
             let mut handles = Vec::with_capacity(model.bodies.len());
-            for (bi, b) in model.bodies.iter().enumerate() {
-                let ine = arm.inertials.body(model, bi).ok_or_else(|| SimError::Build(format!("no inertials for body {}", b.name)))?;
-                let mp = MassProperties::with_inertia_matrix(
-                    RVec::new(ine.com[0], ine.com[1], ine.com[2]),
-                    ine.mass,
-                    RMat::from_cols_array_2d(&ine.inertia).transpose(),
-                );
+            // The bodies' inertials with any payload_mass effect added.
+            let inertias = dvrk_kin::effects::payload_inertias(model, &model.effects, &arm.inertials.body_inertias(model)?)?;
+            for (bi, ine) in inertias.iter().enumerate() {
+                let i = ine.inertia;
+                let cols = [[i[(0, 0)], i[(1, 0)], i[(2, 0)]], [i[(0, 1)], i[(1, 1)], i[(2, 1)]], [i[(0, 2)], i[(1, 2)], i[(2, 2)]]];
+                let mp = MassProperties::with_inertia_matrix(RVec::new(ine.com.x, ine.com.y, ine.com.z), ine.mass, RMat::from_cols_array_2d(&cols));
                 let rb = RigidBodyBuilder::dynamic().pose(to_rapier(&body_pose[bi])).additional_mass_properties(mp).can_sleep(false);
                 handles.push(bodies.insert(rb));
             }
@@ -508,7 +513,18 @@ impl Sim {
                 .enumerate()
                 .map(|(k, j)| Actuator::new(arm.gains[k], j.effort_limit, home[k]))
                 .collect();
-            arms.push(ArmState { name: arm.name.clone(), model: model.clone(), q_offset, bodies: handles, dofs, drives, closures, cables, actuators, tracking: arm.tracking, parent: arm.parent, world });
+            let effects = crate::effects::ArmEffects::new(&arm.name, model, &arm.armature, &home, scene.dt)?;
+            {
+                let mb = multibody_joints.get_multibody_mut(mb_index).ok_or_else(|| SimError::Build("multibody vanished".into()))?;
+                for (k, t) in effects.transmissions.iter().enumerate() {
+                    if t.is_some() {
+                        // The motor inertia lives on the motor side of the transmission.
+                        let assembly = mb.link(link_ids[drives[k].dof]).map(|l| l.assembly_id()).unwrap_or(0);
+                        mb.armature_mut()[assembly] = 0.0;
+                    }
+                }
+            }
+            arms.push(ArmState { name: arm.name.clone(), model: model.clone(), q_offset, bodies: handles, dofs, drives, closures, cables, actuators, tracking: arm.tracking, parent: arm.parent, world, effects });
             q_offset += model.nq();
         }
         let g = if options.no_gravity { [0.0; 3] } else { scene.gravity };
@@ -522,6 +538,8 @@ impl Sim {
             gravity: RVec::new(g[0], g[1], g[2]),
             q: vec![0.0; q_offset],
             qd: vec![0.0; q_offset],
+            q_link: vec![0.0; q_offset],
+            qd_link: vec![0.0; q_offset],
         };
         sim.read_state();
         for (a, arm) in scene.arms.iter().enumerate() {
@@ -668,10 +686,12 @@ impl Sim {
         }
     }
 
-    /// Read q, qd of every joint from the multibody coordinates.
+    /// Read the links' q, qd from the multibody coordinates, then what is measured: the motor of
+    /// a two-mass drive, delayed by the arm's latency.
     fn read_state(&mut self) {
-        for arm in &self.arms {
+        for arm in self.arms.iter_mut() {
             for (k, dr) in arm.drives.iter().enumerate() {
+                let i = arm.q_offset + k;
                 let dof = &arm.dofs[dr.dof];
                 let Some((mb, link)) = self.worlds[arm.world].multibody_joints.get(dof.handle) else { continue };
                 let Some(l) = mb.link(link) else { continue };
@@ -680,11 +700,25 @@ impl Sim {
                 // The velocity is the coordinate's change over the step: exactly what the
                 // integrator applied (coords += v dt), and independent of rapier's DoF ordering.
                 if self.time > 0.0 {
-                    self.qd[arm.q_offset + k] = (q - self.q[arm.q_offset + k]) / self.dt;
+                    self.qd_link[i] = (q - self.q_link[i]) / self.dt;
                 }
-                self.q[arm.q_offset + k] = q;
+                self.q_link[i] = q;
+                (self.q[i], self.qd[i]) = match &arm.effects.transmissions[k] {
+                    Some(t) => (t.position, t.velocity),
+                    None => (q, self.qd_link[i]),
+                };
+            }
+            if let Some(d) = arm.effects.delay.as_mut() {
+                let (off, n) = (arm.q_offset, arm.drives.len());
+                d.push(&mut self.q[off..off + n], &mut self.qd[off..off + n]);
             }
         }
+    }
+
+    /// The links' own joint positions (rad, m), which the measured [`Sim::q`] differs from
+    /// under a compliant drive, play or latency.
+    pub fn q_link(&self) -> &[f64] {
+        &self.q_link
     }
 
     /// Advance one time step: controllers, efforts applied as joint torques/forces, physics.
@@ -697,9 +731,15 @@ impl Sim {
             }
         }
         for arm in self.arms.iter_mut() {
+            let (off, n) = (arm.q_offset, arm.drives.len());
+            arm.effects.update_forces(&self.q_link[off..off + n], &self.qd_link[off..off + n]);
             for (k, dr) in arm.drives.iter().enumerate() {
                 let i = arm.q_offset + k;
-                let tau = arm.actuators[k].update(self.q[i], self.qd[i], self.dt);
+                let mut tau = arm.actuators[k].update(self.q[i], self.qd[i], self.dt);
+                if let Some(t) = arm.effects.transmissions[k].as_mut() {
+                    tau = t.step(tau, self.q_link[i], self.qd_link[i], self.dt);
+                }
+                tau += arm.effects.force[k];
                 if tau == 0.0 {
                     continue;
                 }

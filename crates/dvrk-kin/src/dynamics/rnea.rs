@@ -33,6 +33,34 @@ pub fn inverse_dynamics(
     Ok(())
 }
 
+/// The effort the drives must supply (N·m, N): [`inverse_dynamics`] plus what the model's
+/// friction and spring effects take ([`crate::effects::effort`], `velocity_scale` smoothing the
+/// Coulomb sign, 0 for a hard sign). Payload masses enter through `dm`'s inertias (build it
+/// from [`crate::effects::payload_inertias`]). Allocates nothing.
+#[allow(clippy::too_many_arguments)]
+pub fn actuator_effort(
+    model: &Model,
+    dm: &DynamicsModel,
+    data: &mut DynamicsData,
+    q: &[f64],
+    qd: &[f64],
+    qdd: &[f64],
+    gravity: &Vector3<f64>,
+    velocity_scale: f64,
+    tau: &mut [f64],
+) -> Result<()> {
+    inverse_dynamics(model, dm, data, q, qd, qdd, gravity, tau)?;
+    // The effects' forces act on the joints; the drive supplies their opposite.
+    for t in tau.iter_mut() {
+        *t = -*t;
+    }
+    crate::effects::effort(&model.effects, q, qd, velocity_scale, tau);
+    for t in tau.iter_mut() {
+        *t = -*t;
+    }
+    Ok(())
+}
+
 /// Gravity torques `g(q)`: the efforts that hold the arm still at `q` (N·m, N), i.e. the
 /// gradient of the potential energy. Written into `tau` (length nq); allocates nothing.
 pub fn gravity_torque(model: &Model, dm: &DynamicsModel, data: &mut DynamicsData, q: &[f64], gravity: &Vector3<f64>, tau: &mut [f64]) -> Result<()> {

@@ -1,0 +1,86 @@
+//! The `[[effects]]` section: checking against the vocabulary and bounds, the kinematic effects
+//! applied at compile time, and the friction / spring efforts in closed form.
+
+use dvrk_kin::effects::{effort, EffectKind};
+use dvrk_kin::load::{builtin_text, load_toml_text};
+use dvrk_kin::{FrameRef, Model};
+use std::path::Path;
+
+fn psm_with(effects: &str) -> dvrk_kin::Result<Model> {
+    load_toml_text(&format!("{}\n{effects}", builtin_text("psm").unwrap()), Path::new("psm-effects.toml"), None, None)
+}
+
+#[test]
+fn joint_offset_is_the_encoder_zero() {
+    let nominal = dvrk_kin::load("psm", None).unwrap();
+    let m = psm_with("[[effects]]\nname = \"joint_offset\"\njoint = \"outer_pitch\"\nparameters = { offset = 0.02 }\n").unwrap();
+    // The reading q puts every frame where the nominal model puts q + offset.
+    let q = [0.3, -0.4, 0.12, 0.2, 0.1, -0.3, 0.5];
+    let mut shifted = q;
+    shifted[1] += 0.02;
+    let (a, b) = (m.fk(&q).unwrap(), nominal.fk(&shifted).unwrap());
+    let worst = a.iter().zip(&b).map(|(x, y)| (x.translation.vector - y.translation.vector).norm()).fold(0.0, f64::max);
+    assert!(worst < 1e-14, "{worst}");
+    // Closed loops stay closed.
+    let mut data = dvrk_kin::Data::new(&m);
+    dvrk_kin::forward_kinematics(&m, &mut data, &q).unwrap();
+    assert!(dvrk_kin::max_closure_residual(&m, &data) < 1e-12);
+}
+
+#[test]
+fn link_length_and_base_registration_move_the_frames() {
+    let nominal = dvrk_kin::load("psm", None).unwrap();
+    let m = psm_with("[[effects]]\nname = \"link_length\"\nlink = 8\nparameters = { a = 0.002 }\n[[effects]]\nname = \"base_registration\"\nparameters = { x = 0.1, rz = 0.5 }\n").unwrap();
+    let q = nominal.home();
+    let (fm, fnom) = (m.fk(&q).unwrap(), nominal.fk(&q).unwrap());
+    let id = |r: i64| m.frame_id(&FrameRef::Index(r)).unwrap();
+    // Frame 8 sits 0.002 m further from its parent, frame 6 (its DH a: 0.516 -> 0.518 m).
+    let d = |f: &[dvrk_kin::Pose], a: i64, b: i64| (f[id(a)].translation.vector - f[id(b)].translation.vector).norm();
+    assert!((d(&fm, 6, 8) - d(&fnom, 6, 8) - 0.002).abs() < 1e-12, "{} {}", d(&fm, 6, 8), d(&fnom, 6, 8));
+    // The base: rotated 0.5 rad about z and moved 0.1 m along x.
+    let expect = nalgebra::Translation3::new(0.1, 0.0, 0.0) * nalgebra::Rotation3::from_axis_angle(&nalgebra::Vector3::z_axis(), 0.5);
+    assert!((m.base.translation.vector - expect.translation.vector).norm() < 1e-15);
+    assert!(dvrk_kin::so3::angle(&(m.base.rotation * expect.rotation.inverse())) < 1e-15);
+    // The file keeps its own numbers (the spec is what `calib apply` and exports edit).
+    assert_eq!(m.spec.frames, nominal.spec.frames);
+}
+
+#[test]
+fn friction_and_spring_efforts_in_closed_form() {
+    let m = psm_with(
+        "[[effects]]\nname = \"coulomb_friction\"\njoint = \"outer_yaw\"\nparameters = { fc = 0.05, offset = 0.01 }\n\
+         [[effects]]\nname = \"viscous_friction\"\njoint = \"outer_yaw\"\nparameters = { fv = 0.09 }\n\
+         [[effects]]\nname = \"spring\"\njoint = \"outer_roll\"\nparameters = { k = 0.002, rest = 0.1 }\n",
+    )
+    .unwrap();
+    assert_eq!(m.effects.iter().map(|e| e.kind).collect::<Vec<_>>(), [EffectKind::CoulombFriction, EffectKind::ViscousFriction, EffectKind::Spring]);
+    let (q, qd) = ([0.0, 0.0, 0.1, 0.6, 0.0, 0.0, 0.0], [0.5, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]);
+    let mut out = [0.0; 7];
+    effort(&m.effects, &q, &qd, 0.0, &mut out);
+    assert_eq!(out[0], -(0.05 + 0.01) - 0.09 * 0.5);
+    assert!((out[3] + 0.002 * 0.5).abs() < 1e-18);
+    assert!(out.iter().enumerate().all(|(k, x)| k == 0 || k == 3 || *x == 0.0));
+    // The inverse dynamics with effects: the rigid-body effort plus what friction and springs take.
+    let ine: Vec<dvrk_kin::BodyInertia> = m.bodies.iter().map(|_| dvrk_kin::BodyInertia::new(0.5, [0.01, 0.0, 0.0], [[1e-3, 0.0, 0.0], [0.0, 1e-3, 0.0], [0.0, 0.0, 1e-3]])).collect();
+    let dm = dvrk_kin::DynamicsModel::new(&m, ine).unwrap();
+    let mut data = dvrk_kin::DynamicsData::new(&m);
+    let g = nalgebra::Vector3::new(0.0, 0.0, -9.81);
+    let (mut rigid, mut with) = ([0.0; 7], [0.0; 7]);
+    dvrk_kin::inverse_dynamics(&m, &dm, &mut data, &q, &qd, &[0.0; 7], &g, &mut rigid).unwrap();
+    dvrk_kin::dynamics::actuator_effort(&m, &dm, &mut data, &q, &qd, &[0.0; 7], &g, 0.0, &mut with).unwrap();
+    for k in 0..7 {
+        assert!((with[k] - (rigid[k] - out[k])).abs() < 1e-15, "joint {k}");
+    }
+}
+
+#[test]
+fn bad_effects_name_the_effect_the_field_and_the_value() {
+    let err = |t: &str| psm_with(t).unwrap_err().to_string();
+    assert!(err("[[effects]]\nname = \"stiction\"\n").contains("effects[0].name`: `stiction` is not an effect (vocabulary: joint_offset, link_length"));
+    assert!(err("[[effects]]\nname = \"backlash\"\nparameters = { b = 0.01 }\n").contains("effects[0] (backlash).joint`: missing: this effect acts on a joint"));
+    assert!(err("[[effects]]\nname = \"backlash\"\njoint = \"outer_yaw\"\nparameters = { b = -0.01 }\n").contains("effects[0] (backlash).parameters.b`: -0.01 rad is outside its physical bounds [0, 0.2]"));
+    assert!(err("[[effects]]\nname = \"viscous_friction\"\njoint = \"outer_insertion\"\nparameters = { fc = 1 }\n").contains("parameters.fc`: not a parameter of viscous_friction (parameters: fv)"));
+    assert!(err("[[effects]]\nname = \"latency\"\njoint = \"outer_yaw\"\nparameters = { seconds = 0.01 }\n").contains("`outer_yaw` given, but latency does not act on a joint"));
+    assert!(err("[[effects]]\nname = \"spring\"\njoint = \"elbow\"\nparameters = { k = 1 }\n").contains("effects[0] (spring).joint"));
+    assert!(err("[[effects]]\nname = \"joint_compliance\"\njoint = \"outer_insertion\"\n").contains("parameters.stiffness`: missing (N/m)"));
+}

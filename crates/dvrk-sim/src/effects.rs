@@ -1,0 +1,185 @@
+//! The model's physical effects as physics of the simulation (not corrections of its outputs):
+//! - `coulomb_friction`, `viscous_friction`, `spring`: joint forces from the joint's own motion,
+//!   applied with the actuator's effort every step;
+//! - `joint_compliance`, `backlash`: a two-mass drive. The motor (the armature: reflected rotor
+//!   inertia) is driven by the actuator and turns the joint through a transmission: a spring of
+//!   the given stiffness (compliance), with a dead zone of width `2 b` (play), damped. The
+//!   encoder sits on the motor, as on the dVRK: the controller and the recorded `measured_js`
+//!   see the motor; the link lags by the deflection or the play;
+//! - `latency`: the measured joint stream (what the controller and the recorder see) is the
+//!   state `seconds` ago;
+//! - `payload_mass`: mass and inertia added to the link's body when the sim is built;
+//! - `joint_offset`, `link_length`, `base_registration`: already in the compiled model's
+//!   kinematics, which the sim is built from.
+//!
+//! Allocation happens at build time only.
+
+use crate::error::{Result, SimError};
+use dvrk_kin::effects::{Effect, EffectKind};
+use dvrk_kin::Model;
+
+/// Velocity (rad/s, m/s) below which the Coulomb force is smoothed (`tanh(qd / v)`): a stiff
+/// regularisation of stick; kept stable by [`ArmEffects::new`] against the joint's drive inertia.
+pub const COULOMB_VELOCITY: f64 = 1e-3;
+
+/// Natural frequency of the stiff contact that stands in for a rigid transmission behind a
+/// backlash without compliance (rad/s); explicit integration keeps `w dt` at 0.2.
+const CONTACT_BANDWIDTH_DT: f64 = 0.2;
+
+/// The motor side of a two-mass drive.
+#[derive(Debug, Clone)]
+pub struct Transmission {
+    /// N·m/rad or N/m.
+    pub stiffness: f64,
+    /// N·m s/rad or N s/m (on the motor-link velocity difference).
+    pub damping: f64,
+    /// Half the play (rad or m).
+    pub half_play: f64,
+    /// Motor inertia (kg m^2 or kg).
+    pub inertia: f64,
+    /// Motor position and velocity (joint units).
+    pub position: f64,
+    pub velocity: f64,
+}
+
+impl Transmission {
+    /// The torque the transmission puts on the link for link position `q`, velocity `qd`.
+    pub fn torque(&self, q: f64, qd: f64) -> f64 {
+        let x = self.position - q;
+        let stretch = if x > self.half_play {
+            x - self.half_play
+        } else if x < -self.half_play {
+            x + self.half_play
+        } else {
+            0.0
+        };
+        let engaged = stretch != 0.0 || self.half_play == 0.0;
+        self.stiffness * stretch + if engaged { self.damping * (self.velocity - qd) } else { 0.0 }
+    }
+
+    /// Advance the motor by `dt` under actuator effort `effort`, the link at `q`, `qd`; returns
+    /// the torque on the link (semi-implicit Euler).
+    pub fn step(&mut self, effort: f64, q: f64, qd: f64, dt: f64) -> f64 {
+        let t = self.torque(q, qd);
+        self.velocity += dt * (effort - t) / self.inertia;
+        self.position += dt * self.velocity;
+        t
+    }
+}
+
+/// The measured stream `steps` behind the true one (ring buffers sized at build).
+#[derive(Debug, Clone)]
+pub struct Delay {
+    pub steps: usize,
+    q: Vec<Vec<f64>>,
+    qd: Vec<Vec<f64>>,
+    head: usize,
+}
+
+impl Delay {
+    fn new(steps: usize, q0: &[f64]) -> Delay {
+        Delay { steps, q: vec![q0.to_vec(); steps + 1], qd: vec![vec![0.0; q0.len()]; steps + 1], head: 0 }
+    }
+
+    /// Push the current state; write the delayed one into `q`, `qd`.
+    pub fn push(&mut self, q: &mut [f64], qd: &mut [f64]) {
+        self.head = (self.head + 1) % (self.steps + 1);
+        self.q[self.head].copy_from_slice(q);
+        self.qd[self.head].copy_from_slice(qd);
+        let tail = (self.head + 1) % (self.steps + 1);
+        q.copy_from_slice(&self.q[tail]);
+        qd.copy_from_slice(&self.qd[tail]);
+    }
+}
+
+/// The effects of one arm, ready to step.
+#[derive(Debug, Clone)]
+pub struct ArmEffects {
+    /// Friction and spring effects (dvrk-kin's [`dvrk_kin::effects::effort`]).
+    forces: Vec<Effect>,
+    /// Per joint: the drive's transmission, if compliant or with play.
+    pub transmissions: Vec<Option<Transmission>>,
+    pub delay: Option<Delay>,
+    /// Scratch: joint forces of the friction and spring effects (N·m, N).
+    pub force: Vec<f64>,
+    velocity_scale: f64,
+}
+
+impl ArmEffects {
+    /// The effects of `model` for a sim stepping `dt` with drive inertias `armature` (per joint).
+    /// `start`: the joint positions the arm starts at.
+    pub fn new(name: &str, model: &Model, armature: &[f64], start: &[f64], dt: f64) -> Result<ArmEffects> {
+        let n = model.nq();
+        let mut out = ArmEffects { forces: Vec::new(), transmissions: vec![None; n], delay: None, force: vec![0.0; n], velocity_scale: COULOMB_VELOCITY };
+        let home = start;
+        for e in &model.effects {
+            let what = |j: Option<usize>| format!("{name} effect {}{}", e.kind.name(), j.map(|j| format!(" on {}", model.joints[j].name)).unwrap_or_default());
+            match e.kind {
+                EffectKind::CoulombFriction | EffectKind::ViscousFriction | EffectKind::Spring => {
+                    // The smoothed Coulomb force acts like a damper of fc / v below v: keep its
+                    // explicit step stable on the drive's inertia (c dt / I <= 0.5).
+                    if let (EffectKind::CoulombFriction, Some(j)) = (e.kind, e.joint) {
+                        if armature[j] > 0.0 {
+                            out.velocity_scale = out.velocity_scale.max(2.0 * e.get("fc") * dt / armature[j]);
+                        }
+                    }
+                    out.forces.push(e.clone());
+                }
+                EffectKind::JointCompliance | EffectKind::Backlash => {
+                    let j = e.joint.ok_or_else(|| SimError::Build(format!("{}: no joint", what(None))))?;
+                    let inertia = armature[j];
+                    if inertia <= 0.0 {
+                        return Err(SimError::Build(format!("{}: the two-mass drive needs the joint's armature (motor inertia) > 0 in the scene", what(Some(j)))));
+                    }
+                    let t = out.transmissions[j].get_or_insert_with(|| Transmission { stiffness: 0.0, damping: 0.0, half_play: 0.0, inertia, position: home[j], velocity: 0.0 });
+                    match e.kind {
+                        EffectKind::JointCompliance => t.stiffness = e.get("stiffness"),
+                        _ => t.half_play = e.get("b"),
+                    }
+                }
+                EffectKind::Latency => {
+                    let steps = (e.get("seconds") / dt).round() as usize;
+                    if steps > 0 {
+                        out.delay = Some(Delay::new(steps, home));
+                    }
+                }
+                EffectKind::PayloadMass | EffectKind::JointOffset | EffectKind::LinkLength | EffectKind::BaseRegistration => {}
+                EffectKind::CouplingError | EffectKind::CounterweightError => {
+                    return Err(SimError::Build(format!("{}: not simulated yet (the model has it; dvrk-sim refuses rather than ignore it)", what(None))));
+                }
+            }
+        }
+        for (j, t) in out.transmissions.iter_mut().enumerate() {
+            let Some(t) = t else { continue };
+            // Backlash alone: a stiff contact stands in for the rigid transmission.
+            let contact = t.inertia * (CONTACT_BANDWIDTH_DT / dt).powi(2);
+            if t.stiffness == 0.0 {
+                t.stiffness = contact;
+            }
+            let w = (t.stiffness / t.inertia).sqrt();
+            if w * dt > 0.5 {
+                return Err(SimError::Build(format!(
+                    "{name} joint {}: transmission stiffness {} on motor inertia {} has a {w:.0} rad/s mode, too stiff for dt = {dt} s (at most {:.3e}; use a smaller dt)",
+                    model.joints[j].name,
+                    t.stiffness,
+                    t.inertia,
+                    t.inertia * (0.5 / dt).powi(2)
+                )));
+            }
+            // A lightly damped transmission (damping ratio 0.1 on the motor's own mode).
+            t.damping = 0.2 * (t.stiffness * t.inertia).sqrt();
+        }
+        Ok(out)
+    }
+
+    /// The friction and spring forces at the link's `q`, `qd` into [`ArmEffects::force`].
+    pub fn update_forces(&mut self, q: &[f64], qd: &[f64]) {
+        self.force.fill(0.0);
+        dvrk_kin::effects::effort(&self.forces, q, qd, self.velocity_scale, &mut self.force);
+    }
+
+    /// True when the arm has no effect that acts while stepping.
+    pub fn is_empty(&self) -> bool {
+        self.forces.is_empty() && self.delay.is_none() && self.transmissions.iter().all(|t| t.is_none())
+    }
+}
