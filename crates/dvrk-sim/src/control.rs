@@ -53,11 +53,14 @@ pub struct Actuator {
     pub integral: f64,
     /// Effort applied at the last step (N·m or N).
     pub effort: f64,
+    /// Feed-forward added to the PID output before the effort limit (N·m or N): the gravity
+    /// compensation of arms whose scene asks for it.
+    pub feedforward: f64,
 }
 
 impl Actuator {
     pub fn new(gains: Gains, effort_limit: f64, target: f64) -> Self {
-        Actuator { mode: Mode::Pid, gains, effort_limit, target, target_velocity: 0.0, effort_command: 0.0, integral: 0.0, effort: 0.0 }
+        Actuator { mode: Mode::Pid, gains, effort_limit, target, target_velocity: 0.0, effort_command: 0.0, integral: 0.0, effort: 0.0, feedforward: 0.0 }
     }
 
     fn clamp(&self, tau: f64) -> f64 {
@@ -77,7 +80,7 @@ impl Actuator {
                 let e = self.target - q;
                 let ed = self.target_velocity - qd;
                 let g = self.gains;
-                let unsat = g.kp * e + g.ki * (self.integral + e * dt) + g.kd * ed;
+                let unsat = g.kp * e + g.ki * (self.integral + e * dt) + g.kd * ed + self.feedforward;
                 let tau = self.clamp(unsat);
                 // Conditional integration (anti-windup): stop integrating while the output is
                 // saturated and the error would push it further into saturation.

@@ -116,6 +116,10 @@ struct ArmFile {
     /// What the arm does in the tracking test (`sine` or `hold`).
     #[serde(default)]
     tracking: Tracking,
+    /// Add the model's gravity torque at the measured joints to the PID effort (feed-forward,
+    /// as the dVRK's controllers do for the ECM): computed by dvrk-kin's Newton-Euler.
+    #[serde(default)]
+    gravity_compensation: bool,
     /// Gauss-Seidel sweeps per substep this arm's loops need; the rapier world of its group
     /// (the arm with its carrier and what it carries) uses the largest of its arms. The scene's
     /// `pgs_iterations` when absent.
@@ -175,6 +179,8 @@ pub struct Arm {
     pub tracking: Tracking,
     /// Gauss-Seidel sweeps per substep this arm needs (`None`: the scene's).
     pub pgs_iterations: Option<usize>,
+    /// PID efforts get the model's gravity torque added (feed-forward).
+    pub gravity_compensation: bool,
     /// Joint positions the simulation starts from (rad, m): home unless set with
     /// [`Scene::set_start`].
     pub start: Vec<f64>,
@@ -373,7 +379,7 @@ impl Scene {
                 return Err(SimError::field(file, field("name"), "two arms have this name"));
             }
             let start = model.home();
-            arms.push(Arm { name: a.name.clone(), model, original_base, inertials, gains, armature: a.armature.clone(), damping: a.damping, parent, mode: a.mode, tracking: a.tracking, pgs_iterations: a.pgs_iterations, start });
+            arms.push(Arm { name: a.name.clone(), model, original_base, inertials, gains, armature: a.armature.clone(), damping: a.damping, parent, mode: a.mode, tracking: a.tracking, pgs_iterations: a.pgs_iterations, gravity_compensation: a.gravity_compensation, start });
         }
         if let Some(c) = &f.camera {
             c.check(file)?;

@@ -191,6 +191,20 @@ pub struct ArmState {
     world: usize,
     /// The model's friction, springs, two-mass drives and latency ([`crate::effects`]).
     pub effects: crate::effects::ArmEffects,
+    /// Gravity feed-forward on the PID efforts, if the scene asks for it.
+    gravity_compensation: Option<GravityCompensation>,
+}
+
+/// The model's gravity torque at the measured joints, added to PID efforts (dvrk-kin's
+/// Newton-Euler on the same inertials, payloads included).
+#[derive(Debug, Clone)]
+struct GravityCompensation {
+    dynamics: dvrk_kin::DynamicsModel,
+    data: dvrk_kin::DynamicsData,
+    /// m/s^2, world
+    gravity: Vector3<f64>,
+    /// N·m, N per joint
+    torque: Vec<f64>,
 }
 
 /// One rapier world: an arm mounted on the fixed world and every arm it carries. Arms in
@@ -524,7 +538,18 @@ impl Sim {
                     }
                 }
             }
-            arms.push(ArmState { name: arm.name.clone(), model: model.clone(), q_offset, bodies: handles, dofs, drives, closures, cables, actuators, tracking: arm.tracking, parent: arm.parent, world, effects });
+            let gravity_compensation = if arm.gravity_compensation {
+                let g = if options.no_gravity { [0.0; 3] } else { scene.gravity };
+                Some(GravityCompensation {
+                    dynamics: dvrk_kin::DynamicsModel::new(model, inertias.clone())?,
+                    data: dvrk_kin::DynamicsData::new(model),
+                    gravity: Vector3::from(g),
+                    torque: vec![0.0; model.nq()],
+                })
+            } else {
+                None
+            };
+            arms.push(ArmState { name: arm.name.clone(), model: model.clone(), q_offset, bodies: handles, dofs, drives, closures, cables, actuators, tracking: arm.tracking, parent: arm.parent, world, effects, gravity_compensation });
             q_offset += model.nq();
         }
         let g = if options.no_gravity { [0.0; 3] } else { scene.gravity };
@@ -733,8 +758,17 @@ impl Sim {
         for arm in self.arms.iter_mut() {
             let (off, n) = (arm.q_offset, arm.drives.len());
             arm.effects.update_forces(&self.q_link[off..off + n], &self.qd_link[off..off + n]);
+            if let Some(gc) = arm.gravity_compensation.as_mut() {
+                // A measured q outside the model's checks (never from the sim) leaves it at zero.
+                if dvrk_kin::gravity_torque(&arm.model, &gc.dynamics, &mut gc.data, &self.q[off..off + n], &gc.gravity, &mut gc.torque).is_err() {
+                    gc.torque.fill(0.0);
+                }
+            }
             for (k, dr) in arm.drives.iter().enumerate() {
                 let i = arm.q_offset + k;
+                if let Some(gc) = &arm.gravity_compensation {
+                    arm.actuators[k].feedforward = gc.torque[k];
+                }
                 let mut tau = arm.actuators[k].update(self.q[i], self.qd[i], self.dt);
                 if let Some(t) = arm.effects.transmissions[k].as_mut() {
                     tau = t.step(tau, self.q_link[i], self.qd_link[i], self.dt);

@@ -201,3 +201,18 @@ fn loop_free_alternative_runs() {
     // Without loop constraints the closure points drift apart: mm, not um (measured 1.6e-3 m).
     assert!(s.max_closure_error < 5e-3, "{}", s.max_closure_error);
 }
+
+/// Gravity feed-forward (scene `gravity_compensation`): the ECM holding home under its PID sags
+/// by centimetres without it; with dvrk-kin's gravity torque added it holds to micrometres.
+#[test]
+fn gravity_compensation_holds_the_ecm() {
+    let hold = |compensate: bool| {
+        let mut scene = Scene::load("ecm").unwrap();
+        scene.arms[0].gravity_compensation = compensate;
+        let s = run(&scene, &RunOptions { duration: 3.0, trajectory: TrajectoryKind::Hold, sim: SimOptions::default() }, |_| {}).unwrap();
+        s.joints.iter().map(|j| j.max_error).fold(0.0, f64::max)
+    };
+    let (without, with) = (hold(false), hold(true));
+    println!("ECM hold, 3 s: largest joint error {without:.3e} without gravity compensation, {with:.3e} with");
+    assert!(without > 1e-2 && with < 1e-4, "{without} {with}");
+}
