@@ -87,6 +87,9 @@ pub fn run(args: &IdentifyArgs) -> Result<()> {
         crate::io::write_atomic(o, text.as_bytes()).with_context(|| format!("-o {}", o.display()))?;
         summary["output"] = serde_json::json!(o.display().to_string());
     }
+    for w in &id.warnings {
+        eprintln!("warning: {}: {}", w.name, w.message);
+    }
     if args.json {
         println!("{}", serde_json::to_string(&summary)?);
         return Ok(());

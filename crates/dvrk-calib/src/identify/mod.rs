@@ -104,6 +104,20 @@ pub struct Estimate {
     pub identifiable: bool,
 }
 
+/// Below this velocity range (max - min of the filtered velocity; rad/s, m/s) a channel counts
+/// as not moving: its friction, armature and spring terms cannot be identified.
+pub const MIN_VELOCITY_RANGE: f64 = 1e-3;
+
+/// A named warning about what a recording could not identify.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct IdentifyWarning {
+    /// `channel_not_excited` or `parameters_unidentifiable`.
+    pub name: &'static str,
+    pub message: String,
+    /// The parameters concerned (names as in [`Estimate::name`]).
+    pub parameters: Vec<String>,
+}
+
 /// Result of an identification.
 #[derive(Debug, Clone)]
 pub struct Identification {
@@ -122,6 +136,8 @@ pub struct Identification {
     pub base_parameters: usize,
     pub fit: solve::Fit,
     pub samples: usize,
+    /// What the recording could not identify (the prior or the bounds decide those parameters).
+    pub warnings: Vec<IdentifyWarning>,
 }
 
 /// The prior's standard deviation per parameter: a fraction of each CAD figure's magnitude plus
@@ -187,6 +203,13 @@ pub fn identify(model: &Model, prior: &[BodyInertia], rec: &TorqueRecording, opt
     let nc = rec.channels.len();
     let layout = Layout::new(model, nc, &options.terms);
     let reg = problem::regression(model, rec, &layout, &options.processing)?;
+    if reg.velocity_range.iter().all(|(lo, hi)| hi - lo < MIN_VELOCITY_RANGE) {
+        let widest = reg.velocity_range.iter().map(|(lo, hi)| hi - lo).fold(0.0, f64::max);
+        return Err(CalibError::data(
+            &rec.source,
+            format!("no excitation: no channel's velocity range exceeds {MIN_VELOCITY_RANGE} rad/s (m/s) (widest {widest:.2e}); nothing can be identified from a still arm"),
+        ));
+    }
     let id = identify_regression(model, prior, &reg, layout, &rec.channels, options)?;
     Ok((id, reg))
 }
@@ -245,7 +268,7 @@ pub fn identify_regression(model: &Model, prior: &[BodyInertia], reg: &Regressio
         }
     }
     let base_parameters = SymmetricEigen::new(data_info).eigenvalues.iter().filter(|l| **l > 1.0).count();
-    let estimates = (0..n)
+    let estimates: Vec<Estimate> = (0..n)
         .map(|i| {
             let std = cov[(i, i)].max(0.0).sqrt();
             Estimate {
@@ -258,9 +281,42 @@ pub fn identify_regression(model: &Model, prior: &[BodyInertia], reg: &Regressio
             }
         })
         .collect();
+    let warnings = excitation_warnings(&layout, &estimates, reg, channels);
     let relative_error = relative_errors(reg, &fit.theta);
     let samples = reg.tau.first().map(|t| t.len()).unwrap_or(0);
-    Ok(Identification { layout, channels: channels.to_vec(), joints: model.joints.iter().map(|j| j.name.clone()).collect(), theta: fit.theta.clone(), estimates, relative_error, weights, base_parameters, fit, samples })
+    Ok(Identification { layout, channels: channels.to_vec(), joints: model.joints.iter().map(|j| j.name.clone()).collect(), theta: fit.theta.clone(), estimates, relative_error, weights, base_parameters, fit, samples, warnings })
+}
+
+/// Channels that did not move, and the effect parameters the data left to the prior (inertial
+/// parameters are counted only: a single recording never determines all of them).
+fn excitation_warnings(layout: &Layout, estimates: &[Estimate], reg: &Regression, channels: &[String]) -> Vec<IdentifyWarning> {
+    let mut out = Vec::new();
+    let still: Vec<usize> = (0..channels.len()).filter(|&c| reg.velocity_range[c].1 - reg.velocity_range[c].0 < MIN_VELOCITY_RANGE).collect();
+    for &c in &still {
+        let (lo, hi) = reg.velocity_range[c];
+        let parameters: Vec<String> = layout
+            .params
+            .iter()
+            .zip(estimates)
+            .filter(|(p, _)| matches!(p, Param::Effect { channel, .. } if *channel == c))
+            .map(|(_, e)| e.name.clone())
+            .collect();
+        out.push(IdentifyWarning {
+            name: "channel_not_excited",
+            message: format!("channel `{}` does not move (velocity range {:.2e} < {MIN_VELOCITY_RANGE} rad/s or m/s): its effects are unidentifiable", channels[c], hi - lo),
+            parameters,
+        });
+    }
+    let effects: Vec<String> = layout.params.iter().zip(estimates).filter(|(p, e)| !matches!(p, Param::Body { .. }) && !e.identifiable).map(|(_, e)| e.name.clone()).collect();
+    let inertial = layout.params.iter().zip(estimates).filter(|(p, e)| matches!(p, Param::Body { .. }) && !e.identifiable).count();
+    if !effects.is_empty() {
+        out.push(IdentifyWarning {
+            name: "parameters_unidentifiable",
+            message: format!("{} effect parameter(s) unidentifiable (the recording shrinks their uncertainty less than twofold below the prior's): {}; and {inertial} of {} inertial parameters", effects.len(), effects.join(", "), layout.nbodies * PARAMETERS_PER_BODY),
+            parameters: effects,
+        });
+    }
+    out
 }
 
 impl Identification {

@@ -110,6 +110,7 @@ pub fn summary(model: &Model, id: &Identification, recording: &str, format: &str
         "cutting_plane_rounds": id.fit.rounds,
         "active_constraints": active,
         "unidentifiable": unidentifiable,
+        "warnings": id.warnings,
         "effects": effects(id),
         "bodies": bodies,
     })

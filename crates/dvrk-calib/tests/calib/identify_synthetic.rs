@@ -123,3 +123,36 @@ fn synthetic_recordings_are_identified_within_their_95_percent_intervals() {
         assert!((0.90..=0.99).contains(&coverage[g]), "{name}: coverage {:.3}", coverage[g]);
     }
 }
+
+/// A recording with the efforts of noise alone around the motion `amplitude` describes.
+fn noisy(amplitude: [f64; 7]) -> TorqueRecording {
+    let mut rec = fourier_recording(10.0, amplitude);
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    for row in rec.tau.iter_mut() {
+        for v in row.iter_mut() {
+            *v = Normal::new(0.0, 0.01).unwrap().sample(&mut rng);
+        }
+    }
+    rec
+}
+
+#[test]
+fn a_still_arm_is_an_error_and_one_moving_joint_names_what_is_unidentifiable() {
+    let model = psm();
+    let cad = dvrk_sim::scene::builtin_inertials("psm", &model).unwrap().body_inertias(&model).unwrap();
+    let options = IdentifyOptions::full(vec![3, 4, 5, 6]);
+    let e = dvrk_calib::identify::identify(&model, &cad, &noisy([0.0; 7]), &options).unwrap_err().to_string();
+    assert!(e.starts_with("fourier.csv: no excitation: no channel's velocity range exceeds 0.001"), "{e}");
+    // Only the yaw moves: every other channel is named, with its effect parameters.
+    let (id, _) = dvrk_calib::identify::identify(&model, &cad, &noisy([1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]), &options).unwrap();
+    let still: Vec<&str> = id.warnings.iter().filter(|w| w.name == "channel_not_excited").map(|w| w.message.split('`').nth(1).unwrap()).collect();
+    assert_eq!(still, ["outer_pitch", "outer_insertion", "outer_roll", "outer_wrist_pitch actuator", "outer_wrist_yaw actuator", "jaw actuator"]);
+    let pitch = id.warnings.iter().find(|w| w.message.contains("`outer_pitch`")).unwrap();
+    assert_eq!(pitch.parameters, ["outer_pitch.fc", "outer_pitch.fo", "outer_pitch.fv", "outer_pitch.im"]);
+    let un = id.warnings.iter().find(|w| w.name == "parameters_unidentifiable").unwrap();
+    for p in ["outer_pitch.fc", "outer_pitch.fv", "jaw actuator.k", "outer_insertion.im"] {
+        assert!(un.parameters.iter().any(|q| q == p), "{p} not in {:?}", un.parameters);
+    }
+    // The yaw's own friction is identified.
+    assert!(!un.parameters.iter().any(|q| q == "outer_yaw.fc" || q == "outer_yaw.fv"), "{:?}", un.parameters);
+}
