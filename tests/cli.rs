@@ -216,11 +216,14 @@ fn identify_json_and_output_file() {
         "identify", "--recording", one.to_str().unwrap(), "--format", "wpi-csv", "--model", "psm", "--validate", two.to_str().unwrap(), "-o", out.to_str().unwrap(), "--json",
     ]))
     .unwrap();
-    for key in ["relative_error", "rigid_body_only", "validation", "effects", "bodies", "physically_consistent", "unidentifiable", "base_parameters"] {
+    for key in ["relative_error", "rigid_body_only", "validation", "effects", "bodies", "physically_consistent", "unidentifiable", "base_parameters", "ablation"] {
         assert!(v.get(key).is_some(), "identify JSON has {key}");
     }
     assert_eq!(v["physically_consistent"], true);
     assert_eq!(v["validation"]["relative_error"].as_array().unwrap().len(), 7);
+    let ablation = v["ablation"].as_array().unwrap();
+    assert_eq!(ablation[0]["effects"], "rigid body only (CAD prior, one cut-off)");
+    assert_eq!(ablation.last().unwrap()["validation"], v["validation"]["relative_error"]);
     let model = dvrk_kin::load("psm", None).unwrap();
     let text = std::fs::read_to_string(&out).unwrap();
     let ine = dvrk_sim::inertials::Inertials::parse(&text, "psm-identified.toml", &model).unwrap();

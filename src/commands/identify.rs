@@ -28,9 +28,10 @@ pub struct IdentifyArgs {
     /// A second recording the fit never sees: its relative errors go under `validation`.
     #[arg(long)]
     pub validate: Option<PathBuf>,
-    /// Zero-phase low-pass cut-off (Hz) for velocities (then differentiated) and efforts.
-    #[arg(long, default_value_t = 10.0)]
-    pub cutoff: f64,
+    /// Zero-phase low-pass cut-off (Hz) for velocities (then differentiated) and efforts, on
+    /// every channel (default: the model's per-channel cut-offs, 10 Hz; PSM insertion and roll 20 Hz).
+    #[arg(long)]
+    pub cutoff: Option<f64>,
     /// Gravity in the model's base frame (m/s^2), `x,y,z`.
     #[arg(long, default_value = "0,0,-9.81", allow_hyphen_values = true)]
     pub gravity: String,
@@ -58,25 +59,36 @@ pub fn run(args: &IdentifyArgs) -> Result<()> {
     };
     let g = crate::io::parse_list("--gravity", &args.gravity)?;
     let [gx, gy, gz] = g[..] else { bail!("--gravity {}: three components x,y,z (m/s^2)", args.gravity) };
-    let mut options = IdentifyOptions::full((3..model.nq()).collect());
-    options.processing.cutoff = args.cutoff;
+    let mut options = IdentifyOptions::for_model(&model);
+    if let Some(c) = args.cutoff {
+        options.processing.cutoff = c;
+        options.processing.channel_cutoff.clear();
+    }
     options.processing.gravity = nalgebra::Vector3::new(gx, gy, gz);
     let rec = read(&args.recording, &args.format, &model)?;
     let inertias = prior.body_inertias(&model)?;
     let (id, _) = identify(&model, &inertias, &rec, &options).with_context(|| format!("--recording {}", args.recording.display()))?;
-    let rigid_options = options.with_effects(&[]);
+    let rigid_options = options.rigid_only();
     let (rigid, _) = identify(&model, &inertias, &rec, &rigid_options)?;
     let mut summary = report::summary(&model, &id, &args.recording.display().to_string(), &args.format, &rigid.relative_error);
-    if let Some(v) = &args.validate {
-        let rec2 = read(v, &args.format, &model).with_context(|| format!("--validate {}", v.display()))?;
-        let errors = id.validate(&model, &rec2, &options)?;
-        let rigid_errors = rigid.validate(&model, &rec2, &rigid_options)?;
+    let held_out = match &args.validate {
+        Some(v) => Some(read(v, &args.format, &model).with_context(|| format!("--validate {}", v.display()))?),
+        None => None,
+    };
+    if let (Some(v), Some(rec2)) = (&args.validate, &held_out) {
+        let errors = id.validate(&model, rec2, &options)?;
+        let rigid_errors = rigid.validate(&model, rec2, &rigid_options)?;
         summary["validation"] = serde_json::json!({"recording": v.display().to_string(), "relative_error": errors, "rigid_body_only": rigid_errors});
     }
+    let ablation = dvrk_calib::identify::ablation::ablation(&model, &inertias, &rec, held_out.as_ref(), &options)?;
+    summary["ablation"] = serde_json::to_value(&ablation)?;
     if let Some(o) = &args.output {
         let text = report::output_toml(&model, &id, &prior, &args.recording.display().to_string())?;
         crate::io::write_atomic(o, text.as_bytes()).with_context(|| format!("-o {}", o.display()))?;
         summary["output"] = serde_json::json!(o.display().to_string());
+    }
+    for w in &id.warnings {
+        eprintln!("warning: {}: {}", w.name, w.message);
     }
     if args.json {
         println!("{}", serde_json::to_string(&summary)?);
@@ -89,6 +101,14 @@ pub fn run(args: &IdentifyArgs) -> Result<()> {
         println!("{name:<28} {:>10.3} {:>12.3} {v:>12}", id.relative_error[c], rigid.relative_error[c]);
     }
     println!("physically consistent: {} ({} cutting-plane rounds)", summary["physically_consistent"], id.fit.rounds);
+    println!("ablation (cumulative; relative error per channel{}):", if held_out.is_some() { ", fitted / held-out" } else { "" });
+    for row in &ablation {
+        let fmt = |v: &[f64]| v.iter().map(|x| format!("{x:.3}")).collect::<Vec<_>>().join(" ");
+        match &row.validation {
+            Some(v) => println!("  {:<52} {}  /  {}", row.effects, fmt(&row.relative_error), fmt(v)),
+            None => println!("  {:<52} {}", row.effects, fmt(&row.relative_error)),
+        }
+    }
     for e in report::effects(&id).iter().filter(|e| e.name != "armature") {
         let ps: Vec<String> = e.parameters.iter().map(|(k, v)| format!("{k} {:.4}", v.as_f64().unwrap_or(f64::NAN))).collect();
         println!("  {} {}: {}", e.name, e.joint, ps.join(", "));

@@ -24,6 +24,9 @@ pub enum EffectTerm {
     Armature,
     /// Joint spring stiffness `k` (N·m/rad, N/m): effort `k q` (the tool's cables).
     Spring,
+    /// Stribeck friction `fs` (N·m, N): the extra breakaway effort at low speed,
+    /// `fs tanh(v / vc) exp(-(v / vs)^2)` ([`Processing::stribeck_velocity`] vs).
+    Stribeck,
 }
 
 impl EffectTerm {
@@ -38,6 +41,7 @@ impl EffectTerm {
             EffectTerm::Viscous => "fv",
             EffectTerm::Armature => "im",
             EffectTerm::Spring => "k",
+            EffectTerm::Stribeck => "fs",
         }
     }
 
@@ -54,6 +58,14 @@ pub struct Terms {
     pub effects: Vec<EffectTerm>,
     /// Channels that get the spring term (the tool's cable-driven joints); others do not.
     pub spring_channels: Vec<usize>,
+    /// Model joints that get Coulomb and viscous friction in *joint* velocity as well (their
+    /// efforts reach the channels through `to_joint^T`): the tool's wrist and jaw, whose cables
+    /// and pulleys rub at the joint while the motors' own friction acts on the actuator channels.
+    pub joint_friction: Vec<usize>,
+    /// Cross-coupling terms `(channel, source, term)`: channel `channel`'s effort gets `term`
+    /// of channel `source`'s motion (spring: its position; viscous: velocity; Coulomb: smoothed
+    /// sign), of either sign. The tool's cables run past each other through the shaft.
+    pub cross: Vec<(usize, usize, EffectTerm)>,
 }
 
 /// One unknown of the regression.
@@ -63,6 +75,10 @@ pub enum Param {
     Body { body: usize, k: usize },
     /// An effect term of channel `channel`.
     Effect { term: EffectTerm, channel: usize },
+    /// A friction term (Coulomb or viscous) in the velocity of model joint `joint`.
+    Joint { term: EffectTerm, joint: usize },
+    /// A cross-coupling term: channel `channel`'s effort from channel `source`'s motion.
+    Cross { term: EffectTerm, channel: usize, source: usize },
 }
 
 /// The unknowns, in column order: bodies first (10 each, `Model::bodies` order), then the
@@ -87,6 +103,10 @@ impl Layout {
                 params.push(Param::Effect { term, channel });
             }
         }
+        for &joint in &terms.joint_friction {
+            params.extend([EffectTerm::Coulomb, EffectTerm::Viscous].map(|term| Param::Joint { term, joint }));
+        }
+        params.extend(terms.cross.iter().map(|&(channel, source, term)| Param::Cross { term, channel, source }));
         Layout { params, nbodies: nb, nchannels }
     }
 
@@ -105,6 +125,8 @@ impl Layout {
         match self.params[i] {
             Param::Body { body, k } => format!("{}.{}", model.bodies[body].name, PARAMETER_NAMES[k]),
             Param::Effect { term, channel } => format!("{}.{}", channels[channel], term.symbol()),
+            Param::Joint { term, joint } => format!("{} joint.{}", model.joints[joint].name, term.symbol()),
+            Param::Cross { term, channel, source } => format!("{}.{} from {}", channels[channel], term.symbol(), channels[source]),
         }
     }
 }
@@ -115,8 +137,15 @@ pub struct Processing {
     /// Low-pass cut-off (Hz) of the zero-phase filter applied to velocities (before
     /// differentiating them into accelerations) and to efforts.
     pub cutoff: f64,
+    /// Per-channel cut-offs (Hz) overriding `cutoff`; empty: `cutoff` everywhere.
+    pub channel_cutoff: Vec<f64>,
     /// Velocity scale of the Coulomb term's smoothed sign, `tanh(qd / v)` (rad/s, m/s).
     pub coulomb_velocity: f64,
+    /// Per-channel (and per-joint, for joint friction: joint k uses entry k) Coulomb velocity
+    /// scales overriding `coulomb_velocity`; empty: `coulomb_velocity` everywhere.
+    pub channel_coulomb_velocity: Vec<f64>,
+    /// Velocity below which the Stribeck term acts (rad/s, m/s).
+    pub stribeck_velocity: f64,
     /// Gravity in the model's world frame (m/s^2).
     pub gravity: Vector3<f64>,
     /// Samples dropped at each end (filter edge transients).
@@ -125,7 +154,27 @@ pub struct Processing {
 
 impl Default for Processing {
     fn default() -> Self {
-        Processing { cutoff: 10.0, coulomb_velocity: 0.01, gravity: Vector3::new(0.0, 0.0, -9.81), trim: 100 }
+        Processing {
+            cutoff: 10.0,
+            channel_cutoff: Vec::new(),
+            coulomb_velocity: 0.01,
+            channel_coulomb_velocity: Vec::new(),
+            stribeck_velocity: 0.05,
+            gravity: Vector3::new(0.0, 0.0, -9.81),
+            trim: 100,
+        }
+    }
+}
+
+impl Processing {
+    /// The cut-off (Hz) of channel `c`.
+    pub fn cutoff_of(&self, c: usize) -> f64 {
+        self.channel_cutoff.get(c).copied().unwrap_or(self.cutoff)
+    }
+
+    /// The Coulomb velocity scale (rad/s, m/s) of channel (or joint) `c`.
+    pub fn coulomb_velocity_of(&self, c: usize) -> f64 {
+        self.channel_coulomb_velocity.get(c).copied().unwrap_or(self.coulomb_velocity)
     }
 }
 
@@ -153,15 +202,26 @@ pub fn regression(model: &Model, rec: &TorqueRecording, layout: &Layout, process
     }
     let dt = (rec.t[n - 1] - rec.t[0]) / (n - 1) as f64;
     let rate = 1.0 / dt;
-    if !(processing.cutoff > 0.0 && processing.cutoff < 0.45 * rate) {
-        return Err(CalibError::field("cutoff", format!("{} Hz is not in (0, {:.1}) Hz for a {rate:.1} Hz recording", processing.cutoff, 0.45 * rate)));
+    for c in 0..nc {
+        let fc = processing.cutoff_of(c);
+        if !(fc > 0.0 && fc < 0.45 * rate) {
+            return Err(CalibError::field("cutoff", format!("{fc} Hz (channel {}) is not in (0, {:.1}) Hz for a {rate:.1} Hz recording", rec.channels[c], 0.45 * rate)));
+        }
+        let vc = processing.coulomb_velocity_of(c);
+        if !(vc > 0.0 && vc.is_finite()) {
+            return Err(CalibError::field("coulomb_velocity", format!("{vc} (channel {}) must be positive", rec.channels[c])));
+        }
     }
-    let filter = Butterworth2::new(processing.cutoff, rate);
-    let pad = (3.0 * rate / processing.cutoff) as usize;
+    // Each channel through its own cut-off: the insertion's effort carries real 10..20 Hz
+    // content that the wrist's noisier velocities do not.
     let column = |m: &Vec<Vec<f64>>, c: usize| m.iter().map(|r| r[c]).collect::<Vec<f64>>();
-    let qd_f: Vec<Vec<f64>> = (0..nc).map(|c| filter.filtfilt(&column(&rec.qd, c), pad)).collect();
+    let filtered = |m: &Vec<Vec<f64>>, c: usize| {
+        let fc = processing.cutoff_of(c);
+        Butterworth2::new(fc, rate).filtfilt(&column(m, c), (3.0 * rate / fc) as usize)
+    };
+    let qd_f: Vec<Vec<f64>> = (0..nc).map(|c| filtered(&rec.qd, c)).collect();
     let qdd_f: Vec<Vec<f64>> = qd_f.iter().map(|v| derivative(v, dt)).collect();
-    let tau_f: Vec<Vec<f64>> = (0..nc).map(|c| filter.filtfilt(&column(&rec.tau, c), pad)).collect();
+    let tau_f: Vec<Vec<f64>> = (0..nc).map(|c| filtered(&rec.tau, c)).collect();
     let keep = processing.trim..n - processing.trim;
     let rows = keep.len();
     let p = layout.len();
@@ -188,15 +248,41 @@ pub fn regression(model: &Model, rec: &TorqueRecording, layout: &Layout, process
             }
         }
         for (col, param) in layout.params.iter().enumerate().skip(nbp) {
-            let Param::Effect { term, channel } = *param else { continue };
-            let v = qd_f[channel][i];
-            y[channel][(r, col)] = match term {
-                EffectTerm::Coulomb => (v / processing.coulomb_velocity).tanh(),
-                EffectTerm::Offset => 1.0,
-                EffectTerm::Viscous => v,
-                EffectTerm::Armature => qdd_f[channel][i],
-                EffectTerm::Spring => rec.q[i][channel],
-            };
+            match *param {
+                Param::Effect { term, channel } => {
+                    let v = qd_f[channel][i];
+                    let vc = processing.coulomb_velocity_of(channel);
+                    y[channel][(r, col)] = match term {
+                        EffectTerm::Coulomb => (v / vc).tanh(),
+                        EffectTerm::Offset => 1.0,
+                        EffectTerm::Viscous => v,
+                        EffectTerm::Armature => qdd_f[channel][i],
+                        EffectTerm::Spring => rec.q[i][channel],
+                        EffectTerm::Stribeck => (v / vc).tanh() * (-(v / processing.stribeck_velocity).powi(2)).exp(),
+                    };
+                }
+                Param::Joint { term, joint } => {
+                    // A joint friction force f does virtual work f v_j = sum_c map[j][c] f qd_c.
+                    let v = qdj[joint];
+                    let f = match term {
+                        EffectTerm::Coulomb => (v / processing.coulomb_velocity_of(joint)).tanh(),
+                        _ => v,
+                    };
+                    for (c, yc) in y.iter_mut().enumerate() {
+                        yc[(r, col)] = map[(joint, c)] * f;
+                    }
+                }
+                Param::Cross { term, channel, source } => {
+                    let v = qd_f[source][i];
+                    y[channel][(r, col)] = match term {
+                        EffectTerm::Coulomb => (v / processing.coulomb_velocity_of(source)).tanh(),
+                        EffectTerm::Viscous => v,
+                        EffectTerm::Armature => qdd_f[source][i],
+                        _ => rec.q[i][source],
+                    };
+                }
+                Param::Body { .. } => {}
+            }
         }
     }
     let velocity_range = qd_f.iter().map(|v| v[keep.clone()].iter().fold((f64::MAX, f64::MIN), |(a, b), x| (a.min(*x), b.max(*x)))).collect();

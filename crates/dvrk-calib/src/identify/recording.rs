@@ -44,6 +44,20 @@ impl TorqueRecording {
     pub fn is_empty(&self) -> bool {
         self.t.is_empty()
     }
+
+    /// Samples `range` as a recording of its own (for cross-validation: choose settings on
+    /// one half, judge them on the other).
+    pub fn slice(&self, range: std::ops::Range<usize>) -> TorqueRecording {
+        TorqueRecording {
+            source: format!("{}[{}..{}]", self.source, range.start, range.end),
+            t: self.t[range.clone()].to_vec(),
+            q: self.q[range.clone()].to_vec(),
+            qd: self.qd[range.clone()].to_vec(),
+            tau: self.tau[range].to_vec(),
+            channels: self.channels.clone(),
+            to_joint: self.to_joint.clone(),
+        }
+    }
 }
 
 /// Read a wpi-csv recording for `model` (which must have 7 joints and a tool coupling).

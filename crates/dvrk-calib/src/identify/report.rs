@@ -28,6 +28,16 @@ fn effect_name(term: EffectTerm) -> &'static str {
         EffectTerm::Viscous => "viscous_friction",
         EffectTerm::Armature => "armature",
         EffectTerm::Spring => "spring",
+        EffectTerm::Stribeck => "stribeck_friction",
+    }
+}
+
+fn cross_name(term: EffectTerm) -> &'static str {
+    match term {
+        EffectTerm::Spring => "coupling_spring",
+        EffectTerm::Viscous => "coupling_viscous",
+        EffectTerm::Armature => "coupling_inertia",
+        _ => "coupling_friction",
     }
 }
 
@@ -35,8 +45,16 @@ fn effect_name(term: EffectTerm) -> &'static str {
 pub fn effects(id: &Identification) -> Vec<EffectEstimate> {
     let mut out: Vec<EffectEstimate> = Vec::new();
     for (i, p) in id.layout.params.iter().enumerate() {
-        let Param::Effect { term, channel } = *p else { continue };
-        let (name, joint) = (effect_name(term), id.channels[channel].clone());
+        let (name, joint) = match *p {
+            Param::Effect { term, channel } => (effect_name(term), id.channels[channel].clone()),
+            Param::Joint { term, joint } => (effect_name(term), id.joints[joint].clone()),
+            Param::Cross { term, channel, source } => (cross_name(term), format!("{} from {}", id.channels[channel], id.channels[source])),
+            Param::Body { .. } => continue,
+        };
+        let term = match *p {
+            Param::Effect { term, .. } | Param::Joint { term, .. } | Param::Cross { term, .. } => term,
+            Param::Body { .. } => continue,
+        };
         let e = match out.iter_mut().position(|e| e.name == name && e.joint == joint) {
             Some(k) => &mut out[k],
             None => {
@@ -92,6 +110,7 @@ pub fn summary(model: &Model, id: &Identification, recording: &str, format: &str
         "cutting_plane_rounds": id.fit.rounds,
         "active_constraints": active,
         "unidentifiable": unidentifiable,
+        "warnings": id.warnings,
         "effects": effects(id),
         "bodies": bodies,
     })

@@ -124,7 +124,7 @@ pub fn solve(layout: &Layout, objective: &Objective, theta0: &DVector<f64>, scal
     let mut rows: Vec<Vec<(usize, f64)>> = Vec::new();
     let mut bounds: Vec<usize> = Vec::new();
     for (i, param) in layout.params.iter().enumerate() {
-        if let Param::Effect { term, .. } = param {
+        if let Param::Effect { term, .. } | Param::Joint { term, .. } = param {
             if term.nonnegative() {
                 rows.push(vec![(i, 1.0)]);
                 bounds.push(i);

@@ -5,6 +5,7 @@
 //! - `perturbed`: a robot with link lengths off by 1-3 mm, calibrated and applied.
 //! - `bad_input`: recordings that cannot give a result give an error or a warning with numbers.
 //! - `identify`: dynamic identification on the real WPI recordings; bad wpi-csv files.
+//! - `identify_synthetic`: 100 seeded synthetic trials inside their 95% intervals; excitation warnings.
 //! - `formats`: MCAP (ROS 2 and Foxglove layouts), plain and raw-marker CSV round trips.
 //! - `python_mcap`: MCAP files written by the Python `mcap` / `mcap-ros2-support` packages.
 //! - `sim_recording`: an MCAP recorded by dvrk-sim (`dvrk sim --out`), read with this crate's reader.
@@ -14,6 +15,7 @@ mod util;
 mod bad_input;
 mod formats;
 mod identify;
+mod identify_synthetic;
 mod noise_bound;
 mod paper;
 mod perturbed;

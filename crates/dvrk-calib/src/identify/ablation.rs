@@ -1,0 +1,83 @@
+//! Which effects make the difference: the identification repeated with the chosen options'
+//! features switched on one at a time (cumulative), each row's error on the fitted recording
+//! and, when given, on a held-out one.
+
+use super::problem::{EffectTerm, Processing};
+use super::{identify, IdentifyOptions, TorqueRecording};
+use crate::error::Result;
+use dvrk_kin::{BodyInertia, Model};
+use serde::Serialize;
+
+/// One row of the ablation.
+#[derive(Debug, Clone, Serialize)]
+pub struct AblationRow {
+    /// What this row adds to the one before.
+    pub effects: String,
+    /// Per channel, on the fitted recording.
+    pub relative_error: Vec<f64>,
+    /// Per channel, on the held-out recording (absent without one).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub validation: Option<Vec<f64>>,
+}
+
+/// The cumulative steps from the rigid body alone to `options`, skipping steps `options` does
+/// not take. The last step is `options` itself.
+pub fn steps(options: &IdentifyOptions) -> Vec<(String, IdentifyOptions)> {
+    let mut out: Vec<(String, IdentifyOptions)> = Vec::new();
+    let mut o = options.rigid_only();
+    o.processing = Processing { channel_cutoff: Vec::new(), channel_coulomb_velocity: Vec::new(), ..options.processing.clone() };
+    o.prior_fraction = IdentifyOptions::full(Vec::new()).prior_fraction;
+    out.push(("rigid body only (CAD prior, one cut-off)".into(), o.clone()));
+    let has = |t: EffectTerm| options.terms.effects.contains(&t);
+    let friction: Vec<EffectTerm> = [EffectTerm::Coulomb, EffectTerm::Offset, EffectTerm::Viscous].into_iter().filter(|t| has(*t)).collect();
+    if !friction.is_empty() {
+        o.terms.effects = friction;
+        out.push(("+ channel friction (Coulomb, offset, viscous)".into(), o.clone()));
+    }
+    if has(EffectTerm::Armature) {
+        o.terms.effects.push(EffectTerm::Armature);
+        out.push(("+ reflected motor inertia".into(), o.clone()));
+    }
+    if has(EffectTerm::Spring) && !options.terms.spring_channels.is_empty() {
+        o.terms.effects.push(EffectTerm::Spring);
+        o.terms.spring_channels = options.terms.spring_channels.clone();
+        out.push(("+ tool cable springs".into(), o.clone()));
+    }
+    if has(EffectTerm::Stribeck) {
+        o.terms.effects.push(EffectTerm::Stribeck);
+        out.push(("+ Stribeck friction".into(), o.clone()));
+    }
+    if o.processing != options.processing {
+        o.processing = options.processing.clone();
+        out.push(("+ per-channel cut-offs and Coulomb velocities".into(), o.clone()));
+    }
+    if o.prior_fraction != options.prior_fraction {
+        o.prior_fraction = options.prior_fraction;
+        out.push((format!("+ weak CAD prior ({}x magnitude)", options.prior_fraction), o.clone()));
+    }
+    if !options.terms.joint_friction.is_empty() {
+        o.terms.joint_friction = options.terms.joint_friction.clone();
+        out.push(("+ joint-space wrist friction".into(), o.clone()));
+    }
+    if !options.terms.cross.is_empty() {
+        o.terms.cross = options.terms.cross.clone();
+        out.push(("+ tool cross-coupling".into(), o.clone()));
+    }
+    // Whatever differs still (terms in another order): the chosen options as the last row.
+    if o != *options {
+        out.push(("= chosen options".into(), options.clone()));
+    }
+    out
+}
+
+/// Run every step of [`steps`] on `rec` (and `held_out`).
+pub fn ablation(model: &Model, prior: &[BodyInertia], rec: &TorqueRecording, held_out: Option<&TorqueRecording>, options: &IdentifyOptions) -> Result<Vec<AblationRow>> {
+    steps(options)
+        .into_iter()
+        .map(|(effects, o)| {
+            let (id, _) = identify(model, prior, rec, &o)?;
+            let validation = held_out.map(|h| id.validate(model, h, &o)).transpose()?;
+            Ok(AblationRow { effects, relative_error: id.relative_error, validation })
+        })
+        .collect()
+}
