@@ -173,7 +173,13 @@ const BASE_REGISTRATION: &[ParameterInfo] = &[
 const LATENCY: &[ParameterInfo] = &[p("seconds", "s", "s", 0.0, 1.0, None)];
 const JOINT_COMPLIANCE: &[ParameterInfo] = &[p("stiffness", "N·m/rad", "N/m", 1e-3, 1e8, None)];
 const BACKLASH: &[ParameterInfo] = &[p("b", "rad", "m", 0.0, 0.2, None)];
-const COULOMB: &[ParameterInfo] = &[p("fc", "N·m", "N", 0.0, 100.0, None), p("offset", "N·m", "N", -100.0, 100.0, Some(0.0))];
+const COULOMB: &[ParameterInfo] = &[
+    p("fc", "N·m", "N", 0.0, 100.0, None),
+    p("offset", "N·m", "N", -100.0, 100.0, Some(0.0)),
+    // Velocity scale of the smoothed sign, tanh(qd / smoothing) (0: the user's default); an
+    // identification's Coulomb level belongs with the smoothing it was fitted with.
+    p("smoothing", "rad/s", "m/s", 0.0, 1.0, Some(0.0)),
+];
 const VISCOUS: &[ParameterInfo] = &[p("fv", "N·m s/rad", "N s/m", 0.0, 1000.0, None)];
 const PAYLOAD: &[ParameterInfo] = &[p("mass", "kg", "kg", 0.0, 20.0, None), p("x", "m", "m", -1.0, 1.0, Some(0.0)), p("y", "m", "m", -1.0, 1.0, Some(0.0)), p("z", "m", "m", -1.0, 1.0, Some(0.0))];
 const COUNTERWEIGHT: &[ParameterInfo] = &[p("mu", "1", "1", 0.0, 2.0, None), p("mass", "kg", "kg", 0.0, 10.0, None)];
@@ -262,13 +268,15 @@ pub fn check_effects(model: &Model) -> Result<Vec<Effect>> {
 
 /// Joint-space effort (N·m, N) of the friction and spring effects at `q`, `qd`, added to `out`:
 /// `-(fc sign(qd) + offset) - fv qd - k (q - rest)` per joint, the force the effect exerts on the
-/// joint. `velocity_scale` (rad/s, m/s) smooths the sign (`tanh(qd / scale)`; 0: a hard sign).
+/// joint. The sign is smoothed, `tanh(qd / v)`, with `v` the larger of `velocity_scale` and the
+/// effect's `smoothing` (rad/s, m/s; both 0: a hard sign).
 pub fn effort(effects: &[Effect], q: &[f64], qd: &[f64], velocity_scale: f64, out: &mut [f64]) {
     for e in effects {
         let Some(j) = e.joint else { continue };
         match e.kind {
             EffectKind::CoulombFriction => {
-                let s = if velocity_scale > 0.0 { (qd[j] / velocity_scale).tanh() } else { qd[j].signum() * (qd[j] != 0.0) as i32 as f64 };
+                let v = velocity_scale.max(e.get("smoothing"));
+                let s = if v > 0.0 { (qd[j] / v).tanh() } else { qd[j].signum() * (qd[j] != 0.0) as i32 as f64 };
                 out[j] -= e.get("fc") * s + e.get("offset");
             }
             EffectKind::ViscousFriction => out[j] -= e.get("fv") * qd[j],

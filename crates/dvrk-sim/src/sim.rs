@@ -655,6 +655,18 @@ impl Sim {
         Ok(())
     }
 
+    /// Feed-forward effort of joint `i` added to its PID output (N·m, N; inside the effort
+    /// limit): a recorded effort replayed under weak feedback, say. Arms with gravity
+    /// compensation overwrite it every step.
+    pub fn set_feedforward(&mut self, i: usize, effort: f64) -> Result<()> {
+        let (a, k) = self.locate(i)?;
+        if !effort.is_finite() {
+            return Err(SimError::value(format!("{} feed-forward", self.joint_name(a, k)), effort, "must be finite"));
+        }
+        self.arms[a].actuators[k].feedforward = effort;
+        Ok(())
+    }
+
     /// PID gains of joint `i`; rejected unless finite and non-negative.
     pub fn set_gains(&mut self, i: usize, gains: Gains) -> Result<()> {
         let (a, k) = self.locate(i)?;

@@ -14,6 +14,7 @@ pub mod ablation;
 pub mod filter;
 pub mod problem;
 pub mod recording;
+pub mod replay;
 pub mod report;
 pub mod solve;
 

@@ -92,3 +92,33 @@ fn bad_wpi_files_name_the_line_and_column() {
     let e = dvrk_calib::identify::recording::parse_wpi_csv(&row, Path::new("r.csv"), &ecm).unwrap_err().to_string();
     assert_eq!(e, "r.csv: wpi-csv holds a PSM's 7 joints; model `ecm` has 4");
 }
+
+/// Must-show 3: the identified model in the simulator, driven by `two`'s recorded efforts under
+/// weak feedback (0.3 x the scene's kp, kd), follows `two`'s motion better than the CAD model on
+/// the joints whose load is inertia and gravity (pitch, insertion) and on the jaw. Measured
+/// (RMS, CAD -> identified): yaw 0.033 -> 0.126 rad (worse: the identified yaw oscillates under
+/// the replay; its -0.93 N·m effort offset is not understood yet), pitch 0.086 -> 0.025 rad,
+/// insertion 6.5 -> 1.4 mm, roll 0.026 -> 0.025, wrist 0.021 -> 0.021, 0.020 -> 0.020, jaw
+/// 0.021 -> 0.012 rad.
+#[test]
+fn identified_model_replays_the_held_out_efforts_closer_than_cad() {
+    use dvrk_calib::identify::replay::{identified_scene, torque_replay};
+    let (Some(one), Some(two)) = (wpi("psm_one_results.csv"), wpi("psm_two_results.csv")) else { return };
+    let model = psm();
+    let prior = dvrk_sim::scene::builtin_inertials("psm", &model).unwrap().body_inertias(&model).unwrap();
+    let (r1, r2) = (read_wpi_csv(&one, &model).unwrap(), read_wpi_csv(&two, &model).unwrap());
+    let options = IdentifyOptions::for_model(&model);
+    let (id, _) = identify(&model, &prior, &r1, &options).unwrap();
+    let base = dvrk_sim::Scene::load("psm").unwrap();
+    let (scene, info) = identified_scene(&base, 0, &model, &id, &options.processing).unwrap();
+    assert!(info.kept_prior.is_empty(), "{:?}", info.kept_prior);
+    let (cad, _) = torque_replay(&base, 0, &r2, 0.3).unwrap();
+    let (ident, _) = torque_replay(&scene, 0, &r2, 0.3).unwrap();
+    eprintln!("torque-driven replay of two, RMS per joint: CAD {cad:.4?}\n                                        identified {ident:.4?}");
+    for k in [1, 2, 6] {
+        assert!(ident[k] < 0.7 * cad[k], "joint {k}: identified {} vs CAD {}", ident[k], cad[k]);
+    }
+    for k in [3, 4, 5] {
+        assert!(ident[k] < 1.02 * cad[k], "joint {k}: identified {} vs CAD {}", ident[k], cad[k]);
+    }
+}

@@ -1,0 +1,145 @@
+//! The identified model in the simulator: a scene whose arm carries the identified inertials and
+//! the joint-space effects, and a torque-driven replay of a recording to compare it with the CAD
+//! model (issue 6, must-show 3).
+//!
+//! Torque-driven replay: every joint is driven by the recorded effort (mapped to the joints,
+//! `tau_joint = to_joint^-T tau_channel`) as feed-forward, plus a weak PD on the recorded motion
+//! (a fraction of the scene's PID gains, no integral) that keeps an open-loop rollout from
+//! drifting away over 30 s. The better the model, the less the feedback has to correct: the
+//! per-joint RMS of simulated minus recorded motion measures it.
+
+use super::problem::{EffectTerm, Param, Processing};
+use super::recording::TorqueRecording;
+use super::Identification;
+use crate::error::{CalibError, Result};
+use dvrk_kin::effects::EffectSpec;
+use dvrk_kin::Model;
+use dvrk_sim::{Gains, Scene, Sim, SimOptions};
+use std::collections::BTreeMap;
+
+/// What went into the identified scene, and what could not.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct IdentifiedScene {
+    /// Effects added to the model (model-file form).
+    pub effects: Vec<EffectSpec>,
+    /// Identified terms the simulator cannot take (actuator-space friction of the coupled
+    /// tool channels, cross terms, Stribeck), by name.
+    pub not_simulated: Vec<String>,
+    /// Bodies that kept their CAD inertial (degenerate identified ones).
+    pub kept_prior: Vec<String>,
+}
+
+/// `base`'s arm `arm` with `model`'s identified inertials and joint-space effects.
+pub fn identified_scene(base: &Scene, arm: usize, model: &Model, id: &Identification, processing: &Processing) -> Result<(Scene, IdentifiedScene)> {
+    let mut info = IdentifiedScene { effects: Vec::new(), not_simulated: Vec::new(), kept_prior: Vec::new() };
+    // A channel that is a joint (its to_joint row and column are the identity) takes the
+    // channel terms as that joint's effects.
+    let mut by_joint: BTreeMap<(usize, &'static str), BTreeMap<String, f64>> = BTreeMap::new();
+    let mut armature = base.arms[arm].armature.clone();
+    for (i, p) in id.layout.params.iter().enumerate() {
+        let value = id.theta[i];
+        let (term, joint) = match *p {
+            Param::Body { .. } => continue,
+            Param::Joint { term, joint } => (term, Some(joint)),
+            Param::Effect { term, channel } => (term, model.joint_id(&id.channels[channel]).ok()),
+            Param::Cross { .. } => (EffectTerm::Stribeck, None),
+        };
+        let Some(j) = joint else {
+            info.not_simulated.push(id.estimates[i].name.clone());
+            continue;
+        };
+        let smoothing = processing.coulomb_velocity_of(j);
+        match term {
+            EffectTerm::Coulomb => {
+                let e = by_joint.entry((j, "coulomb_friction")).or_default();
+                *e.entry("fc".into()).or_default() += value;
+                e.insert("smoothing".into(), smoothing);
+            }
+            // The identified offset is the effort the drive adds; the effect's is the force on the joint.
+            EffectTerm::Offset => *by_joint.entry((j, "coulomb_friction")).or_default().entry("offset".into()).or_default() += value,
+            EffectTerm::Viscous => *by_joint.entry((j, "viscous_friction")).or_default().entry("fv".into()).or_default() += value,
+            EffectTerm::Spring => *by_joint.entry((j, "spring")).or_default().entry("k".into()).or_default() += value,
+            // The scene's armature keeps the explicit PID stable (kd dt / I <= 0.25); a larger
+            // identified motor inertia replaces it, a smaller one cannot.
+            EffectTerm::Armature => armature[j] = armature[j].max(value),
+            EffectTerm::Stribeck => info.not_simulated.push(id.estimates[i].name.clone()),
+        }
+    }
+    for ((j, name), mut parameters) in by_joint {
+        if name == "coulomb_friction" {
+            parameters.entry("fc".into()).or_insert(0.0);
+        }
+        info.effects.push(EffectSpec { name: name.into(), joint: Some(model.joints[j].name.clone()), link: None, parameters, source: "dvrk identify".into() });
+    }
+    let mut spec = model.spec.clone();
+    spec.effects.extend(info.effects.iter().cloned());
+    let with_effects = Model::compile(spec)?;
+    let mut scene = base.clone();
+    scene.set_model(arm, with_effects).map_err(|e| CalibError::data("identified scene", e.to_string()))?;
+    let a = &mut scene.arms[arm];
+    a.armature = armature;
+    for (b, body) in model.bodies.iter().enumerate() {
+        let Some(entry) = a.inertials.bodies.iter_mut().find(|e| e.name == body.name) else { continue };
+        match id.body_inertia(b, &body.name) {
+            Ok(bi) => {
+                let i = bi.inertia;
+                entry.mass = bi.mass;
+                entry.com = [bi.com.x, bi.com.y, bi.com.z];
+                entry.inertia = [[i[(0, 0)], i[(0, 1)], i[(0, 2)]], [i[(1, 0)], i[(1, 1)], i[(1, 2)]], [i[(2, 0)], i[(2, 1)], i[(2, 2)]]];
+            }
+            Err(_) => info.kept_prior.push(body.name.clone()),
+        }
+    }
+    Ok((scene, info))
+}
+
+/// Torque-driven replay of `rec` on arm `arm` of `scene` with feedback gains `feedback` times the
+/// scene's (kp, kd; no integral): per joint, the RMS of simulated minus recorded joint position
+/// (rad, m) over the recording, and its mean (the bias).
+pub fn torque_replay(scene: &Scene, arm: usize, rec: &TorqueRecording, feedback: f64) -> Result<(Vec<f64>, Vec<f64>)> {
+    let n = rec.channels.len();
+    let map = &rec.to_joint;
+    let inv_t = map.clone().try_inverse().ok_or_else(|| CalibError::data(&rec.source, "the channel-to-joint map is singular"))?.transpose();
+    let joints = |v: &[f64]| -> Vec<f64> { (0..n).map(|j| (0..n).map(|c| map[(j, c)] * v[c]).sum()).collect() };
+    let efforts = |v: &[f64]| -> Vec<f64> { (0..n).map(|j| (0..n).map(|c| inv_t[(j, c)] * v[c]).sum()).collect() };
+    let q: Vec<Vec<f64>> = rec.q.iter().map(|r| joints(r)).collect();
+    let qd: Vec<Vec<f64>> = rec.qd.iter().map(|r| joints(r)).collect();
+    let tau: Vec<Vec<f64>> = rec.tau.iter().map(|r| efforts(r)).collect();
+    let mut scene = scene.clone();
+    // Start on the first sample, inside the limits.
+    let model = &scene.arms[arm].model;
+    let q0: Vec<f64> = q[0].iter().zip(&model.joints).map(|(x, j)| x.clamp(j.lower, j.upper)).collect();
+    scene.set_start(arm, &q0).map_err(|e| CalibError::data("torque replay", e.to_string()))?;
+    let mut sim = Sim::new(&scene, &SimOptions::default()).map_err(|e| CalibError::data("torque replay", e.to_string()))?;
+    let off = sim.arms[arm].q_offset;
+    for k in 0..n {
+        let g = scene.arms[arm].gains[k];
+        sim.set_gains(off + k, Gains { kp: feedback * g.kp, ki: 0.0, kd: feedback * g.kd }).map_err(|e| CalibError::data("torque replay", e.to_string()))?;
+    }
+    let (t0, t1) = (rec.t[0], rec.t[rec.len() - 1]);
+    let steps = ((t1 - t0) / sim.dt).floor() as usize;
+    let mut sum = vec![0.0; n];
+    let mut bias = vec![0.0; n];
+    let mut i = 0;
+    for s in 0..steps {
+        let t = t0 + s as f64 * sim.dt;
+        while i + 2 < rec.len() && rec.t[i + 1] <= t {
+            i += 1;
+        }
+        let a = ((t - rec.t[i]) / (rec.t[i + 1] - rec.t[i])).clamp(0.0, 1.0);
+        for k in 0..n {
+            let lerp = |v: &Vec<Vec<f64>>| v[i][k] + a * (v[i + 1][k] - v[i][k]);
+            let err = |e: dvrk_sim::SimError| CalibError::data("torque replay", e.to_string());
+            sim.set_target(off + k, lerp(&q), lerp(&qd)).map_err(err)?;
+            sim.set_feedforward(off + k, lerp(&tau)).map_err(err)?;
+        }
+        sim.step();
+        for k in 0..n {
+            let e = sim.q()[off + k] - (q[i][k] + a * (q[i + 1][k] - q[i][k]));
+            sum[k] += e * e;
+            bias[k] += e;
+        }
+    }
+    let m = steps.max(1) as f64;
+    Ok((sum.iter().map(|s| (s / m).sqrt()).collect(), bias.iter().map(|b| b / m).collect()))
+}
