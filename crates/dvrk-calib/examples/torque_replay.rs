@@ -24,6 +24,16 @@ fn main() {
     }
     for e in id.estimates.iter().filter(|e| e.name.starts_with("outer_yaw")) { println!("{} = {:.4} +- {:.4}", e.name, e.value, e.std); }
     println!("not simulated: {:?}\nkept prior: {:?}", info.not_simulated, info.kept_prior);
+    // Ablation: identified inertials with the CAD effects (none), and CAD inertials with the identified effects.
+    let mut inert_only = base.clone();
+    inert_only.arms[0].inertials = scene.arms[0].inertials.clone();
+    let mut effects_only = scene.clone();
+    effects_only.arms[0].inertials = base.arms[0].inertials.clone();
+    for (name, sc) in [("identified inertials only", &inert_only), ("identified effects only", &effects_only)] {
+        let r = torque_replay(sc, 0, &two, 0.3).unwrap();
+        println!("{name}: rms {:.4?}", r.0);
+    }
+    for b in &scene.arms[0].inertials.bodies { println!("{} m {:.4} com {:.3?} I diag {:.2e} {:.2e} {:.2e}", b.name, b.mass, b.com, b.inertia[0][0], b.inertia[1][1], b.inertia[2][2]); }
     for fb in std::env::var("FB").unwrap_or("0.1,0.3,1.0".into()).split(',') {
         let fb: f64 = fb.parse().unwrap();
         let cad = torque_replay(&base, 0, &two, fb).unwrap();
