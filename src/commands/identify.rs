@@ -3,7 +3,7 @@
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use dvrk_calib::identify::{identify, read_wpi_csv, report, IdentifyOptions, TorqueRecording};
+use dvrk_calib::identify::{read_wpi_csv, report, IdentifyOptions, TorqueRecording};
 use dvrk_kin::Model;
 use std::path::{Path, PathBuf};
 
@@ -67,23 +67,16 @@ pub fn run(args: &IdentifyArgs) -> Result<()> {
     options.processing.gravity = nalgebra::Vector3::new(gx, gy, gz);
     let rec = read(&args.recording, &args.format, &model)?;
     let inertias = prior.body_inertias(&model)?;
-    let (id, _) = identify(&model, &inertias, &rec, &options).with_context(|| format!("--recording {}", args.recording.display()))?;
-    let rigid_options = options.rigid_only();
-    let (rigid, _) = identify(&model, &inertias, &rec, &rigid_options)?;
-    let mut summary = report::summary(&model, &id, &args.recording.display().to_string(), &args.format, &rigid.relative_error);
     let held_out = match &args.validate {
         Some(v) => Some(read(v, &args.format, &model).with_context(|| format!("--validate {}", v.display()))?),
         None => None,
     };
-    if let (Some(v), Some(rec2)) = (&args.validate, &held_out) {
-        let errors = id.validate(&model, rec2, &options)?;
-        let rigid_errors = rigid.validate(&model, rec2, &rigid_options)?;
-        summary["validation"] = serde_json::json!({"recording": v.display().to_string(), "relative_error": errors, "rigid_body_only": rigid_errors});
-    }
-    let ablation = dvrk_calib::identify::ablation::ablation(&model, &inertias, &rec, held_out.as_ref(), &options)?;
-    summary["ablation"] = serde_json::to_value(&ablation)?;
+    let result = dvrk_calib::identify::run::run(&model, &inertias, &rec, held_out.as_ref(), &options, &args.recording.display().to_string(), &args.format)
+        .with_context(|| format!("--recording {}", args.recording.display()))?;
+    let (id, rigid, mut summary) = (&result.identification, &result.rigid, result.summary.clone());
+    let ablation = &result.ablation;
     if let Some(o) = &args.output {
-        let text = report::output_toml(&model, &id, &prior, &args.recording.display().to_string())?;
+        let text = report::output_toml(&model, id, &prior, &args.recording.display().to_string())?;
         crate::io::write_atomic(o, text.as_bytes()).with_context(|| format!("-o {}", o.display()))?;
         summary["output"] = serde_json::json!(o.display().to_string());
     }
@@ -102,14 +95,14 @@ pub fn run(args: &IdentifyArgs) -> Result<()> {
     }
     println!("physically consistent: {} ({} cutting-plane rounds)", summary["physically_consistent"], id.fit.rounds);
     println!("ablation (cumulative; relative error per channel{}):", if held_out.is_some() { ", fitted / held-out" } else { "" });
-    for row in &ablation {
+    for row in ablation {
         let fmt = |v: &[f64]| v.iter().map(|x| format!("{x:.3}")).collect::<Vec<_>>().join(" ");
         match &row.validation {
             Some(v) => println!("  {:<52} {}  /  {}", row.effects, fmt(&row.relative_error), fmt(v)),
             None => println!("  {:<52} {}", row.effects, fmt(&row.relative_error)),
         }
     }
-    for e in report::effects(&id).iter().filter(|e| e.name != "armature") {
+    for e in report::effects(id).iter().filter(|e| e.name != "armature") {
         let ps: Vec<String> = e.parameters.iter().map(|(k, v)| format!("{k} {:.4}", v.as_f64().unwrap_or(f64::NAN))).collect();
         println!("  {} {}: {}", e.name, e.joint, ps.join(", "));
     }

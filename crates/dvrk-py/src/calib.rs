@@ -134,3 +134,26 @@ pub fn read_recording<'py>(py: Python<'py>, path: PathBuf, topics: Option<Vec<St
     out.set_item("warnings", rec.warnings.clone())?;
     Ok(out)
 }
+
+/// Dynamic identification (`dvrk identify`) of a model from a joint recording with efforts: the
+/// JSON summary as a dict (`relative_error`, `rigid_body_only`, `validation` with
+/// `validate`, `ablation`, `effects`, `bodies`, `warnings`, ...). `recording` and `validate`
+/// are wpi-csv files; the prior is the model's built-in inertials.
+#[pyfunction]
+#[pyo3(signature = (recording, model="psm", format="wpi-csv", validate=None))]
+pub fn identify<'py>(py: Python<'py>, recording: PathBuf, model: &str, format: &str, validate: Option<PathBuf>) -> Result<Bound<'py, PyAny>> {
+    use dvrk_calib::identify::{read_wpi_csv, run, IdentifyOptions};
+    if format != "wpi-csv" {
+        return Err(Error::Input(format!("format `{format}`: only wpi-csv is read yet")));
+    }
+    let m = dvrk_calib::dvrk_kin::load(model, None)?;
+    let summary = py.detach(|| -> Result<serde_json::Value> {
+        let prior = dvrk_sim::scene::builtin_inertials(&m.name, &m)?.body_inertias(&m)?;
+        let rec = read_wpi_csv(&recording, &m)?;
+        let held_out = validate.as_ref().map(|v| read_wpi_csv(v, &m)).transpose()?;
+        let options = IdentifyOptions::for_model(&m);
+        let r = run::run(&m, &prior, &rec, held_out.as_ref(), &options, &recording.display().to_string(), format)?;
+        Ok(r.summary)
+    })?;
+    to_py_json(py, &summary)
+}

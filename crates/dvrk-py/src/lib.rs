@@ -576,6 +576,7 @@ fn _dvrk_twin(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(calib::pivot, m)?)?;
     m.add_function(wrap_pyfunction!(calib::axis, m)?)?;
     m.add_function(wrap_pyfunction!(calib::read_recording, m)?)?;
+    m.add_function(wrap_pyfunction!(calib::identify, m)?)?;
     let ex = exceptions(py)?;
     m.add("DvrkError", ex.base.bind(py))?;
     m.add("ModelError", ex.model.bind(py))?;

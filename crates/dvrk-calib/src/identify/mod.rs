@@ -15,6 +15,7 @@ pub mod filter;
 pub mod problem;
 pub mod recording;
 pub mod replay;
+pub mod run;
 pub mod report;
 pub mod solve;
 

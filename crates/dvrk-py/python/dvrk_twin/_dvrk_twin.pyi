@@ -212,3 +212,14 @@ def axis(reference: ArrayLike, moving: ArrayLike, method: str = "sara") -> Dict[
 def read_recording(path: Union[str, "os.PathLike[str]"], topics: Optional[List[str]] = None) -> Dict[str, Any]:
     """Read an MCAP / Motive CSV / plain CSV recording: {"bodies": {name: {"t", "poses",
     "frame_id"}}, "joints": None or {"names", "t", "q"}, "warnings"} (s, m, rad)."""
+
+def identify(
+    recording: Union[str, "os.PathLike[str]"],
+    model: str = "psm",
+    format: str = "wpi-csv",
+    validate: Optional[Union[str, "os.PathLike[str]"]] = None,
+) -> Dict[str, Any]:
+    """Dynamic identification (``dvrk identify``): inertial parameters (physically consistent),
+    friction, offsets, motor inertia and springs; the JSON summary as a dict (relative torque
+    errors per channel, rigid-body-only baseline, ``validation`` on ``validate``, ``ablation``,
+    effects and bodies with standard deviations, ``warnings``). SI units."""

@@ -1,0 +1,37 @@
+//! The whole of `dvrk identify` as a library call (the CLI and the Python package share it):
+//! identification, the rigid-body-only baseline, held-out validation and the ablation, as the
+//! JSON summary.
+
+use super::{ablation, identify, report, IdentifyOptions, Identification, TorqueRecording};
+use crate::error::Result;
+use dvrk_kin::{BodyInertia, Model};
+use serde_json::{json, Value};
+
+/// Everything `dvrk identify` reports.
+#[derive(Debug, Clone)]
+pub struct IdentifyRun {
+    /// The JSON summary (`relative_error`, `rigid_body_only`, `validation`, `ablation`, ...).
+    pub summary: Value,
+    pub identification: Identification,
+    /// The rigid-body-only identification (the baseline).
+    pub rigid: Identification,
+    /// Which effects made the difference (also under `ablation` in the summary).
+    pub ablation: Vec<ablation::AblationRow>,
+}
+
+/// Identify `model` from `rec` (named `recording` in the report, format `format`), starting at
+/// the CAD `prior`; with `held_out`, validate on it.
+pub fn run(model: &Model, prior: &[BodyInertia], rec: &TorqueRecording, held_out: Option<&TorqueRecording>, options: &IdentifyOptions, recording: &str, format: &str) -> Result<IdentifyRun> {
+    let (id, _) = identify(model, prior, rec, options)?;
+    let rigid_options = options.rigid_only();
+    let (rigid, _) = identify(model, prior, rec, &rigid_options)?;
+    let mut summary = report::summary(model, &id, recording, format, &rigid.relative_error);
+    if let Some(r2) = held_out {
+        let errors = id.validate(model, r2, options)?;
+        let rigid_errors = rigid.validate(model, r2, &rigid_options)?;
+        summary["validation"] = json!({"recording": r2.source, "relative_error": errors, "rigid_body_only": rigid_errors});
+    }
+    let rows = ablation::ablation(model, prior, rec, held_out, options)?;
+    summary["ablation"] = serde_json::to_value(&rows).unwrap_or(Value::Null);
+    Ok(IdentifyRun { summary, identification: id, rigid, ablation: rows })
+}
