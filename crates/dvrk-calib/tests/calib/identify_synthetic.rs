@@ -59,7 +59,7 @@ fn synthetic_recordings_are_identified_within_their_95_percent_intervals() {
     let mut rng = ChaCha8Rng::seed_from_u64(7);
     let mut truth = DVector::zeros(layout.len());
     for (b, ine) in cad.iter().enumerate() {
-        let s = rng.gen_range(0.8..1.2);
+        let s = rng.random_range(0.8..1.2);
         for (k, v) in ine.parameters().iter().enumerate() {
             truth[b * PARAMETERS_PER_BODY + k] = s * v;
         }
