@@ -35,12 +35,15 @@ pub struct IdentifyOptions {
     /// Prior standard deviation of each CAD inertial parameter, as a fraction of its magnitude
     /// (plus a floor per kind, see [`prior_scale`]).
     pub prior_fraction: f64,
+    /// Each body's pseudo-inertia stays at least this fraction of the CAD one's
+    /// ([`solve::solve`]): 0 allows any physically consistent body, including point-like ones.
+    pub consistency_margin: f64,
 }
 
 impl IdentifyOptions {
     /// Every effect term, the spring on the channels listed.
     pub fn full(spring_channels: Vec<usize>) -> IdentifyOptions {
-        IdentifyOptions { processing: Processing::default(), terms: Terms { effects: EffectTerm::ALL.to_vec(), spring_channels, joint_friction: Vec::new(), cross: Vec::new() }, prior_fraction: 0.25 }
+        IdentifyOptions { processing: Processing::default(), terms: Terms { effects: EffectTerm::ALL.to_vec(), spring_channels, joint_friction: Vec::new(), cross: Vec::new() }, prior_fraction: 0.25, consistency_margin: 0.0 }
     }
 
     /// The settings for a PSM recorded as the WPI recordings are (channels yaw, pitch,
@@ -258,7 +261,7 @@ pub fn identify_regression(model: &Model, prior: &[BodyInertia], reg: &Regressio
     let stats = residual_statistics(reg, &theta1);
     let weights: Vec<f64> = stats.iter().map(|(var, _)| 1.0 / var.max(1e-12)).collect();
     let o2 = objective(&weights);
-    let fit = solve::solve(&layout, &o2, &theta0, &scale)?;
+    let fit = solve::solve(&layout, &o2, &theta0, &scale, options.consistency_margin)?;
     let honest: Vec<f64> = stats.iter().map(|(_, long_run)| 1.0 / long_run.max(1e-12)).collect();
     let o3 = objective(&honest);
     let cov = o3.h.clone().cholesky().ok_or_else(|| CalibError::data("identification", "posterior precision not positive definite"))?.inverse();

@@ -110,8 +110,11 @@ fn rows_csc(rows: &[Vec<(usize, f64)>], n: usize) -> CscMatrix<f64> {
 }
 
 /// Minimise the objective subject to the physical constraints. `scale` (one per parameter, > 0:
-/// the prior standard deviations) normalises the variables for the solver.
-pub fn solve(layout: &Layout, objective: &Objective, theta0: &DVector<f64>, scale: &DVector<f64>) -> Result<Fit> {
+/// the prior standard deviations) normalises the variables for the solver. `margin` keeps every
+/// body's pseudo-inertia at least that fraction of the prior's, `J(theta) >= margin J(theta0)`
+/// (0: plain physical consistency; > 0 keeps bodies the data cannot see from collapsing onto
+/// the cone's boundary, point-like masses that a simulation cannot carry well).
+pub fn solve(layout: &Layout, objective: &Objective, theta0: &DVector<f64>, scale: &DVector<f64>, margin: f64) -> Result<Fit> {
     let n = layout.len();
     // Variables z = (theta - theta0) / scale: objective z' (S H S) z - 2 (S (g - H theta0))' z.
     let s = DMatrix::from_diagonal(scale);
@@ -119,14 +122,18 @@ pub fn solve(layout: &Layout, objective: &Objective, theta0: &DVector<f64>, scal
     let gz = &s * (&objective.g - &objective.h * theta0);
     let p = upper_csc(&(&hz * 2.0));
     let q: Vec<f64> = (-2.0 * &gz).iter().copied().collect();
-    // Each row r: (coefficients on theta, rhs) meaning coeffs . theta >= 0, i.e.
-    // s = coeffs . theta0 + (coeffs o scale) . z >= 0.
+    // Each row r: (coefficients on theta, lower) meaning coeffs . theta >= lower, i.e.
+    // s = coeffs . theta0 - lower + (coeffs o scale) . z >= 0. A body's cut has
+    // lower = margin coeffs . theta0_body.
     let mut rows: Vec<Vec<(usize, f64)>> = Vec::new();
+    let mut lower: Vec<f64> = Vec::new();
+    let body_cut = |row: &Vec<(usize, f64)>| margin * row.iter().map(|&(i, c)| c * theta0[i]).sum::<f64>();
     let mut bounds: Vec<usize> = Vec::new();
     for (i, param) in layout.params.iter().enumerate() {
         if let Param::Effect { term, .. } | Param::Joint { term, .. } = param {
             if term.nonnegative() {
                 rows.push(vec![(i, 1.0)]);
+                lower.push(0.0);
                 bounds.push(i);
             }
         }
@@ -137,7 +144,9 @@ pub fn solve(layout: &Layout, objective: &Objective, theta0: &DVector<f64>, scal
         for k in 0..4 {
             let mut v = Vector4::zeros();
             v[k] = 1.0;
-            rows.push(cut(&v).iter().enumerate().map(|(j, c)| (b * PARAMETERS_PER_BODY + j, *c)).filter(|(_, c)| *c != 0.0).collect());
+            let row: Vec<(usize, f64)> = cut(&v).iter().enumerate().map(|(j, c)| (b * PARAMETERS_PER_BODY + j, *c)).filter(|(_, c)| *c != 0.0).collect();
+            lower.push(body_cut(&row));
+            rows.push(row);
         }
     }
     let settings = DefaultSettingsBuilder::default().verbose(false).max_iter(200).build().map_err(|e| CalibError::data("identification solver settings", e.to_string()))?;
@@ -145,7 +154,7 @@ pub fn solve(layout: &Layout, objective: &Objective, theta0: &DVector<f64>, scal
     loop {
         rounds += 1;
         let a_rows: Vec<Vec<(usize, f64)>> = rows.iter().map(|r| r.iter().map(|&(i, c)| (i, -c * scale[i])).collect()).collect();
-        let b: Vec<f64> = rows.iter().map(|r| r.iter().map(|&(i, c)| c * theta0[i]).sum()).collect();
+        let b: Vec<f64> = rows.iter().zip(&lower).map(|(r, lo)| r.iter().map(|&(i, c)| c * theta0[i]).sum::<f64>() - lo).collect();
         let a = rows_csc(&a_rows, n);
         let cones = [NonnegativeConeT(rows.len())];
         let mut solver = DefaultSolver::new(&p, &q, &a, &b, &cones, settings.clone()).map_err(|e| CalibError::data("identification solver", format!("{e:?}")))?;
@@ -160,7 +169,7 @@ pub fn solve(layout: &Layout, objective: &Objective, theta0: &DVector<f64>, scal
         let mut min_eigen = Vec::with_capacity(layout.nbodies);
         for bi in 0..layout.nbodies {
             let base = bi * PARAMETERS_PER_BODY;
-            let j = pseudo_inertia(&theta.as_slice()[base..base + PARAMETERS_PER_BODY]);
+            let j = pseudo_inertia(&theta.as_slice()[base..base + PARAMETERS_PER_BODY]) - pseudo_inertia(&theta0.as_slice()[base..base + PARAMETERS_PER_BODY]) * margin;
             let eig = SymmetricEigen::new(j);
             let top = eig.eigenvalues.amax().max(1e-12);
             let rel = eig.eigenvalues.min() / top;
@@ -168,7 +177,9 @@ pub fn solve(layout: &Layout, objective: &Objective, theta0: &DVector<f64>, scal
             for (k, l) in eig.eigenvalues.iter().enumerate() {
                 if *l < -1e-10 * top {
                     let v: Vector4<f64> = eig.eigenvectors.column(k).into();
-                    rows.push(cut(&v).iter().enumerate().map(|(jj, c)| (base + jj, *c)).filter(|(_, c)| *c != 0.0).collect());
+                    let row: Vec<(usize, f64)> = cut(&v).iter().enumerate().map(|(jj, c)| (base + jj, *c)).filter(|(_, c)| *c != 0.0).collect();
+                    lower.push(body_cut(&row));
+                    rows.push(row);
                     added += 1;
                 }
             }
@@ -203,5 +214,35 @@ mod tests {
         let quad = (v.transpose() * j * v)[0];
         let lin: f64 = c.iter().zip(&p).map(|(a, b)| a * b).sum();
         assert!((quad - lin).abs() < 1e-14, "{quad} {lin}");
+    }
+
+    /// An objective that pulls every parameter to zero: with no margin each body collapses onto
+    /// the cone's boundary (zero mass); with margin 0.5 each keeps at least half the prior's
+    /// pseudo-inertia in every direction.
+    #[test]
+    fn the_margin_keeps_bodies_inside_the_cone() {
+        use crate::identify::problem::{Layout, Terms};
+        let model = dvrk_kin::load("psm", None).unwrap();
+        let layout = Layout::new(&model, 7, &Terms { effects: vec![], spring_channels: vec![], joint_friction: vec![], cross: vec![] });
+        let prior = dvrk_sim::scene::builtin_inertials("psm", &model).unwrap().body_inertias(&model).unwrap();
+        let theta0 = DVector::from_iterator(layout.len(), prior.iter().flat_map(|b| b.parameters()));
+        let scale = theta0.map(|x| x.abs() + 1e-3);
+        let objective = Objective { h: DMatrix::from_diagonal(&scale.map(|s| 1.0 / (s * s))), g: DVector::zeros(layout.len()) };
+        for margin in [0.0, 0.5] {
+            let fit = solve(&layout, &objective, &theta0, &scale, margin).unwrap();
+            for b in 0..layout.nbodies {
+                let r = b * PARAMETERS_PER_BODY..(b + 1) * PARAMETERS_PER_BODY;
+                let (j, j0) = (pseudo_inertia(&fit.theta.as_slice()[r.clone()]), pseudo_inertia(&theta0.as_slice()[r]));
+                let l = SymmetricEigen::new(j - j0 * margin).eigenvalues.min();
+                assert!(l > -1e-9 * j0.norm(), "margin {margin}, body {b}: {l}");
+                if margin == 0.0 {
+                    assert!(j[(3, 3)] < 1e-3 * j0[(3, 3)], "body {b} kept mass {}", j[(3, 3)]);
+                } else {
+                    // The mass at least half the prior's (other directions of the bound can ask a bit more).
+                    let ratio = j[(3, 3)] / j0[(3, 3)];
+                    assert!(ratio > 0.5 - 1e-6 && ratio < 0.6, "body {b}: mass ratio {ratio}");
+                }
+            }
+        }
     }
 }
