@@ -45,7 +45,8 @@ impl Candidate {
         match self.kind {
             EffectKind::Spring => {
                 p.insert("k".into(), x[0]);
-                p.insert("rest".into(), if x[0] > 0.0 { x[1] / x[0] } else { 0.0 });
+                // The rest position is only defined where there is a spring.
+                p.insert("rest".into(), if x[0] > 1e-6 { x[1] / x[0] } else { 0.0 });
             }
             EffectKind::JointCompliance => {
                 p.insert("stiffness".into(), if x[0] > 0.0 { 1.0 / x[0] } else { 1e8 });

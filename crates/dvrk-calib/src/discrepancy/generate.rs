@@ -309,7 +309,7 @@ pub fn hidden_effect(scene_name: &str, o: &HiddenOptions) -> Result<HiddenRecord
             let j = match e.joint.as_deref() {
                 Some(name) => nominal.joint_id(name)?,
                 // Largest relative to the joint's noise.
-                None => (0..nq).max_by(|a, b| (rms[*a] / effort_noise[*a]).total_cmp(&(rms[*b] / effort_noise[*b]))).unwrap_or(0),
+                None => (0..nq.min(6)).max_by(|a, b| (rms[*a] / effort_noise[*a]).total_cmp(&(rms[*b] / effort_noise[*b]))).unwrap_or(0),
             };
             (log, Some(j), Some(rms[j]))
         }

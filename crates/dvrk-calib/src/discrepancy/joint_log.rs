@@ -85,7 +85,10 @@ pub fn read_mcap(path: &Path, arm: &str) -> Result<JointLog> {
     let mut topics: BTreeMap<String, Topic> = BTreeMap::new();
     let mut seen: Vec<String> = Vec::new();
     for (count, m) in stream.enumerate() {
-        let m = m.map_err(|e| CalibError::file(path, format!("damaged after {count} message(s): {e}")))?;
+        let m = m.map_err(|e| match e {
+            mcap::McapError::BadMagic if count == 0 => CalibError::file(path, "not an MCAP file (it does not start with the MCAP magic bytes)"),
+            e => CalibError::file(path, format!("damaged after {count} message(s): {e}")),
+        })?;
         let topic = &m.channel.topic;
         if !seen.contains(topic) {
             seen.push(topic.clone());
