@@ -39,6 +39,9 @@ pub enum Command {
     /// Dynamic identification: inertial parameters (physically consistent) and friction, offsets,
     /// motor inertia and springs from a joint recording with efforts.
     Identify(crate::commands::identify::IdentifyArgs),
+    /// Which physical effect does the model lack? A recording's efforts against the model's:
+    /// ranked candidates with evidence, a verdict, the model with the named effect.
+    Discrepancy(crate::commands::discrepancy::DiscrepancyArgs),
     /// Synthetic recordings for tests and demos.
     Synth {
         #[command(subcommand)]

@@ -1,6 +1,7 @@
 //! One module per subcommand; each turns validated flags into library calls and output.
 
 pub mod calib;
+pub mod discrepancy;
 mod export;
 mod fk;
 pub mod identify;
@@ -28,6 +29,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Calib { command } => calib::run(&command),
         Command::Synth { command } => synth::run(&command),
         Command::Identify(a) => identify::run(&a),
+        Command::Discrepancy(a) => discrepancy::run(&a),
     }
 }
 

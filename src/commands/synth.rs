@@ -14,6 +14,40 @@ use std::path::PathBuf;
 pub enum SynthCommand {
     /// A synthetic motion-capture recording (.mcap or plain .csv).
     Mocap(MocapArgs),
+    /// A joint recording (.mcap: /<ARM>/setpoint_js, /<ARM>/measured_js with efforts) of an arm
+    /// with one hidden physical effect (or none), and the answer in a separate JSON file.
+    HiddenEffect(HiddenEffectArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct HiddenEffectArgs {
+    /// The arm's scene (built-in: psm); its first arm is simulated.
+    #[arg(long, default_value = "psm")]
+    pub model: String,
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// none, random, or an effect: coulomb_friction, viscous_friction, spring, joint_compliance,
+    /// backlash, latency, joint_offset, payload_mass.
+    #[arg(long, default_value = "random")]
+    pub effect: String,
+    /// Effort noise per joint (N·m, N), comma-separated; about 1% of each joint's effort when absent.
+    #[arg(long)]
+    pub noise: Option<String>,
+    /// Encoder noise (rad, m).
+    #[arg(long, default_value_t = dvrk_calib::discrepancy::generate::POSITION_NOISE)]
+    pub position_noise: f64,
+    /// Set the noise of the effect's joint so the effect's RMS is this many times it.
+    #[arg(long)]
+    pub enr: Option<f64>,
+    /// Recorded time (s).
+    #[arg(long, default_value_t = 30.0)]
+    pub duration: f64,
+    /// Output recording (.mcap), written whole or not at all.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// The answer (JSON): the hidden effect, its joint or link, parameters, effect-to-noise ratio.
+    #[arg(long)]
+    pub answer: PathBuf,
 }
 
 #[derive(Debug, Args)]
@@ -65,7 +99,26 @@ pub struct MocapArgs {
 pub fn run(c: &SynthCommand) -> Result<()> {
     match c {
         SynthCommand::Mocap(a) => mocap(a),
+        SynthCommand::HiddenEffect(a) => hidden_effect(a),
     }
+}
+
+fn hidden_effect(a: &HiddenEffectArgs) -> Result<()> {
+    use dvrk_calib::discrepancy::{hidden_effect, joint_log, Hidden, HiddenOptions};
+    let hidden: Hidden = a.effect.parse().map_err(|e| anyhow!("--effect: {e}"))?;
+    let effort_noise = a.noise.as_deref().map(|t| crate::io::parse_list("--noise", t)).transpose()?;
+    let ext = a.output.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
+    if ext != "mcap" {
+        bail!("-o {}: the recording is written as MCAP (.mcap)", a.output.display());
+    }
+    let o = HiddenOptions { hidden, seed: a.seed, duration: a.duration, effort_noise, position_noise: a.position_noise, enr: a.enr, ..Default::default() };
+    let h = hidden_effect(&a.model, &o)?;
+    let arm = dvrk_sim::Scene::load(&a.model)?.arms[0].name.clone();
+    crate::io::write_atomic(&a.output, &joint_log::write_mcap(&h.log, &arm)?)?;
+    crate::io::write_atomic(&a.answer, format!("{}\n", serde_json::to_string_pretty(&h.answer)?).as_bytes())?;
+    let what = h.answer.effect.as_ref().map_or("no effect".to_string(), |e| e.name.clone());
+    outln!("wrote {} ({} samples, {:.0} s) with {what} hidden; answer in {}", a.output.display(), h.log.len(), a.duration, a.answer.display());
+    Ok(())
 }
 
 fn mocap(a: &MocapArgs) -> Result<()> {

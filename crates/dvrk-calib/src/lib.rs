@@ -22,6 +22,7 @@ pub mod apply;
 pub mod axes;
 pub mod axes_config;
 pub mod axis;
+pub mod discrepancy;
 mod error;
 pub mod foxglove;
 pub mod identify;

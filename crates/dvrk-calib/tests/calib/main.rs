@@ -8,11 +8,14 @@
 //! - `identify_synthetic`: 100 seeded synthetic trials inside their 95% intervals; excitation warnings.
 //! - `formats`: MCAP (ROS 2 and Foxglove layouts), plain and raw-marker CSV round trips.
 //! - `python_mcap`: MCAP files written by the Python `mcap` / `mcap-ros2-support` packages.
+//! - `discrepancy`: hidden-effect recordings: the effect named with its parameters, `none` on
+//!   effect-free ones, bad recordings refused; the detection-rate table (`--ignored`).
 //! - `sim_recording`: an MCAP recorded by dvrk-sim (`dvrk sim --out`), read with this crate's reader.
 
 mod util;
 
 mod bad_input;
+mod discrepancy;
 mod formats;
 mod identify;
 mod identify_synthetic;

@@ -1,0 +1,29 @@
+//! One hidden-effect trial, printed: `cargo run --release -p dvrk-calib --example hidden_probe -- KIND SEED [ENR]`.
+use dvrk_calib::discrepancy::*;
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let hidden: Hidden = args.get(1).map(|s| s.parse().unwrap()).unwrap_or(Hidden::None);
+    let seed: u64 = args.get(2).map(|s| s.parse().unwrap()).unwrap_or(3);
+    let enr: Option<f64> = args.get(3).map(|s| s.parse().unwrap());
+    let t0 = std::time::Instant::now();
+    let o = HiddenOptions { hidden, seed, enr, ..Default::default() };
+    let h = hidden_effect("psm", &o).unwrap();
+    println!("generate {:.2} s; answer {}", t0.elapsed().as_secs_f64(), serde_json::to_string(&h.answer).unwrap());
+    let t1 = std::time::Instant::now();
+    let scene = dvrk_sim::Scene::load("psm").unwrap();
+    let model = dvrk_kin::load("psm", None).unwrap();
+    let out = discrepancy(&model, &scene, "PSM1", &h.log, &Options { tracking: args.get(4).is_some(), ..Default::default() }).unwrap();
+    let r = &out.report;
+    println!("analyse {:.2} s: verdict {} {:?}", t1.elapsed().as_secs_f64(), r.verdict, r.experiment);
+    for e in &r.effects {
+        println!("  named {} {:?} {:?} ci {:?} dBIC {:.1} p {:.2e}", e.name, e.joint, e.parameters, e.ci95, e.delta_bic, e.p_value);
+    }
+    for c in r.candidates.iter().take(5) {
+        println!("  cand {:40} dBIC {:10.1} p {:.1e} hold p {:.1e} size {:.2} {:?}", c.label, c.delta_bic, c.p_value, c.heldout_p_value, c.effect_to_noise, c.parameters);
+    }
+    println!("  rms {:.3} -> {:.3}; held out {:.3} -> {:.3}", r.rms_before, r.rms_after, r.rms_heldout_before, r.rms_heldout_after);
+    for j in &r.joints {
+        println!("  {:18} noise {:.2e} band {:.2e} -> {:.2e} floor {:.2e}", j.joint, j.noise, j.band_rms_heldout_before, j.band_rms_heldout_after, j.band_floor);
+    }
+    if let Some(t) = &r.tracking { println!("  tracking {:?} -> {:?}", t.rms_before, t.rms_after); }
+}

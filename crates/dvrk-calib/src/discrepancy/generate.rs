@@ -1,0 +1,342 @@
+//! `dvrk synth hidden-effect`: a recording from a "truth" arm that has one physical effect the
+//! nominal model lacks (or none), and a separate answer. The truth avoids the inverse crime where
+//! it is cheap: it is integrated at a finer step (0.25 ms against the analysis' 1 ms samples),
+//! the bodies' rotational inertias are perturbed by a few percent, the effects are dvrk-sim's
+//! physics (a two-mass drive with play, a delayed measurement stream) while the workflow's
+//! candidates are dvrk-kin's inverse dynamics with linearised signatures, and noise is added to
+//! the recorded positions and efforts.
+
+use super::excitation::MultiSine;
+use super::joint_log::JointLog;
+use crate::error::{CalibError, Result};
+use dvrk_kin::effects::EffectKind;
+use dvrk_kin::spec::FrameRef;
+use dvrk_kin::Model;
+use dvrk_kin::effects::EffectSpec;
+use dvrk_sim::{Scene, Sim, SimOptions};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, Normal};
+use serde::Serialize;
+use std::collections::BTreeMap;
+
+/// The effects the generator can hide (those dvrk-sim simulates on a joint or link, and latency).
+pub const HIDDEN_KINDS: [EffectKind; 8] = [
+    EffectKind::CoulombFriction,
+    EffectKind::ViscousFriction,
+    EffectKind::Spring,
+    EffectKind::JointCompliance,
+    EffectKind::Backlash,
+    EffectKind::Latency,
+    EffectKind::JointOffset,
+    EffectKind::PayloadMass,
+];
+
+/// Which effect to hide.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Hidden {
+    None,
+    Kind(EffectKind),
+    /// One of [`HIDDEN_KINDS`], drawn from the seed.
+    Random,
+}
+
+impl std::str::FromStr for Hidden {
+    type Err = String;
+    fn from_str(s: &str) -> std::result::Result<Hidden, String> {
+        match s {
+            "none" => Ok(Hidden::None),
+            "random" => Ok(Hidden::Random),
+            _ => match EffectKind::from_name(s) {
+                Some(k) if HIDDEN_KINDS.contains(&k) => Ok(Hidden::Kind(k)),
+                _ => Err(format!("`{s}` is not an effect the generator hides (valid: none, random, {})", HIDDEN_KINDS.map(|k| k.name()).join(", "))),
+            },
+        }
+    }
+}
+
+/// Default effort noise per joint (N·m; N for the insertion): about 1% of each joint's RMS effort
+/// in the exciting motion (measured: 0.92, 1.54, 0.32 N, 0.16, 0.15, 0.14 N·m), the order of the
+/// dVRK's current-sense noise.
+pub const EFFORT_NOISE: [f64; 7] = [0.01, 0.015, 0.005, 0.0015, 0.0015, 0.0015, 0.0015];
+/// Default encoder noise (rad, m).
+pub const POSITION_NOISE: f64 = 2e-6;
+
+/// How to generate.
+#[derive(Debug, Clone)]
+pub struct HiddenOptions {
+    pub hidden: Hidden,
+    pub seed: u64,
+    /// Recorded time (s).
+    pub duration: f64,
+    /// The truth's integration step (s).
+    pub truth_dt: f64,
+    /// Recording rate (Hz).
+    pub rate: f64,
+    /// Effort noise per joint (N·m, N); [`EFFORT_NOISE`] when `None`.
+    pub effort_noise: Option<Vec<f64>>,
+    /// Encoder noise (rad, m).
+    pub position_noise: f64,
+    /// Scale the effort noise of the effect's joint so that the effect's RMS over it is this
+    /// (the effect-to-noise ratio); `None`: keep the noise.
+    pub enr: Option<f64>,
+    /// Relative standard deviation of the truth's rotational inertias (mass and centre kept).
+    pub inertia_perturbation: f64,
+    /// Scale of the drawn effect's parameters (1: the realistic range).
+    pub magnitude: f64,
+}
+
+impl Default for HiddenOptions {
+    fn default() -> Self {
+        HiddenOptions { hidden: Hidden::Random, seed: 1, duration: 30.0, truth_dt: 2.5e-4, rate: 1000.0, effort_noise: None, position_noise: POSITION_NOISE, enr: None, inertia_perturbation: 0.03, magnitude: 1.0 }
+    }
+}
+
+/// What was hidden, for the test to compare with (never read by the workflow).
+#[derive(Debug, Clone, Serialize)]
+pub struct Answer {
+    pub seed: u64,
+    pub scene: String,
+    /// The hidden effect as a model file writes it (`None`: effect-free).
+    pub effect: Option<EffectSpec>,
+    /// Joint index of a joint effect; the joint most affected for the others.
+    pub joint_index: Option<usize>,
+    /// RMS of what the effect adds to the recorded effort of `joint_index` (N·m, N).
+    pub effect_rms: Option<f64>,
+    /// `effect_rms` over that joint's effort noise.
+    pub enr: Option<f64>,
+    /// Effort noise per joint (N·m, N) and encoder noise (rad, m).
+    pub effort_noise: Vec<f64>,
+    pub position_noise: f64,
+    pub truth_dt: f64,
+    pub inertia_perturbation: f64,
+}
+
+/// A hidden-effect recording.
+#[derive(Debug, Clone)]
+pub struct HiddenRecording {
+    pub log: JointLog,
+    pub answer: Answer,
+}
+
+/// The joints (positions in the arm) on which `kind` is drawn: where the encoder-and-effort
+/// channels can see it (an offset only where gravity loads the joint; compliance and play on the
+/// loaded outer drives).
+fn joints_for(kind: EffectKind) -> &'static [usize] {
+    match kind {
+        EffectKind::JointOffset => &[1],
+        EffectKind::JointCompliance => &[1],
+        EffectKind::Backlash => &[0, 1],
+        _ => &[0, 1, 2, 3, 4, 5],
+    }
+}
+
+/// Draw `kind` with realistic magnitudes (times `scale`).
+fn draw(kind: EffectKind, model: &Model, rng: &mut ChaCha8Rng, scale: f64) -> EffectSpec {
+    let js = joints_for(kind);
+    let j = js[rng.random_range(0..js.len())];
+    let prismatic = model.joints[j].kind == dvrk_kin::JointType::Prismatic;
+    let wrist = j >= 3;
+    // Per joint class: outer revolute, insertion (N, N s/m, N/m), wrist.
+    let pick = |rng: &mut ChaCha8Rng, outer: (f64, f64), ins: (f64, f64), wr: (f64, f64)| {
+        let (lo, hi) = if prismatic { ins } else if wrist { wr } else { outer };
+        scale * rng.random_range(lo..hi)
+    };
+    let mut p = BTreeMap::new();
+    let (joint, link) = match kind {
+        EffectKind::CoulombFriction => {
+            p.insert("fc".into(), pick(rng, (0.03, 0.1), (0.2, 0.6), (0.003, 0.01)));
+            (Some(j), None)
+        }
+        EffectKind::ViscousFriction => {
+            p.insert("fv".into(), pick(rng, (0.05, 0.2), (1.0, 4.0), (0.004, 0.015)));
+            (Some(j), None)
+        }
+        EffectKind::Spring => {
+            p.insert("k".into(), pick(rng, (0.1, 0.4), (10.0, 40.0), (0.01, 0.03)));
+            p.insert("rest".into(), if prismatic { rng.random_range(0.08..0.16) } else { rng.random_range(-0.3..0.3) });
+            (Some(j), None)
+        }
+        EffectKind::JointCompliance => {
+            p.insert("stiffness".into(), rng.random_range(40.0..120.0) / scale);
+            (Some(j), None)
+        }
+        EffectKind::Backlash => {
+            p.insert("b".into(), scale * rng.random_range(0.004..0.012));
+            (Some(j), None)
+        }
+        EffectKind::JointOffset => {
+            let s: f64 = if rng.random::<bool>() { 1.0 } else { -1.0 };
+            p.insert("offset".into(), s * scale * rng.random_range(0.01..0.04));
+            (Some(j), None)
+        }
+        EffectKind::Latency => {
+            // Whole milliseconds: the sim delays by whole steps.
+            p.insert("seconds".into(), (scale * rng.random_range(3.0..12.0_f64)).round().max(1.0) * 1e-3);
+            (None, None)
+        }
+        EffectKind::PayloadMass => {
+            p.insert("mass".into(), scale * rng.random_range(0.05..0.2));
+            p.insert("z".into(), rng.random_range(0.0..0.03));
+            (None, Some(FrameRef::Name(payload_frame(model).to_string())))
+        }
+        _ => unreachable!("not a hidden kind"),
+    };
+    EffectSpec { name: kind.name().into(), joint: joint.map(|j| model.joints[j].name.clone()), link, parameters: p, source: "dvrk synth hidden-effect".into() }
+}
+
+/// The frame a payload is hidden on: the instrument's wrist (what a grasped object loads).
+pub fn payload_frame(model: &Model) -> &'static str {
+    if model.frames.iter().any(|f| f.name == "tool_yaw") {
+        "tool_yaw"
+    } else {
+        "tool_tip"
+    }
+}
+
+/// `model` with `effect` added to its `[[effects]]`, on the same base (a scene's mount included;
+/// reset `base` to the arm's `original_base` before [`Scene::set_model`]).
+pub fn with_effect(model: &Model, effect: &EffectSpec) -> Result<Model> {
+    let mut spec = model.spec.clone();
+    spec.effects.push(effect.clone());
+    let mut m = Model::compile(spec)?;
+    m.base = model.base;
+    m.origin = model.origin.clone();
+    m.tool_file = model.tool_file.clone();
+    Ok(m)
+}
+
+fn sim_error(e: dvrk_sim::SimError) -> CalibError {
+    CalibError::data("simulation", e.to_string())
+}
+
+/// Simulate `scene` (arm 0) tracking `excitation` for `duration`, sampling setpoints, encoder
+/// positions and efforts at `rate`.
+pub fn simulate(scene: &Scene, excitation: &MultiSine, duration: f64, rate: f64) -> Result<JointLog> {
+    let mut scene = scene.clone();
+    let nq = scene.arms[0].model.nq();
+    let (mut q, mut qd) = (vec![0.0; nq], vec![0.0; nq]);
+    excitation.sample(0.0, &mut q, &mut qd);
+    scene.set_start(0, &q).map_err(sim_error)?;
+    let mut sim = Sim::new(&scene, &SimOptions::default()).map_err(sim_error)?;
+    let dt = sim.dt;
+    let stride = ((1.0 / (rate * dt)).round() as usize).max(1);
+    let steps = (duration / dt).round() as usize;
+    let names = scene.arms[0].model.joints.iter().map(|j| j.name.clone()).collect();
+    let mut log = JointLog { names, ..Default::default() };
+    for s in 1..=steps {
+        let t = s as f64 * dt;
+        excitation.sample(t, &mut q, &mut qd);
+        for i in 0..nq {
+            sim.set_target(i, q[i], qd[i]).map_err(sim_error)?;
+        }
+        sim.step();
+        if s % stride == 0 {
+            log.t.push(t);
+            log.setpoint.push(q.clone());
+            log.position.push(sim.q()[..nq].to_vec());
+            log.effort.push((0..nq).map(|i| sim.effort(i).unwrap_or(f64::NAN)).collect());
+        }
+    }
+    if log.position.iter().flatten().chain(log.effort.iter().flatten()).any(|x| !x.is_finite()) {
+        return Err(CalibError::data("simulation", "the truth went non-finite (an effect too strong for the step?)"));
+    }
+    Ok(log)
+}
+
+/// Generate a hidden-effect recording of scene `scene_name` (its first arm).
+pub fn hidden_effect(scene_name: &str, o: &HiddenOptions) -> Result<HiddenRecording> {
+    if !(o.duration.is_finite() && o.duration >= 5.0) {
+        return Err(CalibError::field("duration", format!("{} s: at least 5 s", o.duration)));
+    }
+    if !(o.truth_dt.is_finite() && o.truth_dt > 0.0 && o.truth_dt <= 1e-3) {
+        return Err(CalibError::field("truth dt", format!("{} s: must be in (0, 0.001]", o.truth_dt)));
+    }
+    if !(o.rate.is_finite() && o.rate > 0.0 && o.rate * o.truth_dt <= 1.0 + 1e-9) {
+        return Err(CalibError::field("rate", format!("{} Hz: must be positive and at most 1 / truth dt", o.rate)));
+    }
+    if let Some(e) = o.enr {
+        if !(e.is_finite() && e > 0.0) {
+            return Err(CalibError::field("enr", format!("{e}: must be a positive number")));
+        }
+    }
+    if !(o.position_noise.is_finite() && o.position_noise >= 0.0) {
+        return Err(CalibError::field("position noise", format!("{}: must be >= 0", o.position_noise)));
+    }
+    let mut scene = Scene::load(scene_name).map_err(sim_error)?;
+    scene.dt = o.truth_dt;
+    let nominal = scene.arms[0].model.clone();
+    let nq = nominal.nq();
+    let mut effort_noise = o.effort_noise.clone().unwrap_or_else(|| EFFORT_NOISE.iter().copied().cycle().take(nq).collect());
+    if effort_noise.len() != nq || effort_noise.iter().any(|x| !(x.is_finite() && *x >= 0.0)) {
+        return Err(CalibError::field("effort noise", format!("{effort_noise:?}: one finite value >= 0 per joint ({nq})")));
+    }
+    let mut rng = ChaCha8Rng::seed_from_u64(o.seed);
+    // The truth's inertias: rotational inertia scaled per body (a few percent), mass and centre kept.
+    let perturb = Normal::new(0.0, o.inertia_perturbation.max(0.0)).map_err(|e| CalibError::field("inertia perturbation", e.to_string()))?;
+    for b in &mut scene.arms[0].inertials.bodies {
+        let s = (1.0 + perturb.sample(&mut rng)).clamp(0.8, 1.2);
+        for row in &mut b.inertia {
+            for x in row.iter_mut() {
+                *x *= s;
+            }
+        }
+    }
+    let kind = match o.hidden {
+        Hidden::None => None,
+        Hidden::Kind(k) => Some(k),
+        Hidden::Random => Some(HIDDEN_KINDS[rng.random_range(0..HIDDEN_KINDS.len())]),
+    };
+    let effect = kind.map(|k| draw(k, &nominal, &mut rng, o.magnitude));
+    let excitation = MultiSine::new(&nominal, o.seed);
+    let clean = simulate(&scene, &excitation, o.duration, o.rate)?;
+    let (log, joint_index, effect_rms) = match &effect {
+        None => (clean, None, None),
+        Some(e) => {
+            let mut truth = scene.clone();
+            let mut m = with_effect(&nominal, e)?;
+            m.base = scene.arms[0].original_base;
+            truth.set_model(0, m).map_err(sim_error)?;
+            let log = simulate(&truth, &excitation, o.duration, o.rate)?;
+            // What the effect adds to each joint's effort, past the fade-in.
+            let skip = log.t.iter().position(|t| *t >= 2.0).unwrap_or(0);
+            let rms: Vec<f64> = (0..nq)
+                .map(|k| {
+                    let n = (log.len() - skip) as f64;
+                    (log.effort[skip..].iter().zip(&clean.effort[skip..]).map(|(a, b)| (a[k] - b[k]).powi(2)).sum::<f64>() / n).sqrt()
+                })
+                .collect();
+            let j = match e.joint.as_deref() {
+                Some(name) => nominal.joint_id(name)?,
+                // Largest relative to the joint's noise.
+                None => (0..nq.min(6)).max_by(|a, b| (rms[*a] / effort_noise[*a]).total_cmp(&(rms[*b] / effort_noise[*b]))).unwrap_or(0),
+            };
+            (log, Some(j), Some(rms[j]))
+        }
+    };
+    if let (Some(target), Some(j), Some(r)) = (o.enr, joint_index, effect_rms) {
+        effort_noise[j] = r / target;
+    }
+    let enr = joint_index.zip(effect_rms).map(|(j, r)| if effort_noise[j] > 0.0 { r / effort_noise[j] } else { f64::INFINITY });
+    let mut log = log;
+    let unit = Normal::new(0.0, 1.0).expect("unit normal");
+    for i in 0..log.len() {
+        for k in 0..nq {
+            log.position[i][k] += o.position_noise * unit.sample(&mut rng);
+            log.effort[i][k] += effort_noise[k] * unit.sample(&mut rng);
+        }
+    }
+    let answer = Answer {
+        seed: o.seed,
+        scene: scene_name.to_string(),
+        effect,
+        joint_index,
+        effect_rms,
+        enr,
+        effort_noise,
+        position_noise: o.position_noise,
+        truth_dt: o.truth_dt,
+        inertia_perturbation: o.inertia_perturbation,
+    };
+    Ok(HiddenRecording { log, answer })
+}

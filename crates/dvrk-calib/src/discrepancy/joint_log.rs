@@ -1,0 +1,153 @@
+//! A joint log with efforts: what the discrepancy workflow reads from a recording (the arm's
+//! `setpoint_js` and `measured_js`, positions and efforts), and what `dvrk synth hidden-effect`
+//! writes. The MCAP reader of [`crate::mcap_io`] keeps positions only; this one keeps efforts.
+
+use crate::error::{CalibError, Result};
+use crate::ros_msgs::{self, Header, JointState};
+use std::collections::BTreeMap;
+use std::io::Cursor;
+use std::path::Path;
+
+/// Setpoints and measurements of one arm, on one clock.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct JointLog {
+    /// Joint names (the arm's, in its order).
+    pub names: Vec<String>,
+    /// Sample times (s), strictly increasing.
+    pub t: Vec<f64>,
+    /// Commanded positions per sample (rad, m).
+    pub setpoint: Vec<Vec<f64>>,
+    /// Measured positions (encoders) per sample (rad, m).
+    pub position: Vec<Vec<f64>>,
+    /// Measured efforts per sample (N·m, N).
+    pub effort: Vec<Vec<f64>>,
+}
+
+impl JointLog {
+    /// Samples.
+    pub fn len(&self) -> usize {
+        self.t.len()
+    }
+
+    /// True when there is no sample.
+    pub fn is_empty(&self) -> bool {
+        self.t.is_empty()
+    }
+
+    /// Mean sample period (s).
+    pub fn period(&self) -> f64 {
+        if self.t.len() < 2 {
+            return 0.0;
+        }
+        (self.t[self.t.len() - 1] - self.t[0]) / (self.t.len() - 1) as f64
+    }
+}
+
+/// Write `log` as MCAP: `/<arm>/setpoint_js` (position) and `/<arm>/measured_js` (position,
+/// effort), sensor_msgs/msg/JointState in CDR.
+pub fn write_mcap(log: &JointLog, arm: &str) -> Result<Vec<u8>> {
+    let io = |e: mcap::McapError| CalibError::data("MCAP writer", e.to_string());
+    let mut w = mcap::Writer::with_options(Cursor::new(Vec::new()), mcap::WriteOptions::new().profile("ros2")).map_err(io)?;
+    let meta = BTreeMap::new();
+    let (n, s) = ros_msgs::joint_state_schema();
+    let sid = w.add_schema(n, "ros2msg", s.as_bytes()).map_err(io)?;
+    let sp = w.add_channel(sid, &format!("/{arm}/setpoint_js"), "cdr", &meta).map_err(io)?;
+    let me = w.add_channel(sid, &format!("/{arm}/measured_js"), "cdr", &meta).map_err(io)?;
+    for (i, t) in log.t.iter().enumerate() {
+        let ns = (t.max(0.0) * 1e9).round() as u64;
+        let seq = i as u32 + 1;
+        let set = JointState { header: Header::at(*t, ""), name: log.names.clone(), position: log.setpoint[i].clone(), ..Default::default() };
+        let meas = JointState { header: Header::at(*t, ""), name: log.names.clone(), position: log.position[i].clone(), effort: log.effort[i].clone(), ..Default::default() };
+        for (ch, js) in [(sp, set), (me, meas)] {
+            w.write_to_known_channel(&mcap::records::MessageHeader { channel_id: ch, sequence: seq, log_time: ns, publish_time: ns }, &js.encode()).map_err(io)?;
+        }
+    }
+    w.finish().map_err(io)?;
+    Ok(w.into_inner().into_inner())
+}
+
+/// One JointState topic: times, names, positions, efforts.
+#[derive(Default)]
+struct Topic {
+    names: Vec<String>,
+    t: Vec<f64>,
+    position: Vec<Vec<f64>>,
+    effort: Vec<Vec<f64>>,
+}
+
+/// Read `/<arm>/setpoint_js` and `/<arm>/measured_js` (with efforts) from an MCAP file. The
+/// setpoints are matched to the measurements by time (the latest setpoint at or before each
+/// measurement). Errors name the file, the topic and the message.
+pub fn read_mcap(path: &Path, arm: &str) -> Result<JointLog> {
+    let bytes = std::fs::read(path).map_err(|e| CalibError::file(path, format!("cannot read: {e}")))?;
+    let stream = mcap::MessageStream::new(&bytes).map_err(|e| CalibError::file(path, format!("not an MCAP file: {e}")))?;
+    let (set_topic, meas_topic) = (format!("/{arm}/setpoint_js"), format!("/{arm}/measured_js"));
+    let mut topics: BTreeMap<String, Topic> = BTreeMap::new();
+    let mut seen: Vec<String> = Vec::new();
+    for (count, m) in stream.enumerate() {
+        let m = m.map_err(|e| match e {
+            mcap::McapError::BadMagic if count == 0 => CalibError::file(path, "not an MCAP file (it does not start with the MCAP magic bytes)"),
+            e => CalibError::file(path, format!("damaged after {count} message(s): {e}")),
+        })?;
+        let topic = &m.channel.topic;
+        if !seen.contains(topic) {
+            seen.push(topic.clone());
+        }
+        if topic != &set_topic && topic != &meas_topic {
+            continue;
+        }
+        let schema = m.channel.schema.as_ref().map_or("", |s| s.name.as_str());
+        if schema != "sensor_msgs/msg/JointState" || m.channel.message_encoding != "cdr" {
+            return Err(CalibError::file(path, format!("topic {topic} carries {schema} ({}); expected sensor_msgs/msg/JointState (cdr)", m.channel.message_encoding)));
+        }
+        let js = JointState::decode(&m.data).map_err(|e| CalibError::file(path, format!("message {} on {topic}: {e}", count + 1)))?;
+        let tp = topics.entry(topic.clone()).or_default();
+        if tp.names.is_empty() {
+            tp.names = js.name.clone();
+        }
+        if js.name != tp.names || js.position.len() != tp.names.len() {
+            return Err(CalibError::file(path, format!("message {} on {topic}: joints {:?} ({} positions), earlier messages had {:?}", count + 1, js.name, js.position.len(), tp.names)));
+        }
+        let t = if js.header.time() > 0.0 { js.header.time() } else { m.log_time as f64 * 1e-9 };
+        tp.t.push(t);
+        tp.position.push(js.position);
+        tp.effort.push(js.effort);
+    }
+    let Some(meas) = topics.remove(&meas_topic) else {
+        return Err(CalibError::file(path, format!("no topic {meas_topic}; topics: {}", seen.join(", "))));
+    };
+    let Some(set) = topics.remove(&set_topic) else {
+        return Err(CalibError::file(path, format!("no topic {set_topic}; topics: {}", seen.join(", "))));
+    };
+    if set.names != meas.names {
+        return Err(CalibError::file(path, format!("{set_topic} joints {:?} differ from {meas_topic} joints {:?}", set.names, meas.names)));
+    }
+    let nq = meas.names.len();
+    let mut log = JointLog { names: meas.names, ..Default::default() };
+    let mut j = 0;
+    for (i, t) in meas.t.iter().enumerate() {
+        if meas.effort[i].len() != nq {
+            return Err(CalibError::file(path, format!("{meas_topic} message {}: {} efforts for {nq} joints (the discrepancy workflow needs measured efforts)", i + 1, meas.effort[i].len())));
+        }
+        if let Some(k) = meas.position[i].iter().chain(&meas.effort[i]).position(|x| !x.is_finite()) {
+            return Err(CalibError::file(path, format!("{meas_topic} message {} (t = {t} s): value {k} is not finite", i + 1)));
+        }
+        if i > 0 && *t <= meas.t[i - 1] {
+            return Err(CalibError::file(path, format!("{meas_topic} message {}: time {t} s does not increase", i + 1)));
+        }
+        while j + 1 < set.t.len() && set.t[j + 1] <= *t + 1e-9 {
+            j += 1;
+        }
+        if set.t.first().is_none_or(|t0| *t0 > *t + 1e-9) {
+            continue;
+        }
+        log.t.push(*t);
+        log.setpoint.push(set.position[j].clone());
+        log.position.push(meas.position[i].clone());
+        log.effort.push(meas.effort[i].clone());
+    }
+    if log.len() < 100 {
+        return Err(CalibError::file(path, format!("{} usable samples on {meas_topic} (need at least 100)", log.len())));
+    }
+    Ok(log)
+}

@@ -1,0 +1,30 @@
+//! The discrepancy workflow (issue 8): find where a model and a recording disagree, name the
+//! physical effect the model lacks, with evidence, and close the gap.
+//!
+//! - [`generate`]: recordings with a hidden effect and their answers (`dvrk synth hidden-effect`),
+//!   on an exciting multi-sine ([`excitation`]);
+//! - [`joint_log`]: setpoints, encoder positions and efforts read from (written to) a recording;
+//! - [`signals`]: filtering, the noise floor and the nominal model's effort;
+//! - [`candidates`]: each candidate effect's signature from the model itself;
+//! - [`stats`]: bounded fits, effective sample size, chi-square tails;
+//! - [`workflow`]: fit, score, hold out, verdict ([`discrepancy`]); [`report`] its JSON;
+//! - [`tracking`]: the setpoints replayed through the simulator, before and after.
+//!
+//! Channels: torque (measured effort against inverse dynamics at the measured motion) carries
+//! the evidence; tracking is replayed for the before/after gap. The kinematic channel (a tracker
+//! on the link) is not implemented yet.
+
+pub mod candidates;
+pub mod excitation;
+pub mod generate;
+pub mod joint_log;
+pub mod report;
+pub mod signals;
+pub mod stats;
+pub mod tracking;
+pub mod workflow;
+
+pub use generate::{hidden_effect, Answer, Hidden, HiddenOptions, HiddenRecording};
+pub use joint_log::JointLog;
+pub use report::Report;
+pub use workflow::{discrepancy, Options, Outcome};

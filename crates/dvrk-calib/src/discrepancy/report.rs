@@ -1,0 +1,87 @@
+//! The report of `dvrk discrepancy` (issue 8's JSON contract, plus per-joint detail).
+
+use serde::Serialize;
+use std::collections::BTreeMap;
+
+/// A named effect with its evidence.
+#[derive(Debug, Clone, Serialize)]
+pub struct EffectReport {
+    /// From the effects vocabulary.
+    pub name: String,
+    pub joint: Option<String>,
+    pub link: Option<String>,
+    /// Model-file parameters (units of the vocabulary).
+    pub parameters: BTreeMap<String, f64>,
+    /// 95% intervals of the fitted parameters.
+    pub ci95: BTreeMap<String, [f64; 2]>,
+    pub delta_bic: f64,
+    pub p_value: f64,
+}
+
+/// One ranked candidate.
+#[derive(Debug, Clone, Serialize)]
+pub struct CandidateReport {
+    pub label: String,
+    pub name: String,
+    pub joint: Option<String>,
+    pub link: Option<String>,
+    pub parameters: BTreeMap<String, f64>,
+    pub ci95: BTreeMap<String, [f64; 2]>,
+    pub delta_bic: f64,
+    pub p_value: f64,
+    /// The fitted effect's likelihood-ratio test on the held-out part.
+    pub heldout_p_value: f64,
+    /// RMS of the fitted effect on its joint over that joint's effort noise.
+    pub effect_to_noise: f64,
+    /// Strong evidence, confirmed on held-out data, and large enough to matter.
+    pub supported: bool,
+}
+
+/// Per joint, in its own units: the raw effort noise, the analysis band's noise floor and the
+/// band-limited residual before and after.
+#[derive(Debug, Clone, Serialize)]
+pub struct JointRms {
+    pub joint: String,
+    pub unit: &'static str,
+    pub noise: f64,
+    pub band_floor: f64,
+    pub band_rms_before: f64,
+    pub band_rms_after: f64,
+    pub band_rms_heldout_before: f64,
+    pub band_rms_heldout_after: f64,
+}
+
+/// The tracking channel: the recording's setpoints replayed through the simulator, encoder
+/// positions compared (rad, m) per joint, with the nominal model and with the named effect.
+#[derive(Debug, Clone, Serialize)]
+pub struct TrackingReport {
+    pub joints: Vec<String>,
+    pub rms_before: Vec<f64>,
+    pub rms_after: Option<Vec<f64>>,
+}
+
+/// The whole report.
+#[derive(Debug, Clone, Serialize)]
+pub struct Report {
+    /// `named`, `none` or `ambiguous`.
+    pub verdict: String,
+    /// The channel the evidence comes from.
+    pub channel: String,
+    pub effects: Vec<EffectReport>,
+    /// Ranked by change in BIC, best first.
+    pub candidates: Vec<CandidateReport>,
+    /// For `ambiguous`: the experiment that separates the two best.
+    pub experiment: Option<String>,
+    pub rms_before: f64,
+    pub rms_after: f64,
+    pub rms_heldout_before: f64,
+    pub rms_heldout_after: f64,
+    pub noise_floor: f64,
+    pub rms_units: String,
+    pub joints: Vec<JointRms>,
+    pub tracking: Option<TrackingReport>,
+    /// Analysed samples and the start of the held-out part (s).
+    pub samples: usize,
+    pub heldout_from: f64,
+    pub notes: Vec<String>,
+}

@@ -1,0 +1,186 @@
+//! From a joint log to the torque channel's inputs: positions low-passed without lag and
+//! differentiated twice, efforts low-passed the same way (so measurement and prediction share one
+//! bandwidth), both decimated; each joint's effort noise estimated from the raw samples and
+//! carried through the same filter to the noise floor of the residual.
+
+use super::joint_log::JointLog;
+use crate::error::{CalibError, Result};
+use crate::identify::filter::{derivative, Butterworth2};
+use dvrk_kin::{DynamicsData, DynamicsModel, Model};
+use nalgebra::{DMatrix, Vector3};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, Normal};
+
+/// How the log is processed.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Processing {
+    /// Low-pass cut-off (Hz): above the excitation (<= 1.3 Hz) and the arm's tracking dynamics,
+    /// below where differentiated encoder noise matters.
+    pub cutoff: f64,
+    /// Rate of the analysed samples (Hz).
+    pub rate: f64,
+    /// Time dropped at the start (the fade-in, filter edge) and end (filter edge), s.
+    pub skip_start: f64,
+    pub skip_end: f64,
+    /// Fraction of the analysed time, at its end, held out of every fit.
+    pub heldout: f64,
+}
+
+impl Default for Processing {
+    fn default() -> Self {
+        Processing { cutoff: 10.0, rate: 100.0, skip_start: 2.0, skip_end: 0.5, heldout: 0.3 }
+    }
+}
+
+/// The analysed samples, `[sample][joint]`.
+#[derive(Debug, Clone)]
+pub struct Prepared {
+    /// s
+    pub t: Vec<f64>,
+    /// rad, m; /s; /s^2 (encoder, i.e. motor side)
+    pub q: Vec<Vec<f64>>,
+    pub qd: Vec<Vec<f64>>,
+    pub qdd: Vec<Vec<f64>>,
+    /// Filtered measured effort (N·m, N).
+    pub effort: Vec<Vec<f64>>,
+    /// The raw measured effort at the same samples (N·m, N), for RMS against the noise.
+    pub raw_effort: Vec<Vec<f64>>,
+    /// Raw effort noise per joint (N·m, N): second differences of the raw samples.
+    pub noise: Vec<f64>,
+    /// Noise of the filtered, decimated effort per joint (N·m, N): the residual's noise floor.
+    pub floor: Vec<f64>,
+    /// Joints that move (the setpoint spans more than 1 mrad or 1 mm): the analysed ones.
+    pub active: Vec<usize>,
+    /// First held-out sample.
+    pub split: usize,
+    /// Sample period (s).
+    pub dt: f64,
+}
+
+/// Column `k` of a `[sample][joint]` table.
+fn column(rows: &[Vec<f64>], k: usize) -> Vec<f64> {
+    rows.iter().map(|r| r[k]).collect()
+}
+
+/// Filter, differentiate and decimate `log` (which must be evenly sampled).
+pub fn prepare(log: &JointLog, p: &Processing) -> Result<Prepared> {
+    let n = log.len();
+    let dt = log.period();
+    if !(dt > 0.0) {
+        return Err(CalibError::data("recording", "fewer than two samples"));
+    }
+    let rate = 1.0 / dt;
+    if let Some(i) = log.t.windows(2).position(|w| ((w[1] - w[0]) - dt).abs() > 0.5 * dt) {
+        return Err(CalibError::data("recording", format!("uneven sampling: samples {i} and {} are {} s apart, the mean period is {dt} s", i + 1, log.t[i + 1] - log.t[i])));
+    }
+    if p.cutoff >= 0.45 * rate || p.rate > rate + 1e-9 {
+        return Err(CalibError::data("recording", format!("sampled at {rate:.1} Hz: too slow for a {} Hz analysis ({} Hz low-pass)", p.rate, p.cutoff)));
+    }
+    let span = log.t[n - 1] - log.t[0];
+    if span < p.skip_start + p.skip_end + 5.0 {
+        return Err(CalibError::data("recording", format!("{span:.1} s long: the analysis needs at least {} s", p.skip_start + p.skip_end + 5.0)));
+    }
+    let nq = log.names.len();
+    let f = Butterworth2::new(p.cutoff, rate);
+    let pad = (rate / p.cutoff * 3.0) as usize;
+    let stride = ((rate / p.rate).round() as usize).max(1);
+    let first = log.t.iter().position(|t| *t - log.t[0] >= p.skip_start).unwrap_or(0);
+    let last = log.t.iter().rposition(|t| log.t[n - 1] - *t >= p.skip_end).unwrap_or(n - 1);
+    let keep: Vec<usize> = (first..=last).step_by(stride).collect();
+    let mut q = vec![vec![0.0; nq]; keep.len()];
+    let (mut qd, mut qdd, mut effort, mut raw_effort) = (q.clone(), q.clone(), q.clone(), q.clone());
+    let mut noise = vec![0.0; nq];
+    for k in 0..nq {
+        let qf = f.filtfilt(&column(&log.position, k), pad);
+        let v = derivative(&qf, dt);
+        let a = derivative(&v, dt);
+        let raw = column(&log.effort, k);
+        let ef = f.filtfilt(&raw, pad);
+        for (i, &s) in keep.iter().enumerate() {
+            q[i][k] = qf[s];
+            qd[i][k] = v[s];
+            qdd[i][k] = a[s];
+            effort[i][k] = ef[s];
+            raw_effort[i][k] = raw[s];
+        }
+        // White noise dominates the second difference at the raw rate (the efforts' own motion
+        // changes by ~1e-5 of their size between 1 kHz samples): var(d2) = 6 sigma^2.
+        let d2: f64 = raw[first..=last].windows(3).map(|w| (w[2] - 2.0 * w[1] + w[0]).powi(2)).sum();
+        noise[k] = (d2 / (6.0 * (last - first - 1) as f64)).sqrt();
+    }
+    // The filter's noise gain, measured on seeded white noise of the same length.
+    let mut rng = ChaCha8Rng::seed_from_u64(0);
+    let unit = Normal::new(0.0, 1.0).expect("unit normal");
+    let white: Vec<f64> = (0..n).map(|_| unit.sample(&mut rng)).collect();
+    let wf = f.filtfilt(&white, pad);
+    let gain = (keep.iter().map(|&s| wf[s] * wf[s]).sum::<f64>() / keep.len() as f64).sqrt();
+    let floor: Vec<f64> = noise.iter().map(|s| s * gain).collect();
+    let active: Vec<usize> = (0..nq)
+        .filter(|&k| {
+            let (lo, hi) = log.setpoint.iter().fold((f64::MAX, f64::MIN), |(a, b), s| (a.min(s[k]), b.max(s[k])));
+            hi - lo > 1e-3 && noise[k] > 0.0
+        })
+        .collect();
+    if active.is_empty() {
+        return Err(CalibError::data("recording", "no joint moves (every setpoint spans less than 1 mrad / 1 mm, or its effort has no noise to weigh it by)"));
+    }
+    let split = ((1.0 - p.heldout) * keep.len() as f64).round() as usize;
+    let t = keep.iter().map(|&s| log.t[s]).collect();
+    Ok(Prepared { t, q, qd, qdd, effort, raw_effort, noise, floor, active, split, dt: stride as f64 * dt })
+}
+
+/// The nominal effort of an arm (N·m, N): dvrk-kin's inverse dynamics with the model's effects,
+/// plus what the simulated drive adds (the armature: reflected motor inertia, and the joint
+/// damping of every tree joint, `C^T d C qd` through the frame variables).
+pub struct Predictor {
+    pub model: Model,
+    dm: DynamicsModel,
+    data: DynamicsData,
+    armature: Vec<f64>,
+    damping: DMatrix<f64>,
+    gravity: Vector3<f64>,
+    velocity_scale: f64,
+}
+
+impl Predictor {
+    /// For `model` on arm `arm` of a scene with `gravity` (m/s^2, world).
+    pub fn new(model: &Model, arm: &dvrk_sim::scene::Arm, gravity: [f64; 3]) -> Result<Predictor> {
+        let inertias = arm.inertials.body_inertias(model).map_err(|e| CalibError::data("inertials", e.to_string()))?;
+        let inertias = dvrk_kin::effects::payload_inertias(model, &model.effects, &inertias)?;
+        let dm = DynamicsModel::new(model, inertias)?;
+        let nq = model.nq();
+        let mut damping = DMatrix::zeros(nq, nq);
+        // One tree joint per body (the joint that attaches its first frame): frames inside a
+        // body move with it and carry no joint of their own.
+        for b in &model.bodies {
+            if let Some(v) = model.frames[b.frames[0]].variable() {
+                let c = nalgebra::DVector::from_column_slice(&v.coef);
+                damping += arm.damping * &c * c.transpose();
+            }
+        }
+        Ok(Predictor {
+            model: model.clone(),
+            data: DynamicsData::new(model),
+            dm,
+            armature: arm.armature.clone(),
+            damping,
+            gravity: Vector3::from(gravity),
+            velocity_scale: 2.0 * dvrk_sim::effects::COULOMB_VELOCITY,
+        })
+    }
+
+    /// The predicted effort at every sample of `prep`, `[sample][joint]`.
+    pub fn series(&mut self, prep: &Prepared) -> Result<Vec<Vec<f64>>> {
+        let nq = self.model.nq();
+        let mut out = Vec::with_capacity(prep.t.len());
+        let mut tau = vec![0.0; nq];
+        for i in 0..prep.t.len() {
+            dvrk_kin::dynamics::actuator_effort(&self.model, &self.dm, &mut self.data, &prep.q[i], &prep.qd[i], &prep.qdd[i], &self.gravity, self.velocity_scale, &mut tau)?;
+            let qd = nalgebra::DVector::from_column_slice(&prep.qd[i]);
+            let d = &self.damping * qd;
+            out.push((0..nq).map(|k| tau[k] + self.armature[k] * prep.qdd[i][k] + d[k]).collect());
+        }
+        Ok(out)
+    }
+}
