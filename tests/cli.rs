@@ -229,8 +229,11 @@ fn identify_json_and_output_file() {
     let ine = dvrk_sim::inertials::Inertials::parse(&text, "psm-identified.toml", &model).unwrap();
     assert!(ine.bodies.iter().any(|b| b.provenance.starts_with("identified from")));
     assert!(text.contains("[[effects]]") && text.contains("coulomb_friction"));
+    // A CSV given as MCAP, and an unknown format, are named.
     let e = crate::util::dvrk_err(&["identify", "--recording", one.to_str().unwrap(), "--format", "mcap"]);
-    assert!(e.contains("--format mcap"), "{e}");
+    assert!(e.contains("psm_one_results.csv: not an MCAP file"), "{e}");
+    let e = crate::util::dvrk_err(&["identify", "--recording", one.to_str().unwrap(), "--format", "bag"]);
+    assert!(e.contains("--format bag: unknown (valid: wpi-csv, mcap)"), "{e}");
 }
 
 #[test]

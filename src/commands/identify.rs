@@ -13,9 +13,13 @@ pub struct IdentifyArgs {
     #[arg(long)]
     pub recording: PathBuf,
     /// Recording format: wpi-csv (WPI-AIM dvrk_dynamics_identification: q, qd, tau of 7 joints
-    /// at 200 Hz, tool channels 5..7 in actuator space).
+    /// at 200 Hz, tool channels 5..7 in actuator space) or mcap (sensor_msgs/JointState with
+    /// efforts on /<ARM>/measured_js, as the dVRK and `dvrk sim --out` record; joint space).
     #[arg(long, default_value = "wpi-csv")]
     pub format: String,
+    /// Arm whose /<ARM>/measured_js an MCAP recording carries.
+    #[arg(long, default_value = "PSM1")]
+    pub arm: String,
     /// Model (built-in name or file); its CAD inertials are the prior.
     #[arg(long, default_value = "psm")]
     pub model: String,
@@ -40,10 +44,10 @@ pub struct IdentifyArgs {
     pub json: bool,
 }
 
-fn read(path: &Path, format: &str, model: &Model) -> Result<TorqueRecording> {
+fn read(path: &Path, format: &str, model: &Model, arm: &str) -> Result<TorqueRecording> {
     match format {
         "wpi-csv" => Ok(read_wpi_csv(path, model)?),
-        "mcap" => bail!("--format mcap: reading JointState efforts from MCAP is not built yet (wpi-csv)"),
+        "mcap" => Ok(dvrk_calib::identify::recording::read_mcap_joint_states(path, model, arm)?),
         f => bail!("--format {f}: unknown (valid: wpi-csv, mcap)"),
     }
 }
@@ -59,16 +63,18 @@ pub fn run(args: &IdentifyArgs) -> Result<()> {
     };
     let g = crate::io::parse_list("--gravity", &args.gravity)?;
     let [gx, gy, gz] = g[..] else { bail!("--gravity {}: three components x,y,z (m/s^2)", args.gravity) };
-    let mut options = IdentifyOptions::for_model(&model);
+    // The PSM settings are for the WPI channels (tool actuators); a joint-space recording takes
+    // every effect term on every joint, springs on the tool's.
+    let mut options = if args.format == "wpi-csv" { IdentifyOptions::for_model(&model) } else { IdentifyOptions::full((3.min(model.nq())..model.nq()).collect()) };
     if let Some(c) = args.cutoff {
         options.processing.cutoff = c;
         options.processing.channel_cutoff.clear();
     }
     options.processing.gravity = nalgebra::Vector3::new(gx, gy, gz);
-    let rec = read(&args.recording, &args.format, &model)?;
+    let rec = read(&args.recording, &args.format, &model, &args.arm)?;
     let inertias = prior.body_inertias(&model)?;
     let held_out = match &args.validate {
-        Some(v) => Some(read(v, &args.format, &model).with_context(|| format!("--validate {}", v.display()))?),
+        Some(v) => Some(read(v, &args.format, &model, &args.arm).with_context(|| format!("--validate {}", v.display()))?),
         None => None,
     };
     let result = dvrk_calib::identify::run::run(&model, &inertias, &rec, held_out.as_ref(), &options, &args.recording.display().to_string(), &args.format)

@@ -66,23 +66,26 @@ pub fn write_mcap(log: &JointLog, arm: &str) -> Result<Vec<u8>> {
     Ok(w.into_inner().into_inner())
 }
 
-/// One JointState topic: times, names, positions, efforts.
-#[derive(Default)]
-struct Topic {
-    names: Vec<String>,
-    t: Vec<f64>,
-    position: Vec<Vec<f64>>,
-    effort: Vec<Vec<f64>>,
+/// The messages of one JointState topic, in file order.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct JointStates {
+    /// Joint names (every message must carry the same).
+    pub names: Vec<String>,
+    /// Header stamps (the log time where a stamp is 0), s.
+    pub t: Vec<f64>,
+    pub position: Vec<Vec<f64>>,
+    /// Empty per message when the message carries none.
+    pub velocity: Vec<Vec<f64>>,
+    pub effort: Vec<Vec<f64>>,
 }
 
-/// Read `/<arm>/setpoint_js` and `/<arm>/measured_js` (with efforts) from an MCAP file. The
-/// setpoints are matched to the measurements by time (the latest setpoint at or before each
-/// measurement). Errors name the file, the topic and the message.
-pub fn read_mcap(path: &Path, arm: &str) -> Result<JointLog> {
+/// Every sensor_msgs/msg/JointState message on the topics `wanted` of an MCAP file, and the
+/// names of all the file's topics (for messages). A wanted topic of another type, a changing
+/// joint list or a damaged file is an error naming the file, topic and message.
+pub fn read_joint_states(path: &Path, wanted: &[&str]) -> Result<(BTreeMap<String, JointStates>, Vec<String>)> {
     let bytes = std::fs::read(path).map_err(|e| CalibError::file(path, format!("cannot read: {e}")))?;
     let stream = mcap::MessageStream::new(&bytes).map_err(|e| CalibError::file(path, format!("not an MCAP file: {e}")))?;
-    let (set_topic, meas_topic) = (format!("/{arm}/setpoint_js"), format!("/{arm}/measured_js"));
-    let mut topics: BTreeMap<String, Topic> = BTreeMap::new();
+    let mut topics: BTreeMap<String, JointStates> = BTreeMap::new();
     let mut seen: Vec<String> = Vec::new();
     for (count, m) in stream.enumerate() {
         let m = m.map_err(|e| match e {
@@ -93,7 +96,7 @@ pub fn read_mcap(path: &Path, arm: &str) -> Result<JointLog> {
         if !seen.contains(topic) {
             seen.push(topic.clone());
         }
-        if topic != &set_topic && topic != &meas_topic {
+        if !wanted.contains(&topic.as_str()) {
             continue;
         }
         let schema = m.channel.schema.as_ref().map_or("", |s| s.name.as_str());
@@ -111,8 +114,18 @@ pub fn read_mcap(path: &Path, arm: &str) -> Result<JointLog> {
         let t = if js.header.time() > 0.0 { js.header.time() } else { m.log_time as f64 * 1e-9 };
         tp.t.push(t);
         tp.position.push(js.position);
+        tp.velocity.push(js.velocity);
         tp.effort.push(js.effort);
     }
+    Ok((topics, seen))
+}
+
+/// Read `/<arm>/setpoint_js` and `/<arm>/measured_js` (with efforts) from an MCAP file. The
+/// setpoints are matched to the measurements by time (the latest setpoint at or before each
+/// measurement). Errors name the file, the topic and the message.
+pub fn read_mcap(path: &Path, arm: &str) -> Result<JointLog> {
+    let (set_topic, meas_topic) = (format!("/{arm}/setpoint_js"), format!("/{arm}/measured_js"));
+    let (mut topics, seen) = read_joint_states(path, &[&set_topic, &meas_topic])?;
     let Some(meas) = topics.remove(&meas_topic) else {
         return Err(CalibError::file(path, format!("no topic {meas_topic}; topics: {}", seen.join(", "))));
     };

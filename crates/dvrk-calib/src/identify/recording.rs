@@ -113,3 +113,59 @@ pub fn parse_wpi_csv(text: &str, path: &Path, model: &Model) -> Result<TorqueRec
     }
     Ok(rec)
 }
+
+/// Read `/<arm>/measured_js` (sensor_msgs/JointState with efforts, as the dVRK and `dvrk sim
+/// --out` record it) from an MCAP file for `model`: joints matched by name (every model joint
+/// must be there), velocities from the messages where they carry them, else by central
+/// differences of the positions. The channels are the model's joints.
+pub fn read_mcap_joint_states(path: &Path, model: &Model, arm: &str) -> Result<TorqueRecording> {
+    let topic = format!("/{arm}/measured_js");
+    let (mut topics, seen) = crate::discrepancy::joint_log::read_joint_states(path, &[&topic])?;
+    let Some(js) = topics.remove(&topic) else {
+        return Err(CalibError::file(path, format!("no topic {topic}; topics: {}", seen.join(", "))));
+    };
+    let n = model.nq();
+    let index: Vec<usize> = model
+        .joints
+        .iter()
+        .map(|j| js.names.iter().position(|x| *x == j.name).ok_or_else(|| CalibError::file(path, format!("{topic} has no joint `{}` (joints: {})", j.name, js.names.join(", ")))))
+        .collect::<Result<_>>()?;
+    let m = js.t.len();
+    if m < 100 {
+        return Err(CalibError::file(path, format!("{topic}: {m} messages; identification needs at least 100")));
+    }
+    let mut rec = TorqueRecording {
+        source: path.display().to_string(),
+        t: js.t.clone(),
+        q: Vec::with_capacity(m),
+        qd: Vec::with_capacity(m),
+        tau: Vec::with_capacity(m),
+        channels: model.joints.iter().map(|j| j.name.clone()).collect(),
+        to_joint: DMatrix::identity(n, n),
+    };
+    for i in 0..m {
+        if js.effort[i].len() != js.names.len() {
+            return Err(CalibError::file(path, format!("{topic} message {}: {} efforts for {} joints (identification needs measured efforts)", i + 1, js.effort[i].len(), js.names.len())));
+        }
+        if i > 0 && js.t[i] <= js.t[i - 1] {
+            return Err(CalibError::file(path, format!("{topic} message {}: time {} s does not increase", i + 1, js.t[i])));
+        }
+        let pick = |v: &[f64]| index.iter().map(|&k| v[k]).collect::<Vec<f64>>();
+        let (q, tau) = (pick(&js.position[i]), pick(&js.effort[i]));
+        if let Some(x) = q.iter().chain(&tau).find(|x| !x.is_finite()) {
+            return Err(CalibError::file(path, format!("{topic} message {} (t = {} s): {x} is not finite", i + 1, js.t[i])));
+        }
+        rec.q.push(q);
+        rec.tau.push(tau);
+    }
+    for i in 0..m {
+        let qd = if js.velocity[i].len() == js.names.len() {
+            index.iter().map(|&k| js.velocity[i][k]).collect()
+        } else {
+            let (a, b) = (i.saturating_sub(1), (i + 1).min(m - 1));
+            (0..n).map(|k| (rec.q[b][k] - rec.q[a][k]) / (rec.t[b] - rec.t[a])).collect()
+        };
+        rec.qd.push(qd);
+    }
+    Ok(rec)
+}

@@ -122,3 +122,35 @@ fn identified_model_replays_the_held_out_efforts_closer_than_cad() {
         assert!(ident[k] < 1.02 * cad[k], "joint {k}: identified {} vs CAD {}", ident[k], cad[k]);
     }
 }
+
+/// `--format mcap`: a simulated PSM tracking test recorded by dvrk-sim (measured_js with
+/// efforts, 200 Hz) identifies the simulator's own drive terms in closed form: on the wrist
+/// joints the viscous term is the joint damping (0.1 N·m s/rad) and the motor inertia the scene's
+/// armature (0.004 kg m^2), the Coulomb level ~0 (the simulator has none).
+#[test]
+fn a_simulated_recording_gives_back_the_simulators_damping_and_armature() {
+    use dvrk_calib::identify::recording::read_mcap_joint_states;
+    use dvrk_calib::identify::report::effects;
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("psm.mcap");
+    let scene = dvrk_sim::Scene::load("psm").unwrap();
+    let options = dvrk_sim::RunOptions { duration: 20.0, trajectory: dvrk_sim::run::TrajectoryKind::Sine, sim: Default::default() };
+    dvrk_sim::run_recorded(&scene, &options, Some(&dvrk_sim::RecordOptions { path: path.clone(), rate: 200.0 }), |_| {}).unwrap();
+    let model = psm();
+    let rec = read_mcap_joint_states(&path, &model, "PSM1").unwrap();
+    assert_eq!(rec.channels[0], "outer_yaw");
+    let prior = dvrk_sim::scene::builtin_inertials("psm", &model).unwrap().body_inertias(&model).unwrap();
+    let (id, _) = identify(&model, &prior, &rec, &IdentifyOptions::full(vec![3, 4, 5, 6])).unwrap();
+    assert!(id.fit.min_eigen.iter().all(|l| *l > -1e-9));
+    let all = effects(&id);
+    let get = |name: &str, joint: &str, p: &str| all.iter().find(|e| e.name == name && e.joint == joint).unwrap().parameters[p].as_f64().unwrap();
+    for joint in ["outer_roll", "outer_wrist_pitch", "outer_wrist_yaw"] {
+        let (fv, im, fc) = (get("viscous_friction", joint, "fv"), get("armature", joint, "im"), get("coulomb_friction", joint, "fc"));
+        eprintln!("{joint}: fv {fv:.5} N·m s/rad (damping 0.1), im {im:.5} kg m^2 (armature 0.004 + link), fc {fc:.2e} N·m");
+        assert!((fv - 0.1).abs() < 0.005 && fc < 1e-3, "{joint}: fv {fv}, fc {fc}");
+        assert!(im > 0.0036 && im < 0.0055, "{joint}: im {im}");
+    }
+    // A missing topic and a wrong arm name are named.
+    let e = read_mcap_joint_states(&path, &model, "PSM2").unwrap_err().to_string();
+    assert!(e.contains("no topic /PSM2/measured_js; topics:"), "{e}");
+}
