@@ -42,21 +42,6 @@ pub struct DiscrepancyArgs {
     pub no_tracking: bool,
 }
 
-/// The scene that carries an arm's inertials, drive and gains.
-fn scene_for(arm: &str) -> Result<dvrk_sim::Scene> {
-    let name = if arm.starts_with("PSM") {
-        "psm"
-    } else if arm.starts_with("ECM") {
-        "ecm"
-    } else {
-        bail!("--arm {arm}: no built-in scene for it (PSM1..3, ECM)")
-    };
-    let mut scene = dvrk_sim::Scene::load(name)?;
-    // The scene's arm takes the recording's name.
-    scene.arms[0].name = arm.to_string();
-    Ok(scene)
-}
-
 /// The model file's text with `effect` appended as an `[[effects]]` table.
 fn model_text_with(model: &str, effect: &dvrk_kin::effects::EffectSpec) -> Result<String> {
     let text = match dvrk_kin::load::builtin_text(model) {
@@ -82,7 +67,7 @@ pub fn run(a: &DiscrepancyArgs) -> Result<()> {
         other => bail!("--format: `{other}` is not a format; valid: mcap, wpi-csv, csv"),
     };
     let model = dvrk_kin::load(&a.model, None)?;
-    let scene = scene_for(&a.arm)?;
+    let scene = dvrk_calib::discrepancy::scene_for_arm(&a.arm).map_err(|e| anyhow!("--arm {}: {e}", a.arm))?;
     let options = Options { tracking: !a.no_tracking, ..Default::default() };
     let out = discrepancy(&model, &scene, &a.arm, &log, &options).map_err(|e| anyhow!("{}: {e}", a.recording.display()))?;
     let r = &out.report;

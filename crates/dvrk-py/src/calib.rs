@@ -157,3 +157,42 @@ pub fn identify<'py>(py: Python<'py>, recording: PathBuf, model: &str, format: &
     })?;
     to_py_json(py, &summary)
 }
+
+/// The discrepancy workflow (`dvrk discrepancy`) on an MCAP recording of `arm`
+/// (`/<arm>/setpoint_js`, `/<arm>/measured_js` with efforts): the report as a dict (`verdict`,
+/// `channel`, `effects`, `candidates`, `rms_before`, `rms_after`, `rms_heldout_before`,
+/// `rms_heldout_after`, `noise_floor`, ...).
+#[pyfunction]
+#[pyo3(signature = (recording, model="psm", arm="PSM1", tracking=true))]
+pub fn discrepancy<'py>(py: Python<'py>, recording: PathBuf, model: &str, arm: &str, tracking: bool) -> Result<Bound<'py, PyAny>> {
+    use dvrk_calib::discrepancy::{discrepancy, joint_log, scene_for_arm, Options};
+    let m = dvrk_calib::dvrk_kin::load(model, None)?;
+    let report = py.detach(|| -> Result<serde_json::Value> {
+        let log = joint_log::read_mcap(&recording, arm)?;
+        let scene = scene_for_arm(arm)?;
+        let out = discrepancy(&m, &scene, arm, &log, &Options { tracking, ..Default::default() })?;
+        serde_json::to_value(&out.report).map_err(|e| Error::Input(e.to_string()))
+    })?;
+    to_py_json(py, &report)
+}
+
+/// `dvrk synth hidden-effect`: simulate a recording of the `scene` arm (built-in `psm` or `ecm`)
+/// with one hidden physical effect (`effect`: a vocabulary name, `none` or `random`) and write it
+/// to `path` (MCAP); returns the answer (the effect, its parameters, the effect-to-noise ratio).
+#[pyfunction]
+#[pyo3(signature = (path, effect="random", seed=1, scene="psm", duration=30.0))]
+pub fn synth_hidden_effect<'py>(py: Python<'py>, path: PathBuf, effect: &str, seed: u64, scene: &str, duration: f64) -> Result<Bound<'py, PyAny>> {
+    use dvrk_calib::discrepancy::{hidden_effect, joint_log, Hidden, HiddenOptions};
+    let hidden: Hidden = effect.parse().map_err(|e: String| Error::Input(format!("effect: {e}")))?;
+    let answer = py.detach(|| -> Result<serde_json::Value> {
+        let h = hidden_effect(scene, &HiddenOptions { hidden, seed, duration, ..Default::default() })?;
+        let arm = dvrk_sim::Scene::load(scene)?.arms[0].name.clone();
+        let bytes = joint_log::write_mcap(&h.log, &arm)?;
+        // Whole or nothing: a temporary file beside the target, renamed into place.
+        let tmp = path.with_extension("mcap.partial");
+        std::fs::write(&tmp, bytes).map_err(|e| Error::Input(format!("{}: {e}", tmp.display())))?;
+        std::fs::rename(&tmp, &path).map_err(|e| Error::Input(format!("{}: {e}", path.display())))?;
+        serde_json::to_value(&h.answer).map_err(|e| Error::Input(e.to_string()))
+    })?;
+    to_py_json(py, &answer)
+}

@@ -577,6 +577,8 @@ fn _dvrk_twin(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(calib::axis, m)?)?;
     m.add_function(wrap_pyfunction!(calib::read_recording, m)?)?;
     m.add_function(wrap_pyfunction!(calib::identify, m)?)?;
+    m.add_function(wrap_pyfunction!(calib::discrepancy, m)?)?;
+    m.add_function(wrap_pyfunction!(calib::synth_hidden_effect, m)?)?;
     let ex = exceptions(py)?;
     m.add("DvrkError", ex.base.bind(py))?;
     m.add("ModelError", ex.model.bind(py))?;

@@ -28,3 +28,18 @@ pub use generate::{hidden_effect, Answer, Hidden, HiddenOptions, HiddenRecording
 pub use joint_log::JointLog;
 pub use report::Report;
 pub use workflow::{discrepancy, Options, Outcome};
+
+/// The built-in scene that carries arm `arm`'s inertials, drive and gains (`PSM1..3`: the psm
+/// scene, `ECM`: the ecm scene), its arm renamed to `arm` (the recording's topic prefix).
+pub fn scene_for_arm(arm: &str) -> crate::error::Result<dvrk_sim::Scene> {
+    let name = if arm.starts_with("PSM") {
+        "psm"
+    } else if arm.starts_with("ECM") {
+        "ecm"
+    } else {
+        return Err(crate::error::CalibError::field("arm", format!("`{arm}`: no built-in scene for it (PSM1..3, ECM)")));
+    };
+    let mut scene = dvrk_sim::Scene::load(name).map_err(|e| crate::error::CalibError::data("scene", e.to_string()))?;
+    scene.arms[0].name = arm.to_string();
+    Ok(scene)
+}

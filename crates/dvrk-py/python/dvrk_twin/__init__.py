@@ -31,11 +31,13 @@ from ._dvrk_twin import (
     axis as axis,
     builtin_models as builtin_models,
     builtin_scenes as builtin_scenes,
+    discrepancy as discrepancy,
     export_mjcf as export_mjcf,
     identify as identify,
     pivot as pivot,
     read_recording as read_recording,
     run_scene as run_scene,
+    synth_hidden_effect as synth_hidden_effect,
 )
 
 __all__ = [
@@ -50,9 +52,11 @@ __all__ = [
     "axis",
     "builtin_models",
     "builtin_scenes",
+    "discrepancy",
     "export_mjcf",
     "identify",
     "pivot",
     "read_recording",
     "run_scene",
+    "synth_hidden_effect",
 ]

@@ -223,3 +223,25 @@ def identify(
     friction, offsets, motor inertia and springs; the JSON summary as a dict (relative torque
     errors per channel, rigid-body-only baseline, ``validation`` on ``validate``, ``ablation``,
     effects and bodies with standard deviations, ``warnings``). SI units."""
+
+def discrepancy(
+    recording: Union[str, "os.PathLike[str]"],
+    model: str = "psm",
+    arm: str = "PSM1",
+    tracking: bool = True,
+) -> Dict[str, Any]:
+    """The discrepancy workflow (``dvrk discrepancy``) on an MCAP recording with
+    ``/<arm>/setpoint_js`` and ``/<arm>/measured_js`` (efforts): which physical effect the model
+    lacks; the report as a dict (``verdict`` named/none/ambiguous, ``effects`` with parameters,
+    95% intervals, delta BIC and p-values, ``candidates``, RMS before/after, ``noise_floor``)."""
+
+def synth_hidden_effect(
+    path: Union[str, "os.PathLike[str]"],
+    effect: str = "random",
+    seed: int = 1,
+    scene: str = "psm",
+    duration: float = 30.0,
+) -> Dict[str, Any]:
+    """``dvrk synth hidden-effect``: write an MCAP recording (``/<arm>/setpoint_js``,
+    ``/<arm>/measured_js`` with efforts) simulated with one hidden effect (a vocabulary name,
+    ``none`` or ``random``); returns the answer (effect, parameters, effect-to-noise ratio)."""
