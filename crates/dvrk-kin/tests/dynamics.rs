@@ -189,6 +189,17 @@ fn file_inertias(model: &Model, name: &str) -> Vec<BodyInertia> {
 
 /// Made-up but physical inertias for any model: different per body, off the frame origins,
 /// with products of inertia.
+/// Built-in model `name` with the inertials file `file` (`models/inertials/<file>.toml`), or
+/// the made-up [`test_inertias`] when there is none.
+fn model_and_inertias(name: &str, file: Option<&str>) -> (Model, Vec<BodyInertia>) {
+    let model = dvrk_kin::load(name, None).unwrap();
+    let inertias = match file {
+        Some(f) => file_inertias(&model, f),
+        None => test_inertias(&model),
+    };
+    (model, inertias)
+}
+
 fn test_inertias(model: &Model) -> Vec<BodyInertia> {
     (0..model.bodies.len())
         .map(|b| {
@@ -219,11 +230,7 @@ fn gravity() -> Vector3<f64> {
 #[test]
 fn regressor_times_parameters_equals_newton_euler() {
     for (name, file) in [("psm", Some("psm")), ("ecm", Some("ecm")), ("mtmr", None), ("suj-psm1", None)] {
-        let model = dvrk_kin::load(name, None).unwrap();
-        let inertias = match file {
-            Some(f) => file_inertias(&model, f),
-            None => test_inertias(&model),
-        };
+        let (model, inertias) = model_and_inertias(name, file);
         let dm = DynamicsModel::new(&model, inertias).unwrap();
         let pi = DVector::from_vec(dm.parameters());
         assert_eq!(pi.len(), PARAMETERS_PER_BODY * model.bodies.len());
@@ -276,11 +283,7 @@ fn energies(model: &Model, inertias: &[BodyInertia], q: &[f64], qd: &[f64], g: &
 #[test]
 fn mass_matrix_is_spd_and_agrees_with_newton_euler_and_energy() {
     for (name, file) in [("psm", Some("psm")), ("ecm", Some("ecm")), ("mtmr", None)] {
-        let model = dvrk_kin::load(name, None).unwrap();
-        let inertias = match file {
-            Some(f) => file_inertias(&model, f),
-            None => test_inertias(&model),
-        };
+        let (model, inertias) = model_and_inertias(name, file);
         let dm = DynamicsModel::new(&model, inertias.clone()).unwrap();
         let mut data = DynamicsData::new(&model);
         let n = model.nq();
@@ -319,11 +322,7 @@ fn mass_matrix_is_spd_and_agrees_with_newton_euler_and_energy() {
 #[test]
 fn power_equals_rate_of_energy_along_a_trajectory() {
     for (name, file) in [("psm", Some("psm")), ("ecm", Some("ecm")), ("mtmr", None)] {
-        let model = dvrk_kin::load(name, None).unwrap();
-        let inertias = match file {
-            Some(f) => file_inertias(&model, f),
-            None => test_inertias(&model),
-        };
+        let (model, inertias) = model_and_inertias(name, file);
         let dm = DynamicsModel::new(&model, inertias.clone()).unwrap();
         let mut data = DynamicsData::new(&model);
         let n = model.nq();
