@@ -76,20 +76,11 @@ pub fn identified_scene(base: &Scene, arm: usize, model: &Model, id: &Identifica
     let with_effects = Model::compile(spec)?;
     let mut scene = base.clone();
     scene.set_model(arm, with_effects).map_err(|e| CalibError::data("identified scene", e.to_string()))?;
+    let (inertials, kept) = super::report::identified_inertials(model, id, &scene.arms[arm].inertials, "the identification");
+    info.kept_prior = kept;
     let a = &mut scene.arms[arm];
     a.armature = armature;
-    for (b, body) in model.bodies.iter().enumerate() {
-        let Some(entry) = a.inertials.bodies.iter_mut().find(|e| e.name == body.name) else { continue };
-        match id.body_inertia(b, &body.name) {
-            Ok(bi) => {
-                let i = bi.inertia;
-                entry.mass = bi.mass;
-                entry.com = [bi.com.x, bi.com.y, bi.com.z];
-                entry.inertia = [[i[(0, 0)], i[(0, 1)], i[(0, 2)]], [i[(1, 0)], i[(1, 1)], i[(1, 2)]], [i[(2, 0)], i[(2, 1)], i[(2, 2)]]];
-            }
-            Err(_) => info.kept_prior.push(body.name.clone()),
-        }
-    }
+    a.inertials = inertials;
     Ok((scene, info))
 }
 
