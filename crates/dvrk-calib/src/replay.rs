@@ -7,6 +7,7 @@
 //!   the scene that runs the tracking test.
 
 use crate::error::{CalibError, Result};
+use crate::discrepancy::joint_log::read_joint_states;
 use crate::mcap_io::McapOptions;
 use crate::read::read_recording;
 use crate::recording::JointTrack;
@@ -24,23 +25,19 @@ pub fn read_replay(path: &Path, scene: &Scene) -> Result<Replay> {
         if !path.exists() {
             return Err(CalibError::file(path, "no such file"));
         }
+        // One pass over the file for every arm's two candidate topics.
+        let topic = |arm: &str, kind: &str| format!("/{arm}/{kind}");
+        let wanted: Vec<String> = scene.arms.iter().flat_map(|a| [topic(&a.name, "setpoint_js"), topic(&a.name, "measured_js")]).collect();
+        let (mut found, _) = read_joint_states(path, &wanted.iter().map(String::as_str).collect::<Vec<_>>())?;
         let mut missing = Vec::new();
         for arm in &scene.arms {
-            let mut track = None;
-            for kind in ["setpoint_js", "measured_js"] {
-                let topic = format!("/{}/{kind}", arm.name);
-                match read_recording(path, &McapOptions { topics: vec![], joint_topic: Some(topic.clone()) }) {
-                    Ok(rec) => {
-                        track = rec.joints;
-                        break;
-                    }
-                    // Only a missing topic moves on; anything else is the file's problem.
-                    Err(e) if e.to_string().contains(&format!("no JointState topic `{topic}`")) => continue,
-                    Err(e) => return Err(e),
+            // The setpoints (what the arm was told), else the measurements (what it did).
+            let source = ["setpoint_js", "measured_js"].map(|k| topic(&arm.name, k)).into_iter().find(|t| found.contains_key(t));
+            match source.and_then(|t| found.remove(&t).map(|js| (t, js))) {
+                Some((source, js)) => {
+                    let track = JointTrack { source, names: js.names, t: js.t, q: js.position };
+                    arms.push((arm.name.clone(), by_name(path, &track, &arm.model)?));
                 }
-            }
-            match track {
-                Some(t) => arms.push((arm.name.clone(), by_name(path, &t, &arm.model)?)),
                 None => missing.push(arm.name.as_str()),
             }
         }

@@ -177,9 +177,4 @@ impl ArmEffects {
         self.force.fill(0.0);
         dvrk_kin::effects::effort(&self.forces, q, qd, self.velocity_scale, &mut self.force);
     }
-
-    /// True when the arm has no effect that acts while stepping.
-    pub fn is_empty(&self) -> bool {
-        self.forces.is_empty() && self.delay.is_none() && self.transmissions.iter().all(|t| t.is_none())
-    }
 }

@@ -351,9 +351,9 @@ impl Scene {
             };
             let original_base = model.base;
             model.base = mount * model.base;
-            let inertials = match BUILTIN_INERTIALS.iter().find(|(n, _)| *n == a.inertials) {
-                Some((n, text)) => Inertials::parse(text, &format!("built-in inertials {n}"), &model)?,
-                None => {
+            let inertials = match BUILTIN_INERTIALS.iter().any(|(n, _)| *n == a.inertials) {
+                true => builtin_inertials(&a.inertials, &model)?,
+                false => {
                     let p = dir.map(|d| d.join(&a.inertials)).unwrap_or_else(|| a.inertials.clone().into());
                     let text = std::fs::read_to_string(&p).map_err(|e| SimError::Io { path: p.display().to_string(), source: e })?;
                     Inertials::parse(&text, &p.display().to_string(), &model)?

@@ -101,12 +101,4 @@ impl Trajectory {
         let t0 = t[0];
         Ok(Trajectory::Samples { t: t.iter().map(|x| x - t0).collect(), q })
     }
-
-    /// Duration covered (s): 0 for the periodic and constant references.
-    pub fn span(&self) -> f64 {
-        match self {
-            Trajectory::Samples { t, .. } => t.last().copied().unwrap_or(0.0),
-            _ => 0.0,
-        }
-    }
 }
