@@ -22,6 +22,7 @@
 
 mod bodies;
 mod coupling;
+pub mod atomic;
 pub mod check;
 pub mod closure;
 pub mod compose;

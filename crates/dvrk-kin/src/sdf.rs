@@ -10,7 +10,7 @@
 
 use crate::error::{KinError, Result};
 use crate::model::{Model, Motion, Pose};
-use crate::urdf::{affine_text, comment, esc, num, pose6, primary_frames, write_atomic};
+use crate::urdf::{affine_text, comment, esc, num, pose6, primary_frames};
 use nalgebra::{Point3, Translation3};
 use std::fmt::Write as _;
 use std::path::Path;
@@ -203,7 +203,7 @@ pub fn export_sdf(model: &Model, q: &[f64]) -> Result<String> {
 
 /// [`export_sdf`] to a file, written atomically (temporary file in the same directory, rename).
 pub fn export_sdf_file(model: &Model, q: &[f64], path: &Path) -> Result<()> {
-    write_atomic(path, export_sdf(model, q)?.as_bytes())
+    crate::atomic::write_atomic(path, export_sdf(model, q)?.as_bytes())
 }
 
 /// SDF pose text `x y z roll pitch yaw` (m, rad).

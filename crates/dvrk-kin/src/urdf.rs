@@ -97,7 +97,7 @@ pub fn export_urdf(model: &Model) -> Result<String> {
 /// [`export_urdf`] to a file, written atomically (a temporary file in the same directory, then
 /// renamed) so a reader never sees half a file.
 pub fn export_urdf_file(model: &Model, path: &Path) -> Result<()> {
-    write_atomic(path, export_urdf(model)?.as_bytes())
+    crate::atomic::write_atomic(path, export_urdf(model)?.as_bytes())
 }
 
 /// Read a URDF file into a [`Model`] (see [`import_urdf_str`]); errors name the file.
@@ -672,28 +672,3 @@ pub(crate) fn comment(s: &str) -> String {
     format!("<!-- {} -->\n", body.replace('\n', "\n     "))
 }
 
-/// Write `bytes` to `path` atomically: a temporary file in the same directory, then a rename.
-pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let err =
-        |what: &str, e: std::io::Error| KinError::File { path: path.into(), message: format!("cannot {what}: {e}") };
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    let file = path.file_name().map_or("out".into(), |n| n.to_string_lossy().into_owned());
-    let tmp = dir.join(format!(".{file}.{}.tmp", std::process::id()));
-    let result = (|| {
-        use std::io::Write;
-        let mut f = std::fs::File::create(&tmp)?;
-        f.write_all(bytes)?;
-        f.sync_all()
-    })();
-    if let Err(e) = result {
-        let _ = std::fs::remove_file(&tmp);
-        return Err(err("write", e));
-    }
-    std::fs::rename(&tmp, path).map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        err("replace", e)
-    })
-}

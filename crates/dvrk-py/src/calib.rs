@@ -187,11 +187,7 @@ pub fn synth_hidden_effect<'py>(py: Python<'py>, path: PathBuf, effect: &str, se
     let answer = py.detach(|| -> Result<serde_json::Value> {
         let h = hidden_effect(scene, &HiddenOptions { hidden, seed, duration, ..Default::default() })?;
         let arm = dvrk_sim::Scene::load(scene)?.arms[0].name.clone();
-        let bytes = joint_log::write_mcap(&h.log, &arm)?;
-        // Whole or nothing: a temporary file beside the target, renamed into place.
-        let tmp = path.with_extension("mcap.partial");
-        std::fs::write(&tmp, bytes).map_err(|e| Error::Input(format!("{}: {e}", tmp.display())))?;
-        std::fs::rename(&tmp, &path).map_err(|e| Error::Input(format!("{}: {e}", path.display())))?;
+        dvrk_calib::dvrk_kin::atomic::write_atomic(&path, &joint_log::write_mcap(&h.log, &arm)?)?;
         serde_json::to_value(&h.answer).map_err(|e| Error::Input(e.to_string()))
     })?;
     to_py_json(py, &answer)
