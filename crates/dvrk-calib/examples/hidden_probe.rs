@@ -21,7 +21,7 @@ fn main() {
     for c in r.candidates.iter().take(5) {
         println!("  cand {:40} dBIC {:10.1} p {:.1e} hold p {:.1e} size {:.2} {:?}", c.label, c.delta_bic, c.p_value, c.heldout_p_value, c.effect_to_noise, c.parameters);
     }
-    println!("  rms {:.3} -> {:.3}; held out {:.3} -> {:.3}", r.rms_before, r.rms_after, r.rms_heldout_before, r.rms_heldout_after);
+    println!("  rms nominal {:.3} ho {:.3}; {:.3} -> {:.3}; held out {:.3} -> {:.3}", r.rms_nominal, r.rms_heldout_nominal, r.rms_before, r.rms_after, r.rms_heldout_before, r.rms_heldout_after);
     for j in &r.joints {
         println!("  {:18} noise {:.2e} band {:.2e} -> {:.2e} floor {:.2e}", j.joint, j.noise, j.band_rms_heldout_before, j.band_rms_heldout_after, j.band_floor);
     }

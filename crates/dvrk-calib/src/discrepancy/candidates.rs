@@ -27,6 +27,9 @@ pub struct Candidate {
     pub lower: Vec<Option<f64>>,
     /// The joint whose effort the effect changes most (for the effect size).
     pub focus: usize,
+    /// A nonlinear parameter profiled on a grid: its name and, per grid value, the columns that
+    /// replace [`Candidate::columns`] (the fit keeps the best).
+    pub profile: Option<(&'static str, Vec<(f64, Vec<Table>)>)>,
 }
 
 impl Candidate {
@@ -39,9 +42,13 @@ impl Candidate {
         }
     }
 
-    /// The model-file parameters of fitted values `x` (in [`Candidate::names`] order).
-    pub fn parameters(&self, x: &[f64]) -> BTreeMap<String, f64> {
+    /// The model-file parameters of fitted values `x` (in [`Candidate::names`] order) and the
+    /// profiled parameter's chosen value.
+    pub fn parameters(&self, x: &[f64], profiled: Option<f64>) -> BTreeMap<String, f64> {
         let mut p = BTreeMap::new();
+        if let (Some((name, _)), Some(v)) = (&self.profile, profiled) {
+            p.insert((*name).into(), v);
+        }
         match self.kind {
             EffectKind::Spring => {
                 p.insert("k".into(), x[0]);
@@ -68,12 +75,12 @@ impl Candidate {
     }
 
     /// The effect as a model file writes it.
-    pub fn spec(&self, model: &dvrk_kin::Model, x: &[f64], source: &str) -> EffectSpec {
+    pub fn spec(&self, model: &dvrk_kin::Model, x: &[f64], profiled: Option<f64>, source: &str) -> EffectSpec {
         EffectSpec {
             name: self.kind.name().into(),
             joint: self.joint.map(|j| model.joints[j].name.clone()),
             link: self.link.clone().map(FrameRef::Name),
-            parameters: self.parameters(x),
+            parameters: self.parameters(x, profiled),
             source: source.into(),
         }
     }
@@ -99,12 +106,35 @@ fn rms_joint(t: &Table, j: usize) -> f64 {
     (t.iter().map(|r| r[j] * r[j]).sum::<f64>() / t.len().max(1) as f64).sqrt()
 }
 
+/// The Coulomb smoothing velocities tried (rad/s, m/s).
+pub const COULOMB_SMOOTHING: [f64; 6] = [5e-4, 1e-3, 2e-3, 4e-3, 8e-3, 1.6e-2];
+
 /// Frames a payload is tried on: the instrument's bodies (what a grasped object or a heavier
 /// tool loads), those the model has.
 pub const PAYLOAD_FRAMES: [&str; 3] = ["main_insertion", "tool_roll", "tool_yaw"];
 
-/// Every candidate for the joints `prep.active`, with `base` the nominal prediction.
-pub fn build(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f64; 3], prep: &Prepared, base: &Table) -> Result<Vec<Candidate>> {
+/// Per moving joint where an offset shows (gravity or coupling load it), the change of every
+/// joint's effort per unit offset of that joint (the joint's true position is the reading plus
+/// the offset): the model's own sensitivity, by finite difference.
+pub fn offset_sensitivities(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f64; 3], prep: &Prepared, base: &Table) -> Result<Vec<(usize, Table)>> {
+    let model = &predictor.model;
+    let mut out = Vec::new();
+    for &j in &prep.active {
+        let h = 1e-4;
+        let spec = EffectSpec { name: "joint_offset".into(), joint: Some(model.joints[j].name.clone()), link: None, parameters: BTreeMap::from([("offset".into(), h)]), source: String::new() };
+        let shifted = Predictor::new(&with_effect(model, &spec)?, arm, gravity)?.series(prep)?;
+        let d = diff(&shifted, base, h);
+        if rms_joint(&d, j) > 1e-6 {
+            out.push((j, d));
+        }
+    }
+    Ok(out)
+}
+
+/// The linear candidates (friction, springs, offsets, payloads) for the joints `prep.active`,
+/// with `base` the nominal prediction and `offsets` from [`offset_sensitivities`]. The drives'
+/// compliance and play are profiles ([`super::drive`]), latency too.
+pub fn build(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f64; 3], prep: &Prepared, base: &Table, offsets: &[(usize, Table)]) -> Result<Vec<Candidate>> {
     let model = &predictor.model;
     let nq = model.nq();
     let mut out = Vec::new();
@@ -112,8 +142,15 @@ pub fn build(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f64; 3
     // of its spread).
     let v = 2.0 * dvrk_sim::effects::COULOMB_VELOCITY;
     for &j in &prep.active {
-        out.push(Candidate { kind: EffectKind::CoulombFriction, joint: Some(j), link: None, names: vec!["fc"], columns: vec![local(prep, nq, j, |i| (prep.qd[i][j] / v).tanh())], lower: vec![Some(0.0)], focus: j });
-        out.push(Candidate { kind: EffectKind::ViscousFriction, joint: Some(j), link: None, names: vec!["fv"], columns: vec![local(prep, nq, j, |i| prep.qd[i][j])], lower: vec![Some(0.0)], focus: j });
+        // The sign taken at the recording's rate, then band-limited like the measured effort;
+        // its smoothing (how soon the force saturates: stick, a Stribeck hump) profiled.
+        let sign = |v: f64| -> Vec<Table> {
+            let s = prep.band(&prep.fast_qd[j].iter().map(|x| (x / v).tanh()).collect::<Vec<_>>());
+            vec![local(prep, nq, j, |i| s[i])]
+        };
+        let grid: Vec<(f64, Vec<Table>)> = COULOMB_SMOOTHING.iter().map(|&v| (v, sign(v))).collect();
+        out.push(Candidate { kind: EffectKind::CoulombFriction, joint: Some(j), link: None, names: vec!["fc"], columns: sign(v), lower: vec![Some(0.0)], focus: j, profile: Some(("smoothing", grid)) });
+        out.push(Candidate { kind: EffectKind::ViscousFriction, joint: Some(j), link: None, names: vec!["fv"], columns: vec![local(prep, nq, j, |i| prep.qd[i][j])], lower: vec![Some(0.0)], focus: j, profile: None });
         // k (q - rest) = k q - (k rest): linear in (k, k rest).
         out.push(Candidate {
             kind: EffectKind::Spring,
@@ -123,24 +160,10 @@ pub fn build(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f64; 3
             columns: vec![local(prep, nq, j, |i| prep.q[i][j]), local(prep, nq, j, |_| -1.0)],
             lower: vec![Some(0.0), None],
             focus: j,
+            profile: None,
         });
-        // The joint's true position is the reading plus the offset: the model's own sensitivity.
-        let h = 1e-4;
-        let spec = EffectSpec { name: "joint_offset".into(), joint: Some(model.joints[j].name.clone()), link: None, parameters: BTreeMap::from([("offset".into(), h)]), source: String::new() };
-        let shifted = Predictor::new(&with_effect(model, &spec)?, arm, gravity)?.series(prep)?;
-        let d = diff(&shifted, base, h);
-        // Only where the offset shows (gravity or coupling load the joint).
-        if rms_joint(&d, j) > 1e-6 {
-            // The link-side (transmission) torque: what the model says the drive passes on.
-            let link_torque: Vec<f64> = (0..prep.t.len()).map(|i| base[i][j] - arm.armature[j] * prep.qdd[i][j]).collect();
-            let spread = (link_torque.iter().map(|x| x * x).sum::<f64>() / link_torque.len() as f64).sqrt().max(1e-9);
-            // A compliant drive: the link trails the motor (the encoder) by c * torque.
-            let compliance: Table = d.iter().zip(&link_torque).map(|(r, tq)| r.iter().map(|x| -x * tq).collect()).collect();
-            // Play: the link trails by b on the side the torque pushes.
-            let play: Table = d.iter().zip(&link_torque).map(|(r, tq)| r.iter().map(|x| -x * (tq / (0.02 * spread)).tanh()).collect()).collect();
-            out.push(Candidate { kind: EffectKind::JointOffset, joint: Some(j), link: None, names: vec!["offset"], columns: vec![d], lower: vec![None], focus: j });
-            out.push(Candidate { kind: EffectKind::JointCompliance, joint: Some(j), link: None, names: vec!["compliance"], columns: vec![compliance], lower: vec![Some(0.0)], focus: j });
-            out.push(Candidate { kind: EffectKind::Backlash, joint: Some(j), link: None, names: vec!["b"], columns: vec![play], lower: vec![Some(0.0)], focus: j });
+        if let Some((_, d)) = offsets.iter().find(|(k, _)| *k == j) {
+            out.push(Candidate { kind: EffectKind::JointOffset, joint: Some(j), link: None, names: vec!["offset"], columns: vec![d.clone()], lower: vec![None], focus: j, profile: None });
         }
     }
     // Payloads: a point mass m at (x, y, z) in the link's frame is linear in (m, m x, m y, m z)
@@ -164,7 +187,7 @@ pub fn build(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f64; 3
         let cm = diff(&p0, base, m);
         let cols = vec![cm.clone(), diff(&at(s, 0.0, 0.0)?, &p0, m * s), diff(&at(0.0, s, 0.0)?, &p0, m * s), diff(&at(0.0, 0.0, s)?, &p0, m * s)];
         let focus = prep.active.iter().copied().max_by(|a, b| (rms_joint(&cm, *a) / prep.noise[*a]).total_cmp(&(rms_joint(&cm, *b) / prep.noise[*b]))).unwrap_or(0);
-        out.push(Candidate { kind: EffectKind::PayloadMass, joint: None, link: Some(name.into()), names: vec!["mass", "mx", "my", "mz"], columns: cols, lower: vec![Some(0.0), None, None, None], focus });
+        out.push(Candidate { kind: EffectKind::PayloadMass, joint: None, link: Some(name.into()), names: vec!["mass", "mx", "my", "mz"], columns: cols, lower: vec![Some(0.0), None, None, None], focus, profile: None });
     }
     Ok(out)
 }

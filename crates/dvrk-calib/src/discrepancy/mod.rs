@@ -15,9 +15,12 @@
 //! on the link) is not implemented yet.
 
 pub mod candidates;
+pub mod drive;
 pub mod excitation;
+pub mod fit;
 pub mod generate;
 pub mod joint_log;
+pub mod nuisance;
 pub mod report;
 pub mod signals;
 pub mod stats;
@@ -26,6 +29,7 @@ pub mod workflow;
 
 pub use generate::{hidden_effect, Answer, Hidden, HiddenOptions, HiddenRecording};
 pub use joint_log::JointLog;
+pub use nuisance::InertiaPrior;
 pub use report::Report;
 pub use workflow::{discrepancy, Options, Outcome};
 

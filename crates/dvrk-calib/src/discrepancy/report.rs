@@ -76,6 +76,9 @@ pub struct Report {
     pub rms_after: f64,
     pub rms_heldout_before: f64,
     pub rms_heldout_after: f64,
+    /// The model as given (its inertias not refitted), fitted and held-out parts.
+    pub rms_nominal: f64,
+    pub rms_heldout_nominal: f64,
     pub noise_floor: f64,
     pub rms_units: String,
     pub joints: Vec<JointRms>,

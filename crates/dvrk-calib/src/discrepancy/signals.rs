@@ -54,8 +54,27 @@ pub struct Prepared {
     pub active: Vec<usize>,
     /// First held-out sample.
     pub split: usize,
+    /// `n_eff / n` of the filtered, decimated noise: how much one analysed sample counts.
+    pub noise_fraction: f64,
     /// Sample period (s).
     pub dt: f64,
+    /// Velocity at the recording's own rate, low-passed wide (rad/s, m/s; `[joint][raw sample]`):
+    /// what a nonlinear signature (friction's sign) is evaluated on before [`Prepared::band`]
+    /// takes it to the analysis band, as the measured effort was.
+    pub fast_qd: Vec<Vec<f64>>,
+    /// The raw samples kept (indices into the recording).
+    pub keep: Vec<usize>,
+    band: Butterworth2,
+    pad: usize,
+}
+
+impl Prepared {
+    /// A signal at the recording's rate (`raw[sample]`) through the analysis' filter and
+    /// decimation: the value at every analysed sample.
+    pub fn band(&self, raw: &[f64]) -> Vec<f64> {
+        let f = self.band.filtfilt(raw, self.pad);
+        self.keep.iter().map(|&s| f[s]).collect()
+    }
 }
 
 /// Column `k` of a `[sample][joint]` table.
@@ -91,8 +110,14 @@ pub fn prepare(log: &JointLog, p: &Processing) -> Result<Prepared> {
     let mut q = vec![vec![0.0; nq]; keep.len()];
     let (mut qd, mut qdd, mut effort, mut raw_effort) = (q.clone(), q.clone(), q.clone(), q.clone());
     let mut noise = vec![0.0; nq];
+    // Wide enough to keep a friction reversal's sharpness, narrow enough that encoder noise
+    // differentiated does not flip the sign at rest.
+    let wide = Butterworth2::new((4.0 * p.cutoff).min(0.4 * rate), rate);
+    let mut fast_qd = Vec::with_capacity(nq);
     for k in 0..nq {
-        let qf = f.filtfilt(&column(&log.position, k), pad);
+        let raw_q = column(&log.position, k);
+        fast_qd.push(derivative(&wide.filtfilt(&raw_q, pad), dt));
+        let qf = f.filtfilt(&raw_q, pad);
         let v = derivative(&qf, dt);
         let a = derivative(&v, dt);
         let raw = column(&log.effort, k);
@@ -116,6 +141,7 @@ pub fn prepare(log: &JointLog, p: &Processing) -> Result<Prepared> {
     let wf = f.filtfilt(&white, pad);
     let gain = (keep.iter().map(|&s| wf[s] * wf[s]).sum::<f64>() / keep.len() as f64).sqrt();
     let floor: Vec<f64> = noise.iter().map(|s| s * gain).collect();
+    let noise_fraction = super::stats::effective_fraction(&[keep.iter().map(|&s| wf[s]).collect()]);
     let active: Vec<usize> = (0..nq)
         .filter(|&k| {
             let (lo, hi) = log.setpoint.iter().fold((f64::MAX, f64::MIN), |(a, b), s| (a.min(s[k]), b.max(s[k])));
@@ -127,7 +153,7 @@ pub fn prepare(log: &JointLog, p: &Processing) -> Result<Prepared> {
     }
     let split = ((1.0 - p.heldout) * keep.len() as f64).round() as usize;
     let t = keep.iter().map(|&s| log.t[s]).collect();
-    Ok(Prepared { t, q, qd, qdd, effort, raw_effort, noise, floor, active, split, dt: stride as f64 * dt })
+    Ok(Prepared { t, q, qd, qdd, effort, raw_effort, noise, floor, active, split, noise_fraction, dt: stride as f64 * dt, fast_qd, keep, band: f, pad })
 }
 
 /// The nominal effort of an arm (N·m, N): dvrk-kin's inverse dynamics with the model's effects,
@@ -168,6 +194,11 @@ impl Predictor {
             gravity: Vector3::from(gravity),
             velocity_scale: 2.0 * dvrk_sim::effects::COULOMB_VELOCITY,
         })
+    }
+
+    /// The damping the drive and tree joints put on joint `j`'s own velocity (N·m s/rad, N s/m).
+    pub fn joint_damping(&self, j: usize) -> f64 {
+        self.damping[(j, j)]
     }
 
     /// The predicted effort at every sample of `prep`, `[sample][joint]`.

@@ -5,10 +5,12 @@
 //! the held-out part, and a verdict.
 
 use super::candidates::{self, Candidate, Table};
+use super::fit::{Fitter, Rows};
+use super::nuisance::{InertiaPrior, Nuisance};
 use super::joint_log::JointLog;
 use super::report::{CandidateReport, EffectReport, JointRms, Report};
 use super::signals::{prepare, Predictor, Prepared, Processing};
-use super::stats::{bounded_least_squares, chi2_sf, effective_fraction};
+use super::stats::{chi2_sf, effective_fraction};
 use crate::error::{CalibError, Result};
 use dvrk_kin::effects::{EffectKind, EffectSpec};
 use dvrk_kin::Model;
@@ -36,11 +38,13 @@ pub struct Options {
     /// Replay the setpoints through the simulator before and after (the tracking channel).
     pub tracking: bool,
     pub seed: u64,
+    /// The inertias re-estimated next to every candidate, within this prior.
+    pub inertia_prior: InertiaPrior,
 }
 
 impl Default for Options {
     fn default() -> Self {
-        Options { processing: Processing::default(), min_delta_bic: 10.0, max_p_value: 1e-3, min_effect_to_noise: 1.0, ambiguity_bic: 10.0, bootstrap: 199, tracking: true, seed: 1 }
+        Options { processing: Processing::default(), min_delta_bic: 10.0, max_p_value: 1e-3, min_effect_to_noise: 1.0, ambiguity_bic: 10.0, bootstrap: 199, tracking: true, seed: 1, inertia_prior: InertiaPrior::default() }
     }
 }
 
@@ -60,29 +64,11 @@ struct Score {
     p_value: f64,
     heldout_p: f64,
     effect_to_noise: f64,
-    /// The fitted effect's effort `[sample][joint]` over the whole analysed span.
+    /// The fitted effect's effort `[sample][joint]` over the whole analysed span (with the
+    /// inertia nuisance refitted with it).
     effect: Table,
-}
-
-/// Rows (train or held out) of the active joints, each divided by its noise floor.
-struct Rows<'a> {
-    prep: &'a Prepared,
-    range: std::ops::Range<usize>,
-}
-
-impl Rows<'_> {
-    fn len(&self) -> usize {
-        self.range.len() * self.prep.active.len()
-    }
-    fn vector(&self, t: &Table) -> DVector<f64> {
-        let p = self.prep;
-        DVector::from_iterator(self.len(), self.range.clone().flat_map(|i| p.active.iter().map(move |&k| t[i][k] / p.floor[k])))
-    }
-    /// The per-joint time series of a row vector (for the autocorrelation).
-    fn series(&self, v: &DVector<f64>) -> Vec<Vec<f64>> {
-        let na = self.prep.active.len();
-        (0..na).map(|a| (0..self.range.len()).map(|i| v[i * na + a]).collect()).collect()
-    }
+    /// The profiled parameter's value, for a candidate that has one.
+    profiled: Option<f64>,
 }
 
 fn residual(prep: &Prepared, pred: &Table, filtered: bool) -> Table {
@@ -94,21 +80,38 @@ fn lr(n_eff: f64, rss0: f64, rss1: f64) -> f64 {
     (n_eff * (rss0 / rss1.max(1e-300)).ln()).max(0.0)
 }
 
-/// Fit and score a linear candidate.
-fn score_linear(c: &Candidate, prep: &Prepared, r: &Table, o: &Options, rng: &mut ChaCha8Rng) -> Result<Score> {
-    let train = Rows { prep, range: 0..prep.split };
-    let hold = Rows { prep, range: prep.split..prep.t.len() };
-    let p = c.columns.len();
-    let a = DMatrix::from_columns(&c.columns.iter().map(|col| train.vector(col)).collect::<Vec<_>>());
+/// Fit and score a linear candidate (the inertia nuisance refitted with it).
+fn score_linear(c: &Candidate, fit: &Fitter, r: &Table, o: &Options, rng: &mut ChaCha8Rng) -> Result<Score> {
+    let prep = fit.prep;
+    let (train, hold) = (Rows::train(prep), Rows::held_out(prep));
     let y = train.vector(r);
-    let x = bounded_least_squares(&a, &y, &c.lower)?;
+    // A profiled parameter: the grid value whose fit leaves the least.
+    let (profiled, columns) = match &c.profile {
+        None => (None, &c.columns),
+        Some((_, grid)) => {
+            let mut best = (f64::INFINITY, None, &c.columns);
+            for (v, cols) in grid {
+                let a = train.matrix(cols);
+                let x = fit.solve(&a, &y, &c.lower)?;
+                let rss = fit.rss(&(&y - &a * &x));
+                if rss < best.0 {
+                    best = (rss, Some(*v), cols);
+                }
+            }
+            (best.1, best.2)
+        }
+    };
+    let p = columns.len();
+    let a = train.matrix(columns);
+    let x = fit.solve(&a, &y, &c.lower)?;
     let e1 = &y - &a * &x;
-    let (rss0, rss1) = (y.norm_squared(), e1.norm_squared());
+    let (rss0, rss1) = (fit.rss(&y), fit.rss(&e1));
     let n = train.len() as f64;
-    let frac = effective_fraction(&train.series(&e1));
+    let white = fit.whitened(&e1);
+    let frac = effective_fraction(&train.series(&white));
     let n_eff = n * frac;
     let stat = lr(n_eff, rss0, rss1);
-    let delta_bic = stat - p as f64 * n_eff.ln();
+    let delta_bic = stat - (p + profiled.is_some() as usize) as f64 * n_eff.ln();
     let on_bound = c.lower.iter().zip(x.iter()).any(|(lo, v)| lo.is_some_and(|lo| *v <= lo + 1e-12 * (1.0 + lo.abs())));
     let p_value = if on_bound && o.bootstrap > 0 {
         // Block bootstrap under the null: the fitted model's residual resampled in blocks as
@@ -124,14 +127,13 @@ fn score_linear(c: &Candidate, prep: &Prepared, r: &Table, o: &Options, rng: &mu
                 let s = rng.random_range(0..steps.saturating_sub(block).max(1));
                 for d in 0..block.min(steps - i) {
                     for k in 0..na {
-                        ys[(i + d) * na + k] = e1[(s + d) * na + k];
+                        ys[(i + d) * na + k] = white[(s + d) * na + k];
                     }
                 }
                 i += block;
             }
-            let xs = bounded_least_squares(&a, &ys, &c.lower)?;
-            let rs = (&ys - &a * &xs).norm_squared();
-            if lr(n_eff, ys.norm_squared(), rs) >= stat {
+            let xs = fit.solve(&a, &ys, &c.lower)?;
+            if lr(n_eff, fit.rss(&ys), fit.rss(&(&ys - &a * &xs))) >= stat {
                 exceed += 1;
             }
         }
@@ -141,20 +143,32 @@ fn score_linear(c: &Candidate, prep: &Prepared, r: &Table, o: &Options, rng: &mu
     };
     // Intervals: the least-squares covariance, inflated for the autocorrelation.
     let s2 = rss1 / (n - p as f64).max(1.0);
-    let cov = (a.transpose() * &a).try_inverse().unwrap_or_else(|| DMatrix::from_element(p, p, f64::INFINITY)) * (s2 / frac);
+    let (g, _) = fit.normal_equations(&a, &y);
+    let cov = g.try_inverse().unwrap_or_else(|| DMatrix::from_element(p, p, f64::INFINITY)) * (s2 / frac);
     let ci = (0..p).map(|i| {
         let h = 1.96 * cov[(i, i)].max(0.0).sqrt();
         [x[i] - h, x[i] + h]
     });
     let ci: Vec<[f64; 2]> = ci.collect();
-    let ah = DMatrix::from_columns(&c.columns.iter().map(|col| hold.vector(col)).collect::<Vec<_>>());
+    let ah = hold.matrix(columns);
     let yh = hold.vector(r);
-    let eh = &yh - &ah * &x;
-    let nh = hold.len() as f64 * effective_fraction(&hold.series(&eh));
-    let heldout_p = chi2_sf(lr(nh, yh.norm_squared(), eh.norm_squared()), p);
-    let effect: Table = (0..prep.t.len()).map(|i| (0..r[0].len()).map(|k| c.columns.iter().zip(x.iter()).map(|(col, v)| col[i][k] * v).sum()).collect()).collect();
+    let eh0 = fit.held_out(&y, &yh);
+    let eh1 = fit.held_out(&e1, &(&yh - &ah * &x));
+    let nh = hold.len() as f64 * effective_fraction(&hold.series(&eh1));
+    let heldout_p = chi2_sf(lr(nh, eh0.norm_squared(), eh1.norm_squared()), p);
+    let mut effect: Table = (0..prep.t.len()).map(|i| (0..r[0].len()).map(|k| columns.iter().zip(x.iter()).map(|(col, v)| col[i][k] * v).sum()).collect()).collect();
     let size = (effect[..prep.split].iter().map(|e| e[c.focus].powi(2)).sum::<f64>() / prep.split as f64).sqrt() / prep.noise[c.focus];
-    Ok(Score { x: x.iter().copied().collect(), ci, delta_bic, p_value, heldout_p, effect_to_noise: size, effect })
+    add(&mut effect, &fit.nuisance_effort(&e1));
+    Ok(Score { x: x.iter().copied().collect(), ci, delta_bic, p_value, heldout_p, effect_to_noise: size, effect, profiled })
+}
+
+/// `a += b`, element by element.
+fn add(a: &mut Table, b: &Table) {
+    for (x, e) in a.iter_mut().zip(b) {
+        for (u, v) in x.iter_mut().zip(e) {
+            *u += v;
+        }
+    }
 }
 
 /// `base` shifted by `tau` seconds later (the measured stream lags the link by `tau`), cubic
@@ -178,36 +192,70 @@ fn shifted(base: &Table, dt: f64, tau: f64) -> Table {
         .collect()
 }
 
-/// The latency candidate's 1-D profile over 0-60 ms in 0.5 ms steps.
-fn score_latency(prep: &Prepared, base: &Table) -> (Score, f64) {
-    let train = Rows { prep, range: 0..prep.split };
-    let hold = Rows { prep, range: prep.split..prep.t.len() };
-    let rss = |rows: &Rows, tau: f64| -> (f64, DVector<f64>) {
-        let sh = shifted(base, prep.dt, tau);
-        let e = rows.vector(&residual(prep, &sh, true));
-        (e.norm_squared(), e)
-    };
-    let grid: Vec<f64> = (0..=120).map(|i| i as f64 * 5e-4).collect();
-    let profile: Vec<f64> = grid.iter().map(|t| rss(&train, *t).0).collect();
-    let best = (0..grid.len()).min_by(|a, b| profile[*a].total_cmp(&profile[*b])).unwrap_or(0);
-    let (rss1, e1) = rss(&train, grid[best]);
-    let frac = effective_fraction(&train.series(&e1));
+/// A one-parameter effect scanned on a grid (ascending), refined between the best point's
+/// neighbours: `make(value)` is the effect's change of the predicted effort. The null is the
+/// model without it; the interval is where the profile's likelihood ratio stays under 3.84.
+fn score_profile(fit: &Fitter, r: &Table, grid: &[f64], make: &dyn Fn(f64) -> Table, focus: Option<usize>) -> Score {
+    let prep = fit.prep;
+    let (train, hold) = (Rows::train(prep), Rows::held_out(prep));
+    let minus = |sig: &Table| -> Table { r.iter().zip(sig).map(|(a, b)| a.iter().zip(b).map(|(x, y)| x - y).collect()).collect() };
+    let eval = |v: f64| fit.rss(&train.vector(&minus(&make(v))));
+    let mut points: Vec<(f64, f64)> = grid.iter().map(|&v| (v, eval(v))).collect();
+    let geometric = grid[0] > 0.0;
+    // Twice: the best point's neighbourhood filled in, each time 8 times finer.
+    for _ in 0..2 {
+        points.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let best = (0..points.len()).min_by(|a, b| points[*a].1.total_cmp(&points[*b].1)).unwrap_or(0);
+        let (lo, hi) = (points[best.saturating_sub(1)].0, points[(best + 1).min(points.len() - 1)].0);
+        for i in 1..8 {
+            let w = i as f64 / 8.0;
+            let v = if geometric { lo * (hi / lo).powf(w) } else { lo + (hi - lo) * w };
+            if !points.iter().any(|p| p.0 == v) {
+                points.push((v, eval(v)));
+            }
+        }
+    }
+    points.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let (value, rss1) = points.iter().copied().min_by(|a, b| a.1.total_cmp(&b.1)).unwrap_or((grid[0], f64::INFINITY));
+    let sig = make(value);
+    let rr = minus(&sig);
+    let (y, e1, h0, h1) = (train.vector(r), train.vector(&rr), hold.vector(r), hold.vector(&rr));
+    let frac = effective_fraction(&train.series(&fit.whitened(&e1)));
     let n_eff = train.len() as f64 * frac;
-    let stat = lr(n_eff, profile[0], rss1);
-    let inside: Vec<f64> = grid.iter().zip(&profile).filter(|(_, r)| lr(n_eff, **r, rss1) <= 3.841).map(|(t, _)| *t).collect();
-    let ci = [inside.first().copied().unwrap_or(grid[best]) - 2.5e-4, inside.last().copied().unwrap_or(grid[best]) + 2.5e-4];
-    let (rh0, _) = rss(&hold, 0.0);
-    let (rh1, eh) = rss(&hold, grid[best]);
-    let nh = hold.len() as f64 * effective_fraction(&hold.series(&eh));
-    let effect: Table = shifted(base, prep.dt, grid[best]).iter().zip(base).map(|(a, b)| a.iter().zip(b).map(|(x, y)| x - y).collect()).collect();
-    let size = prep
-        .active
-        .iter()
-        .map(|&k| (effect[..prep.split].iter().map(|e| e[k] * e[k]).sum::<f64>() / prep.split as f64).sqrt() / prep.noise[k])
-        .fold(0.0, f64::max);
-    let p_value = if grid[best] == 0.0 { 1.0 } else { chi2_sf(stat, 1) };
-    let score = Score { x: vec![grid[best]], ci: vec![ci], delta_bic: stat - n_eff.ln(), p_value, heldout_p: chi2_sf(lr(nh, rh0, rh1), 1), effect_to_noise: size, effect };
-    (score, grid[best])
+    let stat = lr(n_eff, fit.rss(&y), rss1);
+    let inside: Vec<f64> = points.iter().filter(|(_, r)| lr(n_eff, *r, rss1) <= 3.841).map(|(v, _)| *v).collect();
+    let mut ci = [inside.first().copied().unwrap_or(value), inside.last().copied().unwrap_or(value)];
+    // Between grid points: the profile's parabola through the best point and its neighbours (in
+    // ln v on a geometric grid) where the likelihood ratio reaches 3.84.
+    if let Some(i) = points.iter().position(|p| p.0 == value).filter(|&i| i > 0 && i + 1 < points.len()) {
+        let x = |v: f64| if geometric { v.ln() } else { v };
+        let (x0, x1, x2) = (x(points[i - 1].0), x(points[i].0), x(points[i + 1].0));
+        let (l0, l1, l2) = (lr(n_eff, points[i - 1].1, rss1), 0.0, lr(n_eff, points[i + 1].1, rss1));
+        // Second divided difference: the curvature a of l(x) = a (x - xm)^2 + c.
+        let a = ((l2 - l1) / (x2 - x1) - (l1 - l0) / (x1 - x0)) / (x2 - x0);
+        if a > 0.0 {
+            let xm = 0.5 * (x0 + x1) - (l1 - l0) / (2.0 * a * (x1 - x0));
+            let half = (3.841 / a).sqrt();
+            let back = |x: f64| if geometric { x.exp() } else { x };
+            ci = [ci[0].min(back(xm - half)), ci[1].max(back(xm + half))];
+        }
+    }
+    let (eh0, eh1) = (fit.held_out(&y, &h0), fit.held_out(&e1, &h1));
+    let nh = hold.len() as f64 * effective_fraction(&hold.series(&eh1));
+    let size_at = |k: usize| (sig[..prep.split].iter().map(|e| e[k] * e[k]).sum::<f64>() / prep.split as f64).sqrt() / prep.noise[k];
+    let size = match focus {
+        Some(k) => size_at(k),
+        None => prep.active.iter().map(|&k| size_at(k)).fold(0.0, f64::max),
+    };
+    let mut effect = sig;
+    add(&mut effect, &fit.nuisance_effort(&e1));
+    let p_value = if stat > 0.0 { chi2_sf(stat, 1) } else { 1.0 };
+    Score { x: vec![value], ci: vec![ci], delta_bic: stat - n_eff.ln(), p_value, heldout_p: chi2_sf(lr(nh, eh0.norm_squared(), eh1.norm_squared()), 1), effect_to_noise: size, effect, profiled: None }
+}
+
+/// `n` points from `lo` to `hi`, geometric.
+fn geometric(lo: f64, hi: f64, n: usize) -> Vec<f64> {
+    (0..n).map(|i| lo * (hi / lo).powf(i as f64 / (n - 1) as f64)).collect()
 }
 
 /// The experiment that separates two candidates whose signatures look alike.
@@ -254,42 +302,81 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
     let mut predictor = Predictor::new(&arm.model, arm, scene.gravity)?;
     let base = predictor.series(&prep)?;
     let r = residual(&prep, &base, true);
-    let cands = candidates::build(&predictor, arm, scene.gravity, &prep, &base)?;
+    let inertias = arm.inertials.body_inertias(&arm.model).map_err(|e| CalibError::data("inertials", e.to_string()))?;
+    let inertias = dvrk_kin::effects::payload_inertias(&arm.model, &arm.model.effects, &inertias)?;
+    let gravity = nalgebra::Vector3::from(scene.gravity);
+    let nuisance = Nuisance::new(&arm.model, &inertias, &gravity, &prep, &o.inertia_prior, 1.0 / prep.noise_fraction)?;
+    let fit = Fitter { prep: &prep, nuisance: nuisance.as_ref() };
+    let offsets = candidates::offset_sensitivities(&predictor, arm, scene.gravity, &prep, &base)?;
+    let cands = candidates::build(&predictor, arm, scene.gravity, &prep, &base, &offsets)?;
     let mut rng = ChaCha8Rng::seed_from_u64(o.seed);
-    let mut scored: Vec<(Option<&Candidate>, EffectKind, String, Score)> = Vec::new();
+    let mut scored: Vec<(Option<&Candidate>, EffectKind, String, Score, Option<usize>)> = Vec::new();
     for c in &cands {
-        let s = score_linear(c, &prep, &r, o, &mut rng)?;
-        scored.push((Some(c), c.kind, c.label(&arm.model), s));
+        let s = score_linear(c, &fit, &r, o, &mut rng)?;
+        scored.push((Some(c), c.kind, c.label(&arm.model), s, c.joint));
     }
-    let (lat, _) = score_latency(&prep, &base);
-    scored.push((None, EffectKind::Latency, "latency".into(), lat));
+    // Latency: the prediction shifted later, 0-60 ms.
+    let shift = |tau: f64| -> Table { shifted(&base, prep.dt, tau).iter().zip(&base).map(|(a, b)| a.iter().zip(b).map(|(x, y)| x - y).collect()).collect() };
+    let lat_grid: Vec<f64> = (0..=60).map(|i| i as f64 * 1e-3).collect();
+    scored.push((None, EffectKind::Latency, "latency".into(), score_profile(&fit, &r, &lat_grid, &shift, None), None));
+    // The drives: compliance and play per moving joint, each a profile of its own simulation.
+    let dm = dvrk_kin::DynamicsModel::new(&arm.model, inertias.clone())?;
+    let link_m = super::drive::link_inertias(&arm.model, &dm, &prep)?;
+    for &j in &prep.active {
+        let Some(d) = offsets.iter().find(|(k, _)| *k == j).map(|(_, d)| d) else { continue };
+        if arm.armature[j] <= 0.0 {
+            continue;
+        }
+        let jl = super::drive::JointLoad {
+            joint: j,
+            load: (0..prep.t.len()).map(|i| base[i][j] - arm.armature[j] * prep.qdd[i][j]).collect(),
+            inertia: link_m.iter().map(|m| m.column(j).iter().copied().collect()).collect(),
+            stiffness: d.clone(),
+            motor: arm.armature[j],
+            damping: predictor.joint_damping(j),
+        };
+        let nq = arm.model.nq();
+        let name = &arm.model.joints[j].name;
+        let comp = |k: f64| super::drive::signature(&prep, &jl, super::drive::Law::Compliance(k), nq);
+        let s = score_profile(&fit, &r, &geometric(1.0, 1e5, 26), &comp, Some(j));
+        scored.push((None, EffectKind::JointCompliance, format!("joint_compliance on {name}"), s, Some(j)));
+        let play = |b: f64| super::drive::signature(&prep, &jl, super::drive::Law::Backlash(b), nq);
+        let s = score_profile(&fit, &r, &geometric(2.5e-4, 0.04, 21), &play, Some(j));
+        scored.push((None, EffectKind::Backlash, format!("backlash on {name}"), s, Some(j)));
+    }
     scored.sort_by(|x, y| y.3.delta_bic.total_cmp(&x.3.delta_bic));
     let supported = |s: &Score| s.delta_bic > o.min_delta_bic && s.p_value < o.max_p_value && s.heldout_p < 0.01 && s.effect_to_noise >= o.min_effect_to_noise;
-    let spec_of = |c: Option<&Candidate>, s: &Score| -> EffectSpec {
+    // The profiled effects' one parameter, by kind.
+    let profiled_name = |kind: EffectKind| match kind {
+        EffectKind::Latency => "seconds",
+        EffectKind::JointCompliance => "stiffness",
+        _ => "b",
+    };
+    let spec_of = |c: Option<&Candidate>, kind: EffectKind, joint: Option<usize>, s: &Score| -> EffectSpec {
         match c {
-            Some(c) => c.spec(&arm.model, &s.x, "dvrk discrepancy"),
-            None => EffectSpec { name: "latency".into(), joint: None, link: None, parameters: BTreeMap::from([("seconds".into(), s.x[0])]), source: "dvrk discrepancy".into() },
+            Some(c) => c.spec(&arm.model, &s.x, s.profiled, "dvrk discrepancy"),
+            None => EffectSpec {
+                name: kind.name().into(),
+                joint: joint.map(|j| arm.model.joints[j].name.clone()),
+                link: None,
+                parameters: BTreeMap::from([(profiled_name(kind).into(), s.x[0])]),
+                source: "dvrk discrepancy".into(),
+            },
         }
     };
-    let ci_of = |c: Option<&Candidate>, s: &Score| -> BTreeMap<String, [f64; 2]> {
+    let ci_of = |c: Option<&Candidate>, kind: EffectKind, s: &Score| -> BTreeMap<String, [f64; 2]> {
         let mut m = BTreeMap::new();
-        match c.map(|c| (c.kind, c)) {
+        match c {
             None => {
-                m.insert("seconds".into(), [s.ci[0][0].max(0.0), s.ci[0][1]]);
+                m.insert(profiled_name(kind).into(), s.ci[0]);
             }
-            Some((EffectKind::JointCompliance, _)) => {
-                // stiffness = 1 / compliance: the interval inverted (unbounded above when the
-                // compliance's interval reaches 0).
-                let [lo, hi] = s.ci[0];
-                m.insert("stiffness".into(), [1.0 / hi, if lo > 0.0 { 1.0 / lo } else { f64::INFINITY }]);
-            }
-            Some((EffectKind::Spring, _)) => {
+            Some(c) if matches!(c.kind, EffectKind::Spring) => {
                 m.insert("k".into(), s.ci[0]);
             }
-            Some((EffectKind::PayloadMass, _)) => {
+            Some(c) if matches!(c.kind, EffectKind::PayloadMass) => {
                 m.insert("mass".into(), s.ci[0]);
             }
-            Some((_, c)) => {
+            Some(c) => {
                 for (n, ci) in c.names.iter().zip(&s.ci) {
                     m.insert((*n).into(), *ci);
                 }
@@ -302,7 +389,11 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
     let mut experiment = None;
     let mut effects = Vec::new();
     let mut named = None;
-    let mut after = base.clone();
+    // Before: the model with its inertias refitted within their prior (the null of every test);
+    // after: the same with the named effect, the inertias refitted with it.
+    let mut before = base.clone();
+    add(&mut before, &fit.nuisance_effort(&Rows::train(&prep).vector(&r)));
+    let mut after = before.clone();
     if let Some(&b) = winners.first() {
         let best = &scored[b];
         let rival = winners.iter().skip(1).map(|&i| &scored[i]).find(|s| s.2 != best.2 && s.1 != best.1 && best.3.delta_bic - s.3.delta_bic < o.ambiguity_bic);
@@ -311,36 +402,33 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
             experiment = Some(separating_experiment(best.1, rv.1));
         } else {
             verdict = "named";
-            let spec = spec_of(best.0, &best.3);
+            let spec = spec_of(best.0, best.1, best.4, &best.3);
             effects.push(EffectReport {
                 name: spec.name.clone(),
                 joint: spec.joint.clone(),
                 link: best.0.and_then(|c| c.link.clone()),
                 parameters: spec.parameters.clone(),
-                ci95: ci_of(best.0, &best.3),
+                ci95: ci_of(best.0, best.1, &best.3),
                 delta_bic: best.3.delta_bic,
                 p_value: best.3.p_value,
             });
-            for (x, e) in after.iter_mut().zip(&best.3.effect) {
-                for (u, v) in x.iter_mut().zip(e) {
-                    *u += v;
-                }
-            }
+            after = base.clone();
+            add(&mut after, &best.3.effect);
             named = Some(spec);
         }
     }
     let candidates: Vec<CandidateReport> = scored
         .iter()
         .take(12)
-        .map(|(c, _, label, s)| {
-            let spec = spec_of(*c, s);
+        .map(|(c, kind, label, s, joint)| {
+            let spec = spec_of(*c, *kind, *joint, s);
             CandidateReport {
                 label: label.clone(),
                 name: spec.name,
                 joint: spec.joint,
                 link: spec.link.map(|l| l.to_string()),
                 parameters: spec.parameters,
-                ci95: ci_of(*c, s),
+                ci95: ci_of(*c, *kind, s),
                 delta_bic: s.delta_bic,
                 p_value: s.p_value,
                 heldout_p_value: s.heldout_p,
@@ -349,7 +437,8 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
             }
         })
         .collect();
-    let (f0, f1) = (residual(&prep, &base, true), residual(&prep, &after, true));
+    let (f0, f1) = (residual(&prep, &before, true), residual(&prep, &after, true));
+    let fn0 = residual(&prep, &base, true);
     let (tr, ho) = (0..prep.split, prep.split..prep.t.len());
     let joints = prep
         .active
@@ -376,6 +465,8 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
         rms_after: normalised_rms(&prep, &f1, tr.clone()),
         rms_heldout_before: normalised_rms(&prep, &f0, ho.clone()),
         rms_heldout_after: normalised_rms(&prep, &f1, ho.clone()),
+        rms_nominal: normalised_rms(&prep, &fn0, tr.clone()),
+        rms_heldout_nominal: normalised_rms(&prep, &fn0, ho.clone()),
         noise_floor: 1.0,
         rms_units: "each joint's effort residual in the analysis band over its noise floor there, RMS over the moving joints".into(),
         joints,

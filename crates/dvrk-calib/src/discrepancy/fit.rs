@@ -1,0 +1,123 @@
+//! Least squares on the analysed rows, with or without the inertia nuisance: the one place that
+//! knows how a residual's size, a bounded fit and a held-out prediction are taken.
+
+use super::candidates::Table;
+use super::nuisance::Nuisance;
+use super::signals::Prepared;
+use super::stats::bounded_least_squares;
+use crate::error::Result;
+use nalgebra::{DMatrix, DVector};
+
+/// Rows (train or held out) of the active joints, each divided by its noise floor, sample-major.
+pub struct Rows<'a> {
+    pub prep: &'a Prepared,
+    pub range: std::ops::Range<usize>,
+}
+
+impl<'a> Rows<'a> {
+    pub fn train(prep: &'a Prepared) -> Self {
+        Rows { prep, range: 0..prep.split }
+    }
+    pub fn held_out(prep: &'a Prepared) -> Self {
+        Rows { prep, range: prep.split..prep.t.len() }
+    }
+    pub fn len(&self) -> usize {
+        self.range.len() * self.prep.active.len()
+    }
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+    /// First row's index among all rows.
+    pub fn start(&self) -> usize {
+        self.range.start * self.prep.active.len()
+    }
+    pub fn vector(&self, t: &Table) -> DVector<f64> {
+        let p = self.prep;
+        DVector::from_iterator(self.len(), self.range.clone().flat_map(|i| p.active.iter().map(move |&k| t[i][k] / p.floor[k])))
+    }
+    pub fn matrix(&self, columns: &[Table]) -> DMatrix<f64> {
+        DMatrix::from_columns(&columns.iter().map(|c| self.vector(c)).collect::<Vec<_>>())
+    }
+    /// The per-joint time series of a row vector (for the autocorrelation).
+    pub fn series(&self, v: &DVector<f64>) -> Vec<Vec<f64>> {
+        let na = self.prep.active.len();
+        (0..na).map(|a| (0..self.range.len()).map(|i| v[i * na + a]).collect()).collect()
+    }
+}
+
+/// Fits in the metric the nuisance leaves (plain least squares without it).
+pub struct Fitter<'a> {
+    pub prep: &'a Prepared,
+    pub nuisance: Option<&'a Nuisance>,
+}
+
+impl Fitter<'_> {
+    /// Squared size of a training residual, the nuisance refitted to it.
+    pub fn rss(&self, v: &DVector<f64>) -> f64 {
+        match self.nuisance {
+            Some(n) => n.wnorm2(v),
+            None => v.norm_squared(),
+        }
+    }
+
+    /// `C^T W C`, `C^T W y` on the training rows.
+    pub fn normal_equations(&self, c: &DMatrix<f64>, y: &DVector<f64>) -> (DMatrix<f64>, DVector<f64>) {
+        match self.nuisance {
+            Some(n) => n.normal_equations(c, y),
+            None => (c.tr_mul(c), c.tr_mul(y)),
+        }
+    }
+
+    /// `min |y - C x|` with lower bounds on `x`, the nuisance refitted.
+    pub fn solve(&self, c: &DMatrix<f64>, y: &DVector<f64>, lower: &[Option<f64>]) -> Result<DVector<f64>> {
+        if self.nuisance.is_none() {
+            return bounded_least_squares(c, y, lower);
+        }
+        let (mut g, b) = self.normal_equations(c, y);
+        // The same problem as a small least squares: |L^T x - L^-1 b|^2 = x^T G x - 2 b^T x + const.
+        let jitter = 1e-12 * g.trace().abs().max(1e-300) / g.nrows().max(1) as f64;
+        for d in 0..g.nrows() {
+            g[(d, d)] += jitter;
+        }
+        let Some(ch) = g.clone().cholesky() else {
+            return bounded_least_squares(c, y, lower);
+        };
+        let l = ch.l();
+        let r = l.solve_lower_triangular(&b).unwrap_or(b);
+        bounded_least_squares(&l.transpose(), &r, lower)
+    }
+
+    /// The training residual with the nuisance's fit taken out (what is left to look white).
+    pub fn whitened(&self, v: &DVector<f64>) -> DVector<f64> {
+        match self.nuisance {
+            Some(n) => v - n.predict(&n.theta(v), 0, v.len()),
+            None => v.clone(),
+        }
+    }
+
+    /// A held-out residual `h` with the nuisance fitted to training residual `v` taken out.
+    pub fn held_out(&self, v: &DVector<f64>, h: &DVector<f64>) -> DVector<f64> {
+        match self.nuisance {
+            Some(n) => h - n.predict(&n.theta(v), v.len(), h.len()),
+            None => h.clone(),
+        }
+    }
+
+    /// The nuisance fitted to training residual `v`, as efforts `[sample][joint]` at every sample
+    /// (zero on joints that are not analysed; all zero without a nuisance).
+    pub fn nuisance_effort(&self, v: &DVector<f64>) -> Table {
+        let p = self.prep;
+        let nq = p.q.first().map_or(0, |r| r.len());
+        let mut out = vec![vec![0.0; nq]; p.t.len()];
+        if let Some(n) = self.nuisance {
+            let na = p.active.len();
+            let all = n.predict(&n.theta(v), 0, p.t.len() * na);
+            for (i, row) in out.iter_mut().enumerate() {
+                for (a, &k) in p.active.iter().enumerate() {
+                    row[k] = all[i * na + a] * p.floor[k];
+                }
+            }
+        }
+        out
+    }
+}

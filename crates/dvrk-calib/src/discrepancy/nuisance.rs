@@ -1,0 +1,143 @@
+//! The bodies' inertial parameters as nuisance: a CAD model's inertias are never exact, and their
+//! error leaves a residual that would otherwise be named as an effect (or hide one). Every fit of
+//! the workflow re-estimates them next to the candidate, pulled toward the model's values by a
+//! Gaussian prior (ridge), so an effect that inertias could explain only with implausible values
+//! still stands out, and a payload (a mass change far beyond the prior) is still seen.
+//!
+//! With `N` the regressor rows (each over its joint's noise floor, each column times its prior
+//! standard deviation) and `lambda` the prior's weight, eliminating the nuisance from
+//! `min |y - N t - C x|^2 + lambda |t|^2` leaves `|y - C x|_W^2` with
+//! `W = I - N (N^T N + lambda I)^-1 N^T`: everything below works in that metric, through the
+//! Cholesky factor `L` of `N^T N + lambda I` (`v^T W v = |v|^2 - |L^-1 N^T v|^2`).
+
+use super::signals::Prepared;
+use crate::error::{CalibError, Result};
+use dvrk_kin::dynamics::PARAMETERS_PER_BODY;
+use dvrk_kin::{BodyInertia, DynamicsData, DynamicsModel, Model};
+use nalgebra::{Cholesky, DMatrix, DVector, Dyn, Vector3};
+
+/// Prior standard deviations of the inertial parameters, relative to the model's values.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct InertiaPrior {
+    /// Of each body's rotational inertia (its six entries, relative to the largest moment about
+    /// the centre of mass); 0 holds them at the model's values.
+    pub rotational: f64,
+    /// Of each body's mass and first moments (relative to `m` and to `m (|c| + 1 cm)`).
+    pub mass: f64,
+}
+
+impl Default for InertiaPrior {
+    fn default() -> Self {
+        InertiaPrior { rotational: 0.1, mass: 0.02 }
+    }
+}
+
+impl InertiaPrior {
+    /// Nothing re-estimated.
+    pub fn none() -> Self {
+        InertiaPrior { rotational: 0.0, mass: 0.0 }
+    }
+
+    fn is_off(&self) -> bool {
+        self.rotational <= 0.0 && self.mass <= 0.0
+    }
+
+    /// Each linear-form parameter's standard deviation for `body` (kg, kg m, kg m^2).
+    fn stds(&self, body: &BodyInertia) -> [f64; PARAMETERS_PER_BODY] {
+        let m = body.mass;
+        let first = self.mass * m * (body.com.norm() + 0.01);
+        let rot = self.rotational * body.inertia.symmetric_eigenvalues().amax();
+        [self.mass * m, first, first, first, rot, rot, rot, rot, rot, rot]
+    }
+}
+
+/// The nuisance of one analysis (see the module's text).
+pub struct Nuisance {
+    /// Scaled regressor rows of every analysed sample (sample-major, the active joints).
+    n: DMatrix<f64>,
+    /// Rows `0..train` are the fitted part.
+    train: usize,
+    chol: Cholesky<f64, Dyn>,
+}
+
+impl Nuisance {
+    /// The nuisance for `model` with `inertias` (the prior's centre) on `prep`, or `None` when the
+    /// prior holds everything. `lambda`: the prior's weight against a row (`1 / (n_eff / n)` of
+    /// the band-limited noise: rows are correlated, the prior is not).
+    pub fn new(model: &Model, inertias: &[BodyInertia], gravity: &Vector3<f64>, prep: &Prepared, prior: &InertiaPrior, lambda: f64) -> Result<Option<Nuisance>> {
+        if prior.is_off() {
+            return Ok(None);
+        }
+        let dm = DynamicsModel::new(model, inertias.to_vec())?;
+        let mut data = DynamicsData::new(model);
+        let nq = model.nq();
+        let stds: Vec<f64> = inertias.iter().flat_map(|b| prior.stds(b)).collect();
+        // Only parameters that change some effort and have room to move.
+        let mut y = DMatrix::zeros(nq, stds.len());
+        let na = prep.active.len();
+        let mut full = DMatrix::zeros(prep.t.len() * na, stds.len());
+        for i in 0..prep.t.len() {
+            dvrk_kin::regressor(model, &dm, &mut data, &prep.q[i], &prep.qd[i], &prep.qdd[i], gravity, &mut y)?;
+            for (a, &k) in prep.active.iter().enumerate() {
+                for c in 0..stds.len() {
+                    full[(i * na + a, c)] = y[(k, c)] * stds[c] / prep.floor[k];
+                }
+            }
+        }
+        let keep: Vec<usize> = (0..stds.len()).filter(|&c| stds[c] > 0.0 && full.column(c).amax() > 0.0).collect();
+        if keep.is_empty() {
+            return Ok(None);
+        }
+        let n = full.select_columns(&keep);
+        let train = prep.split * na;
+        let nt = n.rows(0, train);
+        let mut p = nt.transpose() * nt;
+        for d in 0..p.nrows() {
+            p[(d, d)] += lambda;
+        }
+        let chol = p.cholesky().ok_or_else(|| CalibError::data("inertia nuisance", "the prior's normal matrix is not positive definite"))?;
+        Ok(Some(Nuisance { n, train, chol }))
+    }
+
+    /// `L^-1 N_train^T v` for a training-row vector `v`.
+    fn project(&self, v: &DVector<f64>) -> DVector<f64> {
+        let g = self.n.rows(0, self.train).tr_mul(v);
+        self.chol.l_dirty().solve_lower_triangular(&g).unwrap_or(g)
+    }
+
+    /// `L^-1 N_train^T C` for training-row columns `C`.
+    fn project_columns(&self, c: &DMatrix<f64>) -> DMatrix<f64> {
+        let g = self.n.rows(0, self.train).tr_mul(c);
+        self.chol.l_dirty().solve_lower_triangular(&g).unwrap_or(g)
+    }
+
+    /// `v^T W v`: the residual's squared norm with the nuisance refitted (prior cost included).
+    pub fn wnorm2(&self, v: &DVector<f64>) -> f64 {
+        (v.norm_squared() - self.project(v).norm_squared()).max(0.0)
+    }
+
+    /// The nuisance fitted to training residual `v` (scaled units).
+    pub fn theta(&self, v: &DVector<f64>) -> DVector<f64> {
+        self.chol.solve(&self.n.rows(0, self.train).tr_mul(v))
+    }
+
+    /// The fitted nuisance's contribution on rows `start..start + len` (scaled units).
+    pub fn predict(&self, theta: &DVector<f64>, start: usize, len: usize) -> DVector<f64> {
+        self.n.rows(start, len) * theta
+    }
+
+    /// The Gram matrix and right-hand side of `min |y - C x|_W^2` over `x`: `C^T W C`, `C^T W y`.
+    pub fn normal_equations(&self, c: &DMatrix<f64>, y: &DVector<f64>) -> (DMatrix<f64>, DVector<f64>) {
+        let (zc, zy) = (self.project_columns(c), self.project(y));
+        (c.tr_mul(c) - zc.tr_mul(&zc), c.tr_mul(y) - zc.tr_mul(&zy))
+    }
+
+    /// Number of nuisance parameters.
+    pub fn len(&self) -> usize {
+        self.n.ncols()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.n.ncols() == 0
+    }
+}
