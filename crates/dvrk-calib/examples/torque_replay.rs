@@ -2,6 +2,7 @@
 //! must-show 3): per-joint RMS of simulated minus recorded motion, with the CAD scene as shipped
 //! and with the identified scene's solver sweeps, and the ablation (identified inertials or
 //! identified effects alone). `FB=0.1,0.3,1` sets the feedback fractions.
+use dvrk_calib::identify::output::identified_model;
 use dvrk_calib::identify::replay::{identified_scene, torque_replay, IDENTIFIED_PGS_ITERATIONS};
 use dvrk_calib::identify::{identify, read_wpi_csv, IdentifyOptions};
 use std::path::Path;
@@ -15,10 +16,11 @@ fn main() {
     let options = IdentifyOptions::for_model(&model);
     let (id, _) = identify(&model, &prior, &one, &options).unwrap();
     let base = dvrk_sim::Scene::load("psm").unwrap();
-    let (scene, info) = identified_scene(&base, 0, &model, &id, &options.processing).unwrap();
+    let identified = identified_model(&model, &id, &options.processing, &one.to_joint, &prior, "one").unwrap();
+    let scene = identified_scene(&base, 0, &identified).unwrap();
     let mut cad_sweeps = base.clone();
     cad_sweeps.arms[0].pgs_iterations = Some(IDENTIFIED_PGS_ITERATIONS);
-    println!("not simulated: {:?}\nkept prior: {:?}", info.not_simulated, info.kept_prior);
+    println!("not expressed as effects: {:#?}\nkept prior: {:?}", identified.not_expressed, identified.kept_prior);
     for b in &scene.arms[0].inertials.bodies {
         println!("{:20} m {:.4} com {:.3?} I diag {:.2e} {:.2e} {:.2e}", b.name, b.mass, b.com, b.inertia[0][0], b.inertia[1][1], b.inertia[2][2]);
     }

@@ -12,6 +12,7 @@
 
 pub mod ablation;
 pub mod filter;
+pub mod output;
 pub mod problem;
 pub mod recording;
 pub mod replay;
