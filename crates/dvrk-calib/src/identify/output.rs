@@ -55,7 +55,41 @@ fn unit(term: EffectTerm, prismatic: bool) -> &'static str {
         (EffectTerm::Armature, true) => "kg",
         (EffectTerm::Spring, false) => "N·m/rad",
         (EffectTerm::Spring, true) => "N/m",
+        (EffectTerm::Winding, false) => "N·m/rad^2",
+        (EffectTerm::Winding, true) => "N/m^2",
     }
+}
+
+/// Body `b`'s identified inertia made strictly physical, or `None` if its mass is not positive.
+///
+/// The solver holds each pseudo-inertia positive semidefinite to its tolerance, so a tiny body
+/// on the cone's boundary (a tool link of 1e-9 kg m^2) can break the triangle inequality of its
+/// principal moments by round-off (measured: 9.5e-13 kg m^2 on tool_pitch_link), which
+/// [`BodyInertia::check`] refuses. The nearest moments that obey it (negative ones to 0, the two
+/// smaller raised equally until the largest is their sum) change the body by that round-off,
+/// where keeping the CAD prior would replace the body altogether.
+fn physical_body(id: &Identification, b: usize) -> Option<BodyInertia> {
+    let p = &id.theta.as_slice()[b * PARAMETERS_PER_BODY..(b + 1) * PARAMETERS_PER_BODY];
+    let m = p[0];
+    if !(m.is_finite() && m > 0.0) {
+        return None;
+    }
+    let c = nalgebra::Vector3::new(p[1], p[2], p[3]) / m;
+    let j = nalgebra::Matrix3::new(p[4], p[5], p[6], p[5], p[7], p[8], p[6], p[8], p[9]);
+    let about_com = j - (nalgebra::Matrix3::identity() * c.norm_squared() - c * c.transpose()) * m;
+    let eig = nalgebra::SymmetricEigen::new(about_com);
+    let mut e = eig.eigenvalues.map(|x| x.max(0.0));
+    let (k, _) = e.argmax();
+    let excess = e[k] - (e.sum() - e[k]);
+    if excess > 0.0 {
+        for i in (0..3).filter(|&i| i != k) {
+            e[i] += 0.5 * excess;
+        }
+    }
+    let inertia = eig.eigenvectors * nalgebra::Matrix3::from_diagonal(&e) * eig.eigenvectors.transpose();
+    let inertia = 0.5 * (inertia + inertia.transpose());
+    let ine = BodyInertia { mass: m, com: c, inertia };
+    ine.check("identified body").ok().map(|_| ine)
 }
 
 /// `model` with `id`'s inertials and effects. `prior` (one per body, [`Model::bodies`] order)
@@ -114,8 +148,8 @@ pub fn identified_model(model: &Model, id: &Identification, processing: &Process
                 armature[j] = Some(value);
                 not_expressed.push(format!("{} = {value:.6} {} (reflected motor inertia: a scene armature, not a model effect)", id.estimates[i].name, unit(term, prismatic(j))));
             }
-            // No Stribeck effect in the vocabulary.
-            EffectTerm::Stribeck => not_expressed.push(format!("{} = {value:.6} {}", id.estimates[i].name, unit(term, prismatic(j)))),
+            // No Stribeck or position-dependent friction in the vocabulary.
+            EffectTerm::Stribeck | EffectTerm::Winding => not_expressed.push(format!("{} = {value:.6} {}", id.estimates[i].name, unit(term, prismatic(j)))),
         }
     }
     // Constant offsets of coupled channels, exactly, on the joints.
@@ -138,9 +172,9 @@ pub fn identified_model(model: &Model, id: &Identification, processing: &Process
     let mut inertials = Vec::with_capacity(model.bodies.len());
     let mut kept_prior = Vec::new();
     for (b, body) in model.bodies.iter().enumerate() {
-        let (ine, from) = match id.body_inertia(b, &body.name) {
-            Ok(ine) => (ine, source.clone()),
-            Err(_) => {
+        let (ine, from) = match physical_body(id, b) {
+            Some(ine) => (ine, source.clone()),
+            None => {
                 kept_prior.push(body.name.clone());
                 (prior[b].clone(), "prior (the identification left this body degenerate)".to_string())
             }

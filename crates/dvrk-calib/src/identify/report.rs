@@ -28,6 +28,7 @@ fn effect_name(term: EffectTerm) -> &'static str {
         EffectTerm::Armature => "armature",
         EffectTerm::Spring => "spring",
         EffectTerm::Stribeck => "stribeck_friction",
+        EffectTerm::Winding => "winding_friction",
     }
 }
 

@@ -40,16 +40,16 @@ fn real_psm_recordings_identify_physically_and_predict_the_held_out_one() {
             id.body_inertia(b, &body.name).unwrap();
         }
     }
-    // Measured 0.072 0.150 0.205 0.170 0.239 0.216 0.268: at or below the published figures on
+    // Measured 0.070 0.138 0.195 0.170 0.239 0.217 0.267: at or below the published figures on
     // yaw, pitch and wrist pitch (0.2390 against 0.239); insertion, roll, wrist yaw and jaw are
-    // 7%, 27%, 1.5% and 1.5% above them. The effects matter on every channel.
+    // 2%, 27%, 2% and 1% above them. The effects matter on every channel.
     for c in 0..7 {
         assert!(held_out[c] < 0.75 * rigid_held_out[c], "channel {c}: {} vs rigid {}", held_out[c], rigid_held_out[c]);
         let bound = match c {
             0 | 1 => PUBLISHED[c],
             4 => PUBLISHED[c] + 0.0005,
             3 => 1.3 * PUBLISHED[c],
-            _ => 1.08 * PUBLISHED[c],
+            _ => 1.03 * PUBLISHED[c],
         };
         assert!(held_out[c] <= bound, "channel {c}: {} vs published {} (bound {bound})", held_out[c], PUBLISHED[c]);
     }
@@ -72,7 +72,7 @@ fn real_psm_recordings_identify_physically_and_predict_the_held_out_one() {
     }
     // The ablation ends at the chosen options with the same figures.
     let rows = dvrk_calib::identify::ablation::ablation(&model, &prior, &r1, Some(&r2), &options).unwrap();
-    assert_eq!(rows.len(), 8);
+    assert_eq!(rows.len(), 9);
     assert_eq!(rows.last().unwrap().validation.as_ref().unwrap(), &held_out);
     assert_eq!(rows[0].validation.as_ref().unwrap().len(), 7);
 }
@@ -97,7 +97,7 @@ fn bad_wpi_files_name_the_line_and_column() {
 /// weak feedback (0.3 x the scene's kp, kd), follows `two`'s motion better than the CAD model on
 /// every joint, whether the CAD scene runs its own 12 Gauss-Seidel sweeps or the identified
 /// scene's 30. Measured (RMS, CAD 12 sweeps / CAD 30 sweeps -> identified): yaw 0.0331 / 0.0320
-/// -> 0.0072 rad, pitch 0.086 / 0.090 -> 0.025 rad, insertion 6.5 / 6.5 -> 1.4 mm, roll 0.0261
+/// -> 0.0071 rad, pitch 0.086 / 0.090 -> 0.024 rad, insertion 6.5 / 6.5 -> 1.7 mm, roll 0.0261
 /// -> 0.0250, wrist pitch 0.0213 -> 0.0206, wrist yaw 0.0201 -> 0.0190, jaw 0.0205 -> 0.0121
 /// rad (the wrist gains come from the tool actuators' offsets, mapped onto the joints).
 ///
@@ -156,8 +156,11 @@ fn identify_output_is_a_model_file_the_simulator_loads() {
     let loaded = dvrk_kin::load(path.to_str().unwrap(), None).unwrap();
     assert_eq!(loaded.spec.inertials.len(), model.bodies.len());
     for (b, body) in model.bodies.iter().enumerate() {
-        let (file, fitted) = (loaded.file_inertia(b).unwrap(), id.body_inertia(b, &body.name).unwrap());
-        assert!((file.mass - fitted.mass).abs() <= 1e-12 * fitted.mass && (file.com - fitted.com).norm() < 1e-12, "{}", body.name);
+        // Mass and first moment as identified (the moments may move by the solver's round-off to
+        // obey the triangle inequality exactly).
+        let file = loaded.file_inertia(b).unwrap();
+        let p = &id.theta.as_slice()[b * 10..b * 10 + 4];
+        assert!((file.mass - p[0]).abs() <= 1e-12 * p[0] && (file.com * file.mass - nalgebra::Vector3::new(p[1], p[2], p[3])).norm() < 1e-12, "{}", body.name);
     }
     // Yaw friction at 0.5 rad/s: the model's effort is the identified fc tanh(v / vc) + fo + fv v.
     let est = |name: &str| id.estimates.iter().find(|e| e.name == name).unwrap().value;
