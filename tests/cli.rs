@@ -206,7 +206,7 @@ fn export_mjcf_writes_a_scene_or_a_model_and_names_bad_input() {
 }
 
 /// `dvrk identify` on the real WPI recordings (skipped when ../shared is absent): the JSON
-/// contract, the validation block and a model-update file the simulator reads as inertials.
+/// contract, the validation block and the identified model file, which `dvrk sim --model` runs.
 #[test]
 fn identify_json_and_output_file() {
     let (Some(one), Some(two)) = (crate::util::external("wpi-dvrk-dynamics/psm_one_results.csv"), crate::util::external("wpi-dvrk-dynamics/psm_two_results.csv")) else { return };
@@ -224,11 +224,14 @@ fn identify_json_and_output_file() {
     let ablation = v["ablation"].as_array().unwrap();
     assert_eq!(ablation[0]["effects"], "rigid body only (CAD prior, one cut-off)");
     assert_eq!(ablation.last().unwrap()["validation"], v["validation"]["relative_error"]);
-    let model = dvrk_kin::load("psm", None).unwrap();
-    let text = std::fs::read_to_string(&out).unwrap();
-    let ine = dvrk_sim::inertials::Inertials::parse(&text, "psm-identified.toml", &model).unwrap();
-    assert!(ine.bodies.iter().any(|b| b.provenance.starts_with("identified from")));
-    assert!(text.contains("[[effects]]") && text.contains("coulomb_friction"));
+    // The output is a model file with the identified inertials and effects, which the simulator runs.
+    let model = dvrk_kin::load(out.to_str().unwrap(), None).unwrap();
+    assert_eq!(model.spec.inertials.len(), model.bodies.len());
+    assert!(model.spec.inertials.iter().all(|b| b.source.starts_with("dvrk identify from")));
+    assert!(model.spec.effects.iter().any(|e| e.name == "coulomb_friction" && e.joint.as_deref() == Some("outer_yaw")));
+    assert!(v["not_expressed_as_effects"].as_array().unwrap().iter().any(|s| s.as_str().unwrap().starts_with("jaw actuator.fv = ")));
+    let sim: Value = serde_json::from_str(&dvrk_ok(&["sim", "--scene", "psm", "--model", &format!("PSM1={}", out.display()), "--duration", "0.5", "--json"])).unwrap();
+    assert!(sim.is_object(), "{sim}");
     // A CSV given as MCAP, and an unknown format, are named.
     let e = crate::util::dvrk_err(&["identify", "--recording", one.to_str().unwrap(), "--format", "mcap"]);
     assert!(e.contains("psm_one_results.csv: not an MCAP file"), "{e}");

@@ -3,7 +3,7 @@
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use dvrk_calib::identify::{read_wpi_csv, report, IdentifyOptions, TorqueRecording};
+use dvrk_calib::identify::{output, read_wpi_csv, report, IdentifyOptions, TorqueRecording};
 use dvrk_kin::Model;
 use std::path::{Path, PathBuf};
 
@@ -26,7 +26,9 @@ pub struct IdentifyArgs {
     /// Inertials file of the prior (models/inertials format); the built-in ones of --model when absent.
     #[arg(long)]
     pub inertials: Option<PathBuf>,
-    /// Write the identified inertials and effects (TOML) here.
+    /// Write the identified model here: the model file with every body's identified inertial
+    /// (`[[inertials]]`) and the identified effects (`[[effects]]`); `dvrk sim --model ARM=FILE`
+    /// and `--model FILE` load it. Terms no per-joint effect expresses are listed in its notes.
     #[arg(short = 'o', long)]
     pub output: Option<PathBuf>,
     /// A second recording the fit never sees: its relative errors go under `validation`.
@@ -59,7 +61,8 @@ pub fn run(args: &IdentifyArgs) -> Result<()> {
             let text = std::fs::read_to_string(p).with_context(|| format!("--inertials {}", p.display()))?;
             dvrk_sim::inertials::Inertials::parse(&text, &p.display().to_string(), &model)?
         }
-        None => dvrk_sim::scene::builtin_inertials(&model.name, &model).with_context(|| format!("--model {}: no built-in inertials; give --inertials", args.model))?,
+        // An identified model file carries its own inertials: they are the prior.
+        None => dvrk_sim::scene::builtin_inertials(&model.name, &model).with_context(|| format!("--model {}: no built-in inertials; give --inertials", args.model))?.with_model(&model),
     };
     let g = crate::io::parse_list("--gravity", &args.gravity)?;
     let [gx, gy, gz] = g[..] else { bail!("--gravity {}: three components x,y,z (m/s^2)", args.gravity) };
@@ -82,7 +85,10 @@ pub fn run(args: &IdentifyArgs) -> Result<()> {
     let (id, rigid, mut summary) = (&result.identification, &result.rigid, result.summary.clone());
     let ablation = &result.ablation;
     if let Some(o) = &args.output {
-        let text = report::output_toml(&model, id, &prior, &args.recording.display().to_string())?;
+        let recording = args.recording.display().to_string();
+        let identified = output::identified_model(&model, id, &options.processing, &rec.to_joint, &inertias, &recording)?;
+        let text = output::output_toml(&identified, &recording)?;
+        summary["not_expressed_as_effects"] = serde_json::json!(identified.not_expressed);
         crate::io::write_atomic(o, text.as_bytes()).with_context(|| format!("-o {}", o.display()))?;
         summary["output"] = serde_json::json!(o.display().to_string());
     }

@@ -17,7 +17,12 @@ fn main() {
     let dir = Path::new("../shared/data/external/wpi-dvrk-dynamics");
     let one = read_wpi_csv(&dir.join("psm_one_results.csv"), &model).unwrap();
     let two = read_wpi_csv(&dir.join("psm_two_results.csv"), &model).unwrap();
-    let mut o = IdentifyOptions::full(list("SPRING").map(|v| v.iter().map(|x| *x as usize).collect()).unwrap_or(vec![3, 4, 5, 6]));
+    // BASE=psm starts from the chosen PSM options (IdentifyOptions::psm) instead of `full`.
+    let mut o = if std::env::var("BASE").as_deref() == Ok("psm") {
+        IdentifyOptions::psm()
+    } else {
+        IdentifyOptions::full(list("SPRING").map(|v| v.iter().map(|x| *x as usize).collect()).unwrap_or(vec![3, 4, 5, 6]))
+    };
     match std::env::var("EFFECTS").as_deref() {
         Ok("rigid") => o.terms.effects.clear(),
         Ok("friction") => o.terms.effects = vec![EffectTerm::Coulomb, EffectTerm::Offset, EffectTerm::Viscous],
@@ -25,6 +30,10 @@ fn main() {
     }
     if std::env::var("STRIBECK").is_ok() {
         o.terms.effects.push(EffectTerm::Stribeck);
+    }
+    // WIND: channels with the position-dependent (winding) Coulomb friction.
+    if let Some(w) = list("WIND") {
+        o.terms.winding_channels = w.iter().map(|x| *x as usize).collect();
     }
     if let Some(j) = list("JF") {
         o.terms.joint_friction = j.iter().map(|x| *x as usize).collect();

@@ -528,6 +528,7 @@ impl Model {
         let declared: Vec<Option<String>> =
             (0..model.frames.len()).map(|i| model.spec_frame(i).and_then(|f| f.body.clone())).collect();
         model.finalize(&declared)?;
+        model.check_inertials()?;
         crate::closure::compile_closures(&mut model)?;
         if let Some(r) = &spec.rcm {
             let frame = model.frame_id(&r.frame).map_err(|e| KinError::field("rcm.frame", e.to_string()))?;
@@ -535,6 +536,31 @@ impl Model {
             model.rcm = Some(Rcm { frame, point });
         }
         Ok(model)
+    }
+}
+
+impl Model {
+    /// The `[[inertials]]` of the model file: each names a body once and is physical
+    /// ([`crate::BodyInertia::check`]).
+    fn check_inertials(&self) -> Result<()> {
+        for (i, e) in self.spec.inertials.iter().enumerate() {
+            let what = format!("inertials[{i}] ({})", e.body);
+            if !self.bodies.iter().any(|b| b.name == e.body) {
+                let valid: Vec<&str> = self.bodies.iter().map(|b| b.name.as_str()).collect();
+                return Err(KinError::field(format!("{what}.body"), format!("model {} has no body `{}` (valid: {})", self.name, e.body, valid.join(", "))));
+            }
+            if self.spec.inertials[..i].iter().any(|o| o.body == e.body) {
+                return Err(KinError::field(format!("{what}.body"), "body appears twice"));
+            }
+            crate::BodyInertia::new(e.mass, e.com, e.inertia).check(&what)?;
+        }
+        Ok(())
+    }
+
+    /// Body `b`'s inertial from the model file's `[[inertials]]`, if it has one.
+    pub fn file_inertia(&self, b: usize) -> Option<crate::BodyInertia> {
+        let name = &self.bodies.get(b)?.name;
+        self.spec.inertials.iter().find(|e| &e.body == name).map(|e| crate::BodyInertia::new(e.mass, e.com, e.inertia))
     }
 }
 

@@ -229,6 +229,25 @@ fn unit_scale() -> f64 {
     1.0
 }
 
+/// The inertial of one body as a model file carries it (`[[inertials]]`), in the body's first DH
+/// frame like the `models/inertials/*.toml` files: an identified model (`dvrk identify -o`) holds
+/// its bodies here, and a scene arm built from it takes them over its inertials file's.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InertialSpec {
+    /// Body name ([`crate::Model::bodies`]).
+    pub body: String,
+    /// kg
+    pub mass: f64,
+    /// Centre of mass in the body frame (m).
+    pub com: [f64; 3],
+    /// Inertia about the centre of mass, body-frame axes (kg m^2), row-major.
+    pub inertia: [[f64; 3]; 3],
+    /// Where the figures come from.
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub source: String,
+}
+
 /// A whole model file.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -264,6 +283,9 @@ pub struct ModelSpec {
     /// Physical effects: friction, springs, offsets, compliance... ([`crate::effects`]).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub effects: Vec<crate::effects::EffectSpec>,
+    /// Inertials of some or all bodies (`[[inertials]]`); bodies without one take the scene's.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub inertials: Vec<InertialSpec>,
     /// Mesh files of bodies (`[[meshes]]`); bodies without one get solids from the kinematics.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub meshes: Vec<MeshSpec>,
@@ -288,6 +310,7 @@ impl ModelSpec {
             tool: None,
             coupling: None,
             effects: vec![],
+            inertials: vec![],
             meshes: vec![],
         }
     }

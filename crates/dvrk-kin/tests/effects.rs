@@ -84,3 +84,24 @@ fn bad_effects_name_the_effect_the_field_and_the_value() {
     assert!(err("[[effects]]\nname = \"spring\"\njoint = \"elbow\"\nparameters = { k = 1 }\n").contains("effects[0] (spring).joint"));
     assert!(err("[[effects]]\nname = \"joint_compliance\"\njoint = \"outer_insertion\"\n").contains("parameters.stiffness`: missing (N/m)"));
 }
+
+/// `[[inertials]]` (what `dvrk identify -o` writes): read back per body, written back by
+/// `to_toml`, and refused with the body and field named when the body is unknown, repeated or
+/// not physical.
+#[test]
+fn model_file_inertials_are_read_checked_and_written_back() {
+    let body = "[[inertials]]\nbody = \"yaw_link\"\nmass = 1.5\ncom = [0.01, 0.0, -0.04]\ninertia = [[0.018, 0.0, 0.0], [0.0, 0.016, 0.0], [0.0, 0.0, 0.008]]\nsource = \"test\"\n";
+    let m = psm_with(body).unwrap();
+    let yaw = m.bodies.iter().position(|b| b.name == "yaw_link").unwrap();
+    let ine = m.file_inertia(yaw).unwrap();
+    assert_eq!((ine.mass, ine.com.z, ine.inertia[(2, 2)]), (1.5, -0.04, 0.008));
+    assert!(m.file_inertia(yaw + 1).is_none());
+    let again = load_toml_text(&m.spec.to_toml().unwrap(), Path::new("again.toml"), None, None).unwrap();
+    assert_eq!(again.spec.inertials, m.spec.inertials);
+    let err = |s: &str| psm_with(s).unwrap_err().to_string();
+    assert!(err(&body.replace("yaw_link", "elbow")).contains("inertials[0] (elbow).body`: model psm has no body `elbow` (valid: yaw_link,"), "{}", err(&body.replace("yaw_link", "elbow")));
+    assert!(err(&format!("{body}{body}")).contains("inertials[1] (yaw_link).body`: body appears twice"));
+    assert!(err(&body.replace("mass = 1.5", "mass = -1.5")).contains("inertials[0] (yaw_link).mass"));
+    // 0.018 > 0.016 + 0.001: no mass distribution has these moments.
+    assert!(err(&body.replace("0.008]]", "0.001]]")).contains("triangle inequality"));
+}

@@ -186,6 +186,28 @@ impl Inertials {
             .collect()
     }
 
+    /// These inertials with every body that `model`'s file carries (`[[inertials]]`, e.g. an
+    /// identified model's) in place of this file's entry: the model file wins.
+    pub fn with_model(&self, model: &Model) -> Inertials {
+        let mut out = self.clone();
+        for e in &model.spec.inertials {
+            let Some(b) = model.bodies.iter().position(|mb| mb.name == e.body) else { continue };
+            let entry = BodyInertial {
+                name: e.body.clone(),
+                frame: model.frames[model.bodies[b].frames[0]].index,
+                mass: e.mass,
+                com: e.com,
+                inertia: e.inertia,
+                provenance: if e.source.is_empty() { format!("model {}", model.name) } else { e.source.clone() },
+            };
+            match out.bodies.iter_mut().find(|x| x.name == e.body) {
+                Some(x) => *x = entry,
+                None => out.bodies.push(entry),
+            }
+        }
+        out
+    }
+
     /// The entry of `body` (a position in `model.bodies`).
     pub fn body(&self, model: &Model, body: usize) -> Option<&BodyInertial> {
         self.bodies.iter().find(|b| b.name == model.bodies[body].name)

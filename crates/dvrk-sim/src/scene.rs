@@ -260,8 +260,11 @@ impl Scene {
         let mount = a.model.base * a.original_base.inverse();
         let original_base = model.base;
         model.base = mount * model.base;
-        a.inertials.check(&format!("{} inertials", a.name), &model)?;
+        // A model file with its own [[inertials]] (an identified model) brings them along.
+        let inertials = a.inertials.with_model(&model);
+        inertials.check(&format!("{} inertials", a.name), &model)?;
         let a = &mut self.arms[arm];
+        a.inertials = inertials;
         a.start = model.home();
         a.model = model;
         a.original_base = original_base;
@@ -358,7 +361,8 @@ impl Scene {
                     let text = std::fs::read_to_string(&p).map_err(|e| SimError::Io { path: p.display().to_string(), source: e })?;
                     Inertials::parse(&text, &p.display().to_string(), &model)?
                 }
-            };
+            }
+            .with_model(&model);
             let n = model.nq();
             for (name, v) in [("kp", &a.kp), ("ki", &a.ki), ("kd", &a.kd), ("armature", &a.armature)] {
                 if v.len() != n {

@@ -63,6 +63,10 @@ pub fn steps(options: &IdentifyOptions) -> Vec<(String, IdentifyOptions)> {
         o.terms.cross = options.terms.cross.clone();
         out.push(("+ tool cross-coupling".into(), o.clone()));
     }
+    if !options.terms.winding_channels.is_empty() {
+        o.terms.winding_channels = options.terms.winding_channels.clone();
+        out.push(("+ winding friction (Coulomb level growing with position^2)".into(), o.clone()));
+    }
     // Whatever differs still (terms in another order): the chosen options as the last row.
     if o != *options {
         out.push(("= chosen options".into(), options.clone()));

@@ -27,6 +27,10 @@ pub enum EffectTerm {
     /// Stribeck friction `fs` (N·m, N): the extra breakaway effort at low speed,
     /// `fs tanh(v / vc) exp(-(v / vs)^2)` ([`Processing::stribeck_velocity`] vs).
     Stribeck,
+    /// Coulomb friction growing with the square of the channel position, `fq q^2` times the
+    /// smoothed velocity sign (N·m/rad^2; N/m^2 for the insertion): cables that tighten as the
+    /// joint winds away from its zero.
+    Winding,
 }
 
 impl EffectTerm {
@@ -42,6 +46,7 @@ impl EffectTerm {
             EffectTerm::Armature => "im",
             EffectTerm::Spring => "k",
             EffectTerm::Stribeck => "fs",
+            EffectTerm::Winding => "fq",
         }
     }
 
@@ -66,6 +71,8 @@ pub struct Terms {
     /// of channel `source`'s motion (spring: its position; viscous: velocity; Coulomb: smoothed
     /// sign), of either sign. The tool's cables run past each other through the shaft.
     pub cross: Vec<(usize, usize, EffectTerm)>,
+    /// Channels that get the position-dependent Coulomb term [`EffectTerm::Winding`].
+    pub winding_channels: Vec<usize>,
 }
 
 /// One unknown of the regression.
@@ -103,6 +110,7 @@ impl Layout {
                 params.push(Param::Effect { term, channel });
             }
         }
+        params.extend(terms.winding_channels.iter().map(|&channel| Param::Effect { term: EffectTerm::Winding, channel }));
         for &joint in &terms.joint_friction {
             params.extend([EffectTerm::Coulomb, EffectTerm::Viscous].map(|term| Param::Joint { term, joint }));
         }
@@ -259,6 +267,7 @@ pub fn regression(model: &Model, rec: &TorqueRecording, layout: &Layout, process
                         EffectTerm::Armature => qdd_f[channel][i],
                         EffectTerm::Spring => rec.q[i][channel],
                         EffectTerm::Stribeck => (v / vc).tanh() * (-(v / processing.stribeck_velocity).powi(2)).exp(),
+                        EffectTerm::Winding => (v / vc).tanh() * rec.q[i][channel].powi(2),
                     };
                 }
                 Param::Joint { term, joint } => {

@@ -3,7 +3,6 @@
 
 use super::problem::{EffectTerm, Param};
 use super::Identification;
-use crate::error::{CalibError, Result};
 use dvrk_kin::dynamics::PARAMETERS_PER_BODY;
 use dvrk_kin::Model;
 use serde::Serialize;
@@ -29,6 +28,7 @@ fn effect_name(term: EffectTerm) -> &'static str {
         EffectTerm::Armature => "armature",
         EffectTerm::Spring => "spring",
         EffectTerm::Stribeck => "stribeck_friction",
+        EffectTerm::Winding => "winding_friction",
     }
 }
 
@@ -76,29 +76,6 @@ fn body_entry(model: &Model, id: &Identification, b: usize) -> Option<(f64, [f64
     Some((bi.mass, [bi.com.x, bi.com.y, bi.com.z], [[i[(0, 0)], i[(0, 1)], i[(0, 2)]], [i[(1, 0)], i[(1, 1)], i[(1, 2)]], [i[(2, 0)], i[(2, 1)], i[(2, 2)]]]))
 }
 
-/// `prior` with every body's identified inertial (provenance `identified from {recording}`);
-/// a degenerate body keeps its prior, and its name is returned.
-pub fn identified_inertials(model: &Model, id: &Identification, prior: &dvrk_sim::inertials::Inertials, recording: &str) -> (dvrk_sim::inertials::Inertials, Vec<String>) {
-    let mut ine = prior.clone();
-    let mut kept = Vec::new();
-    for (b, body) in model.bodies.iter().enumerate() {
-        let Some(entry) = ine.bodies.iter_mut().find(|e| e.name == body.name) else { continue };
-        match body_entry(model, id, b) {
-            Some((m, c, i)) => {
-                entry.mass = m;
-                entry.com = c;
-                entry.inertia = i;
-                entry.provenance = format!("identified from {recording}");
-            }
-            None => {
-                entry.provenance = format!("{} (identification left it degenerate: prior kept)", entry.provenance);
-                kept.push(body.name.clone());
-            }
-        }
-    }
-    (ine, kept)
-}
-
 /// The JSON summary of `dvrk identify` (without the validation, which the caller adds).
 pub fn summary(model: &Model, id: &Identification, recording: &str, format: &str, rigid_only: &[f64]) -> Value {
     let bodies: Vec<Value> = (0..model.bodies.len())
@@ -137,22 +114,4 @@ pub fn summary(model: &Model, id: &Identification, recording: &str, format: &str
         "effects": effects(id),
         "bodies": bodies,
     })
-}
-
-/// The output file: the identified inertials in the format of `models/inertials/*.toml` (so a
-/// scene can name it as an arm's `inertials`), followed by the effects as `[[effects]]` tables.
-/// A degenerate body keeps its prior with a note.
-pub fn output_toml(model: &Model, id: &Identification, prior: &dvrk_sim::inertials::Inertials, recording: &str) -> Result<String> {
-    let (mut ine, _) = identified_inertials(model, id, prior, recording);
-    ine.source = format!("dvrk identify from {recording} (prior: {})", prior.source);
-    ine.notes = "Identified inertial parameters (physically consistent: every body's pseudo-inertia positive semidefinite), \
-fitted with the effects below. The effects are per recorded channel (the tool's actuator channels are not model joints), \
-so they are a report, not model [[effects]]; identify::replay::identified_scene turns the joint-space ones into a simulated model."
-        .into();
-    let mut text = ine.to_toml(&format!("Inertials of {} identified by `dvrk identify` from {recording}.\nUnits: kg, m, kg m^2.", model.name));
-    let effects = effects(id);
-    let table = toml::Value::try_from(json!({ "effects": effects })).map_err(|e| CalibError::data("identification output", e.to_string()))?;
-    text += "\n# Effects per recorded channel: fc, fo (N·m or N), fv (N·m s/rad or N s/m), im (kg m^2 or kg), k (N·m/rad or N/m).\n";
-    text += &toml::to_string(&table).map_err(|e| CalibError::data("identification output", e.to_string()))?;
-    Ok(text)
 }

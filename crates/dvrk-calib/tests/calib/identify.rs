@@ -40,16 +40,16 @@ fn real_psm_recordings_identify_physically_and_predict_the_held_out_one() {
             id.body_inertia(b, &body.name).unwrap();
         }
     }
-    // Measured 0.072 0.150 0.205 0.170 0.239 0.216 0.268: at or below the published figures on
+    // Measured 0.070 0.138 0.195 0.170 0.239 0.217 0.267: at or below the published figures on
     // yaw, pitch and wrist pitch (0.2390 against 0.239); insertion, roll, wrist yaw and jaw are
-    // 7%, 27%, 1.5% and 1.5% above them. The effects matter on every channel.
+    // 2%, 27%, 2% and 1% above them. The effects matter on every channel.
     for c in 0..7 {
         assert!(held_out[c] < 0.75 * rigid_held_out[c], "channel {c}: {} vs rigid {}", held_out[c], rigid_held_out[c]);
         let bound = match c {
             0 | 1 => PUBLISHED[c],
             4 => PUBLISHED[c] + 0.0005,
             3 => 1.3 * PUBLISHED[c],
-            _ => 1.08 * PUBLISHED[c],
+            _ => 1.03 * PUBLISHED[c],
         };
         assert!(held_out[c] <= bound, "channel {c}: {} vs published {} (bound {bound})", held_out[c], PUBLISHED[c]);
     }
@@ -72,7 +72,7 @@ fn real_psm_recordings_identify_physically_and_predict_the_held_out_one() {
     }
     // The ablation ends at the chosen options with the same figures.
     let rows = dvrk_calib::identify::ablation::ablation(&model, &prior, &r1, Some(&r2), &options).unwrap();
-    assert_eq!(rows.len(), 8);
+    assert_eq!(rows.len(), 9);
     assert_eq!(rows.last().unwrap().validation.as_ref().unwrap(), &held_out);
     assert_eq!(rows[0].validation.as_ref().unwrap().len(), 7);
 }
@@ -95,14 +95,18 @@ fn bad_wpi_files_name_the_line_and_column() {
 
 /// Must-show 3: the identified model in the simulator, driven by `two`'s recorded efforts under
 /// weak feedback (0.3 x the scene's kp, kd), follows `two`'s motion better than the CAD model on
-/// the joints whose load is inertia and gravity (pitch, insertion) and on the jaw. Measured
-/// (RMS, CAD -> identified): yaw 0.033 -> 0.126 rad (worse: the identified yaw oscillates under
-/// the replay; its -0.93 N·m effort offset is not understood yet), pitch 0.086 -> 0.025 rad,
-/// insertion 6.5 -> 1.4 mm, roll 0.026 -> 0.025, wrist 0.021 -> 0.021, 0.020 -> 0.020, jaw
-/// 0.021 -> 0.012 rad.
+/// every joint, whether the CAD scene runs its own 12 Gauss-Seidel sweeps or the identified
+/// scene's 30. Measured (RMS, CAD 12 sweeps / CAD 30 sweeps -> identified): yaw 0.0331 / 0.0320
+/// -> 0.0071 rad, pitch 0.086 / 0.090 -> 0.024 rad, insertion 6.5 / 6.5 -> 1.7 mm, roll 0.0261
+/// -> 0.0250, wrist pitch 0.0213 -> 0.0206, wrist yaw 0.0201 -> 0.0190, jaw 0.0205 -> 0.0121
+/// rad (the wrist gains come from the tool actuators' offsets, mapped onto the joints).
+///
+/// Regression guard: at the scene's 12 sweeps the identified yaw stuck at zero velocity for
+/// 30% of the recording (the under-converged loop closure; RMS 0.126 rad, worse than CAD).
 #[test]
 fn identified_model_replays_the_held_out_efforts_closer_than_cad() {
-    use dvrk_calib::identify::replay::{identified_scene, torque_replay};
+    use dvrk_calib::identify::output::identified_model;
+    use dvrk_calib::identify::replay::{identified_scene, torque_replay, IDENTIFIED_PGS_ITERATIONS};
     let (Some(one), Some(two)) = (wpi("psm_one_results.csv"), wpi("psm_two_results.csv")) else { return };
     let model = psm();
     let prior = dvrk_sim::scene::builtin_inertials("psm", &model).unwrap().body_inertias(&model).unwrap();
@@ -110,16 +114,89 @@ fn identified_model_replays_the_held_out_efforts_closer_than_cad() {
     let options = IdentifyOptions::for_model(&model);
     let (id, _) = identify(&model, &prior, &r1, &options).unwrap();
     let base = dvrk_sim::Scene::load("psm").unwrap();
-    let (scene, info) = identified_scene(&base, 0, &model, &id, &options.processing).unwrap();
-    assert!(info.kept_prior.is_empty(), "{:?}", info.kept_prior);
+    let identified = identified_model(&model, &id, &options.processing, &r1.to_joint, &prior, "one").unwrap();
+    assert!(identified.kept_prior.is_empty(), "{:?}", identified.kept_prior);
+    let scene = identified_scene(&base, 0, &identified).unwrap();
+    assert_eq!(scene.arms[0].pgs_iterations, Some(IDENTIFIED_PGS_ITERATIONS));
+    let mut cad_sweeps = base.clone();
+    cad_sweeps.arms[0].pgs_iterations = Some(IDENTIFIED_PGS_ITERATIONS);
     let (cad, _) = torque_replay(&base, 0, &r2, 0.3).unwrap();
+    let (cad30, _) = torque_replay(&cad_sweeps, 0, &r2, 0.3).unwrap();
     let (ident, _) = torque_replay(&scene, 0, &r2, 0.3).unwrap();
-    eprintln!("torque-driven replay of two, RMS per joint: CAD {cad:.4?}\n                                        identified {ident:.4?}");
-    for k in [1, 2, 6] {
-        assert!(ident[k] < 0.7 * cad[k], "joint {k}: identified {} vs CAD {}", ident[k], cad[k]);
+    eprintln!("torque-driven replay of two, RMS per joint: CAD {cad:.5?}\n  CAD at {IDENTIFIED_PGS_ITERATIONS} sweeps {cad30:.5?}\n  identified {ident:.5?}");
+    for k in 0..7 {
+        assert!(ident[k] <= cad[k].min(cad30[k]), "joint {k}: identified {} vs CAD {} / {}", ident[k], cad[k], cad30[k]);
     }
-    for k in [3, 4, 5] {
-        assert!(ident[k] < 1.02 * cad[k], "joint {k}: identified {} vs CAD {}", ident[k], cad[k]);
+    // The arm's joints whose load is inertia, gravity and the arm's friction: several times closer.
+    for k in [0, 1, 2, 6] {
+        assert!(ident[k] < 0.6 * cad[k].min(cad30[k]), "joint {k}: identified {} vs CAD {} / {}", ident[k], cad[k], cad30[k]);
+    }
+}
+
+/// `dvrk identify -o`: the output is a model file. Loaded back with `dvrk_kin::load` it carries
+/// every body's identified inertial and the identified effects in the model's vocabulary (the
+/// yaw's friction as identified; the wrist actuators' constant offsets mapped into the joints'),
+/// and put on the scene's arm the way `dvrk sim --model PSM1=FILE` does it, it replays `two`
+/// exactly as the identified scene does, and better than CAD on yaw, pitch, insertion and jaw
+/// even with the scene's own armature.
+#[test]
+fn identify_output_is_a_model_file_the_simulator_loads() {
+    use dvrk_calib::identify::output::{identified_model, output_toml};
+    use dvrk_calib::identify::replay::{identified_scene, torque_replay};
+    let (Some(one), Some(two)) = (wpi("psm_one_results.csv"), wpi("psm_two_results.csv")) else { return };
+    let model = psm();
+    let prior = dvrk_sim::scene::builtin_inertials("psm", &model).unwrap().body_inertias(&model).unwrap();
+    let (r1, r2) = (read_wpi_csv(&one, &model).unwrap(), read_wpi_csv(&two, &model).unwrap());
+    let options = IdentifyOptions::for_model(&model);
+    let (id, _) = identify(&model, &prior, &r1, &options).unwrap();
+    let identified = identified_model(&model, &id, &options.processing, &r1.to_joint, &prior, "one").unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("psm-identified.toml");
+    std::fs::write(&path, output_toml(&identified, "one").unwrap()).unwrap();
+    let loaded = dvrk_kin::load(path.to_str().unwrap(), None).unwrap();
+    assert_eq!(loaded.spec.inertials.len(), model.bodies.len());
+    for (b, body) in model.bodies.iter().enumerate() {
+        // Mass and first moment as identified (the moments may move by the solver's round-off to
+        // obey the triangle inequality exactly).
+        let file = loaded.file_inertia(b).unwrap();
+        let p = &id.theta.as_slice()[b * 10..b * 10 + 4];
+        assert!((file.mass - p[0]).abs() <= 1e-12 * p[0] && (file.com * file.mass - nalgebra::Vector3::new(p[1], p[2], p[3])).norm() < 1e-12, "{}", body.name);
+    }
+    // Yaw friction at 0.5 rad/s: the model's effort is the identified fc tanh(v / vc) + fo + fv v.
+    let est = |name: &str| id.estimates.iter().find(|e| e.name == name).unwrap().value;
+    let mut tau = vec![0.0; 7];
+    let mut qd = vec![0.0; 7];
+    qd[0] = 0.5;
+    dvrk_kin::effects::effort(&loaded.effects, &loaded.home(), &qd, 0.0, &mut tau);
+    let expected = est("outer_yaw.fc") * (0.5 / options.processing.coulomb_velocity_of(0)).tanh() + est("outer_yaw.fo") + est("outer_yaw.fv") * 0.5;
+    assert!((-tau[0] - expected).abs() < 1e-12, "{} vs {expected}", -tau[0]);
+    // The wrist actuators' offsets, mapped to joints (to_joint^-T fo), are the wrist joints' offsets.
+    let offsets = nalgebra::DVector::from_fn(7, |c, _| if c >= 4 { est(&format!("{} actuator.fo", model.joints[c].name)) } else { 0.0 });
+    let joint_offsets = r1.to_joint.clone().try_inverse().unwrap().transpose() * offsets;
+    for j in 4..7 {
+        let e = loaded.spec.effects.iter().find(|e| e.name == "coulomb_friction" && e.joint.as_deref() == Some(model.joints[j].name.as_str())).unwrap();
+        assert!((e.parameters["offset"] - joint_offsets[j]).abs() < 1e-12, "joint {j}: {:?} vs {}", e.parameters, joint_offsets[j]);
+    }
+    assert!(loaded.spec.notes.contains("outer_wrist_yaw actuator.fv = "), "the actuator friction is listed: {}", loaded.spec.notes);
+    // In the simulator, as `dvrk sim --model PSM1=FILE` puts it.
+    let base = dvrk_sim::Scene::load("psm").unwrap();
+    let mut from_file = base.clone();
+    from_file.set_model(0, loaded).unwrap();
+    assert!(from_file.arms[0].inertials.bodies.iter().all(|b| b.provenance == "dvrk identify from one"));
+    let reference = identified_scene(&base, 0, &identified).unwrap();
+    let mut same = from_file.clone();
+    same.arms[0].armature = reference.arms[0].armature.clone();
+    same.arms[0].pgs_iterations = reference.arms[0].pgs_iterations;
+    let (a, _) = torque_replay(&same, 0, &r2, 0.3).unwrap();
+    let (b, _) = torque_replay(&reference, 0, &r2, 0.3).unwrap();
+    assert_eq!(a, b);
+    // The scene's own armature (insertion 0.04 kg, not the identified 0.30), 30 sweeps.
+    from_file.arms[0].pgs_iterations = reference.arms[0].pgs_iterations;
+    let (plain, _) = torque_replay(&from_file, 0, &r2, 0.3).unwrap();
+    let (cad, _) = torque_replay(&base, 0, &r2, 0.3).unwrap();
+    eprintln!("replay of two from the written file (scene armature): {plain:.4?}\nCAD: {cad:.4?}");
+    for k in [0, 1, 2, 6] {
+        assert!(plain[k] < 0.6 * cad[k], "joint {k}: {} vs CAD {}", plain[k], cad[k]);
     }
 }
 

@@ -1,0 +1,220 @@
+//! The identified model as a model file (`dvrk identify -o`): the model's own file with every
+//! body's identified inertial (`[[inertials]]`) and the identified effects in the model's
+//! `[[effects]]` vocabulary, so that `dvrk_kin::load` and `dvrk sim --model ARM=FILE` take it
+//! as it is. The replay scene ([`super::replay::identified_scene`]) is built from the same model.
+//!
+//! What goes in as effects, per term of a channel that *is* a model joint (its `to_joint` row and
+//! column are the identity: yaw, pitch, insertion, roll), and per joint-space friction term:
+//! `coulomb_friction` (fc with the smoothing it was fitted with, offset), `viscous_friction`
+//! (fv), `spring` (k, rest 0). A constant effort offset of a coupled channel (the tool's
+//! actuators) maps exactly onto the joints (`offset_joint = to_joint^-T offset_channel`) and
+//! joins their `coulomb_friction` offsets. The other terms of coupled channels act on actuator
+//! velocities and positions, which mix several joints (`q_actuator = to_joint^-1 q_joint`): a
+//! per-joint effect cannot express them, so they are listed in the notes with their values
+//! (and in [`IdentifiedModel::not_expressed`]), as is the reflected motor inertia, which is a
+//! drive (scene armature) figure rather than a model effect.
+
+use super::problem::{EffectTerm, Param, Processing};
+use super::Identification;
+use crate::error::{CalibError, Result};
+use dvrk_kin::dynamics::PARAMETERS_PER_BODY;
+use dvrk_kin::effects::EffectSpec;
+use dvrk_kin::{BodyInertia, InertialSpec, Model, ModelSpec};
+use nalgebra::DMatrix;
+use std::collections::BTreeMap;
+
+/// A model with the identified inertials and effects, and what it could not carry.
+#[derive(Debug, Clone)]
+pub struct IdentifiedModel {
+    /// The model file: the original with `[[inertials]]` for every body and the effects added.
+    pub spec: ModelSpec,
+    /// The effects added (model-file form).
+    pub effects: Vec<EffectSpec>,
+    /// Per model joint: the identified reflected motor inertia of a channel that is that joint
+    /// (kg m^2, kg for the insertion), `None` elsewhere. Not a model effect: a scene's armature.
+    pub armature: Vec<Option<f64>>,
+    /// Identified terms that no per-joint effect expresses, as `name = value unit`.
+    pub not_expressed: Vec<String>,
+    /// Bodies the identification left degenerate: the file carries their prior inertial.
+    pub kept_prior: Vec<String>,
+}
+
+/// The joint a channel is, if its column and row of `to_joint` are the identity's.
+fn channel_joint(to_joint: &DMatrix<f64>, c: usize) -> Option<usize> {
+    let n = to_joint.nrows();
+    (0..n).find(|&j| (0..n).all(|k| to_joint[(j, k)] == f64::from(u8::from(k == c))) && (0..to_joint.ncols()).all(|k| to_joint[(k, c)] == f64::from(u8::from(k == j))))
+}
+
+fn unit(term: EffectTerm, prismatic: bool) -> &'static str {
+    match (term, prismatic) {
+        (EffectTerm::Coulomb | EffectTerm::Offset | EffectTerm::Stribeck, false) => "N·m",
+        (EffectTerm::Coulomb | EffectTerm::Offset | EffectTerm::Stribeck, true) => "N",
+        (EffectTerm::Viscous, false) => "N·m s/rad",
+        (EffectTerm::Viscous, true) => "N s/m",
+        (EffectTerm::Armature, false) => "kg m^2",
+        (EffectTerm::Armature, true) => "kg",
+        (EffectTerm::Spring, false) => "N·m/rad",
+        (EffectTerm::Spring, true) => "N/m",
+        (EffectTerm::Winding, false) => "N·m/rad^2",
+        (EffectTerm::Winding, true) => "N/m^2",
+    }
+}
+
+/// Body `b`'s identified inertia made strictly physical, or `None` if its mass is not positive.
+///
+/// The solver holds each pseudo-inertia positive semidefinite to its tolerance, so a tiny body
+/// on the cone's boundary (a tool link of 1e-9 kg m^2) can break the triangle inequality of its
+/// principal moments by round-off (measured: 9.5e-13 kg m^2 on tool_pitch_link), which
+/// [`BodyInertia::check`] refuses. The nearest moments that obey it (negative ones to 0, the two
+/// smaller raised equally until the largest is their sum) change the body by that round-off,
+/// where keeping the CAD prior would replace the body altogether.
+fn physical_body(id: &Identification, b: usize) -> Option<BodyInertia> {
+    let p = &id.theta.as_slice()[b * PARAMETERS_PER_BODY..(b + 1) * PARAMETERS_PER_BODY];
+    let m = p[0];
+    if !(m.is_finite() && m > 0.0) {
+        return None;
+    }
+    let c = nalgebra::Vector3::new(p[1], p[2], p[3]) / m;
+    let j = nalgebra::Matrix3::new(p[4], p[5], p[6], p[5], p[7], p[8], p[6], p[8], p[9]);
+    let about_com = j - (nalgebra::Matrix3::identity() * c.norm_squared() - c * c.transpose()) * m;
+    let eig = nalgebra::SymmetricEigen::new(about_com);
+    let mut e = eig.eigenvalues.map(|x| x.max(0.0));
+    let (k, _) = e.argmax();
+    let excess = e[k] - (e.sum() - e[k]);
+    if excess > 0.0 {
+        for i in (0..3).filter(|&i| i != k) {
+            e[i] += 0.5 * excess;
+        }
+    }
+    let inertia = eig.eigenvectors * nalgebra::Matrix3::from_diagonal(&e) * eig.eigenvectors.transpose();
+    let inertia = 0.5 * (inertia + inertia.transpose());
+    let ine = BodyInertia { mass: m, com: c, inertia };
+    ine.check("identified body").ok().map(|_| ine)
+}
+
+/// `model` with `id`'s inertials and effects. `prior` (one per body, [`Model::bodies`] order)
+/// fills in a degenerate body; `to_joint` is the recording's channel-to-joint map
+/// ([`super::TorqueRecording::to_joint`]); `recording` names the source.
+pub fn identified_model(model: &Model, id: &Identification, processing: &Processing, to_joint: &DMatrix<f64>, prior: &[BodyInertia], recording: &str) -> Result<IdentifiedModel> {
+    let (nq, nc) = (model.nq(), id.channels.len());
+    if to_joint.nrows() != nq || to_joint.ncols() != nc || prior.len() != model.bodies.len() {
+        return Err(CalibError::data(
+            "identified model",
+            format!("to_joint is {}x{} and the prior has {} bodies; model {} needs {nq}x{nc} and {}", to_joint.nrows(), to_joint.ncols(), prior.len(), model.name, model.bodies.len()),
+        ));
+    }
+    let inv_t = to_joint.clone().try_inverse().ok_or_else(|| CalibError::data("identified model", "the channel-to-joint map is singular"))?.transpose();
+    let prismatic = |j: usize| model.joints[j].kind == dvrk_kin::JointType::Prismatic;
+    let mut by_joint: BTreeMap<(usize, &'static str), BTreeMap<String, f64>> = BTreeMap::new();
+    let mut armature = vec![None; nq];
+    let mut not_expressed = Vec::new();
+    let mut channel_offset = vec![0.0; nc];
+    for (i, p) in id.layout.params.iter().enumerate() {
+        let value = id.theta[i];
+        // The joint the term acts on, and the Coulomb smoothing it was fitted with.
+        let (term, target) = match *p {
+            Param::Body { .. } => continue,
+            Param::Joint { term, joint } => (term, Some((joint, processing.coulomb_velocity_of(joint)))),
+            Param::Effect { term, channel } => match channel_joint(to_joint, channel) {
+                Some(j) => (term, Some((j, processing.coulomb_velocity_of(channel)))),
+                None if term == EffectTerm::Offset => {
+                    channel_offset[channel] += value;
+                    continue;
+                }
+                None => (term, None),
+            },
+            Param::Cross { term, .. } => (term, None),
+        };
+        let Some((j, smoothing)) = target else {
+            let u = match *p {
+                Param::Effect { channel, .. } | Param::Cross { channel, .. } => unit(term, channel_joint(to_joint, channel).is_some_and(prismatic)),
+                _ => unit(term, false),
+            };
+            not_expressed.push(format!("{} = {value:.6} {u}", id.estimates[i].name));
+            continue;
+        };
+        match term {
+            EffectTerm::Coulomb => {
+                let e = by_joint.entry((j, "coulomb_friction")).or_default();
+                *e.entry("fc".into()).or_default() += value;
+                e.insert("smoothing".into(), smoothing);
+            }
+            // The offset is the effort the drive adds; the effect's offset is that same effort
+            // (dvrk-kin's `effort` subtracts it from the joint's).
+            EffectTerm::Offset => *by_joint.entry((j, "coulomb_friction")).or_default().entry("offset".into()).or_default() += value,
+            EffectTerm::Viscous => *by_joint.entry((j, "viscous_friction")).or_default().entry("fv".into()).or_default() += value,
+            EffectTerm::Spring => *by_joint.entry((j, "spring")).or_default().entry("k".into()).or_default() += value,
+            EffectTerm::Armature => {
+                armature[j] = Some(value);
+                not_expressed.push(format!("{} = {value:.6} {} (reflected motor inertia: a scene armature, not a model effect)", id.estimates[i].name, unit(term, prismatic(j))));
+            }
+            // No Stribeck or position-dependent friction in the vocabulary.
+            EffectTerm::Stribeck | EffectTerm::Winding => not_expressed.push(format!("{} = {value:.6} {}", id.estimates[i].name, unit(term, prismatic(j)))),
+        }
+    }
+    // Constant offsets of coupled channels, exactly, on the joints.
+    if channel_offset.iter().any(|o| *o != 0.0) {
+        for j in 0..nq {
+            let o: f64 = (0..nc).map(|c| inv_t[(j, c)] * channel_offset[c]).sum();
+            if o != 0.0 {
+                *by_joint.entry((j, "coulomb_friction")).or_default().entry("offset".into()).or_default() += o;
+            }
+        }
+    }
+    let source = format!("dvrk identify from {recording}");
+    let mut effects = Vec::new();
+    for ((j, name), mut parameters) in by_joint {
+        if name == "coulomb_friction" {
+            parameters.entry("fc".into()).or_insert(0.0);
+        }
+        effects.push(EffectSpec { name: name.into(), joint: Some(model.joints[j].name.clone()), link: None, parameters, source: source.clone() });
+    }
+    let mut inertials = Vec::with_capacity(model.bodies.len());
+    let mut kept_prior = Vec::new();
+    for (b, body) in model.bodies.iter().enumerate() {
+        let (ine, from) = match physical_body(id, b) {
+            Some(ine) => (ine, source.clone()),
+            None => {
+                kept_prior.push(body.name.clone());
+                (prior[b].clone(), "prior (the identification left this body degenerate)".to_string())
+            }
+        };
+        let i = ine.inertia;
+        inertials.push(InertialSpec { body: body.name.clone(), mass: ine.mass, com: [ine.com.x, ine.com.y, ine.com.z], inertia: [[i[(0, 0)], i[(0, 1)], i[(0, 2)]], [i[(1, 0)], i[(1, 1)], i[(1, 2)]], [i[(2, 0)], i[(2, 1)], i[(2, 2)]]], source: from });
+    }
+    let mut spec = model.spec.clone();
+    spec.effects.extend(effects.iter().cloned());
+    spec.inertials = inertials;
+    spec.title = format!("{} (identified from {recording})", spec.title);
+    spec.notes = format!(
+        "{}\n\nIdentified by `dvrk identify` from {recording}: [[inertials]] for every body (physically consistent: each \
+body's pseudo-inertia positive semidefinite, {} of {} inertial parameters determined by the data, the rest by the CAD prior), \
+and the effects added at the end of [[effects]].{}{}",
+        spec.notes.trim_end(),
+        id.base_parameters,
+        id.layout.nbodies * PARAMETERS_PER_BODY,
+        if kept_prior.is_empty() { String::new() } else { format!(" Bodies left degenerate, with their prior inertial: {}.", kept_prior.join(", ")) },
+        if not_expressed.is_empty() {
+            String::new()
+        } else {
+            format!(
+                "\nNot expressible as per-joint effects (terms of the tool's actuator channels act on actuator velocities and positions, \
+which mix joints: q_actuator = to_joint^-1 q_joint; their constant offsets are mapped exactly into the joints' coulomb_friction offsets), \
+and motor inertias:\n{}",
+                not_expressed.iter().map(|s| format!("- {s}")).collect::<Vec<_>>().join("\n")
+            )
+        }
+    );
+    Model::compile(spec.clone()).map_err(|e| CalibError::data("identified model", e.to_string()))?;
+    Ok(IdentifiedModel { spec, effects, armature, not_expressed, kept_prior })
+}
+
+/// The text of the output file: [`identified_model`]'s model file with a header.
+pub fn output_toml(identified: &IdentifiedModel, recording: &str) -> Result<String> {
+    let body = identified.spec.to_toml().map_err(|e| CalibError::data("identification output", e.to_string()))?;
+    Ok(format!(
+        "# Model {} identified by `dvrk identify` from {recording}: [[inertials]] (kg, m, kg m^2, per body in its first DH frame)\n\
+# and [[effects]] (N·m or N; N·m s/rad or N s/m; N·m/rad or N/m). Load it with `dvrk sim --model ARM=FILE`.\n\n{body}",
+        identified.spec.name
+    ))
+}
