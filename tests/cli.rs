@@ -257,3 +257,24 @@ fn sim_full_camera_writes_the_frames_as_png_files() {
     let err = crate::util::dvrk_err(&["sim", "--scene", "psm", "--duration", "0.01", "--frames-dir", frames.to_str().unwrap()]);
     assert!(err.contains("--frames-dir") && err.contains("scene psm has no camera (full-camera has one)"), "{err}");
 }
+
+/// `dvrk discrepancy --format wpi-csv` on the WPI recording: a report with the contract's keys
+/// and one step per round; a bad prior is refused with the flag and value.
+#[test]
+fn discrepancy_reads_the_wpi_recording() {
+    let Some(rec) = crate::util::external("wpi-dvrk-dynamics/psm_one_results.csv") else { return };
+    let dir = tempdir();
+    let report = dir.path().join("r.json");
+    let rec = rec.to_str().unwrap();
+    dvrk_ok(&["discrepancy", "--model", "psm", "--recording", rec, "--format", "wpi-csv", "--report", report.to_str().unwrap(), "--no-tracking", "--max-rounds", "2"]);
+    let r: Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+    for key in ["verdict", "channel", "effects", "candidates", "rms_before", "rms_after", "rms_heldout_before", "rms_heldout_after", "noise_floor", "steps"] {
+        assert!(r.get(key).is_some(), "{key} missing");
+    }
+    let steps = r["steps"].as_array().unwrap();
+    assert!(!steps.is_empty() && steps.len() <= 2);
+    // The CAD model misses the real robot by far more than the sensor noise.
+    assert!(r["rms_heldout_before"].as_f64().unwrap() > 10.0);
+    let e = crate::util::dvrk_err(&["discrepancy", "--model", "psm", "--recording", rec, "--format", "wpi-csv", "--report", report.to_str().unwrap(), "--inertia-prior", "x"]);
+    assert!(e.contains("--inertia-prior x"), "{e}");
+}

@@ -3,9 +3,9 @@
 //! with the named effect added and a before/after plot.
 
 use crate::outln;
-use anyhow::{anyhow, bail, Context, Result};
+use anyhow::{bail, Context, Result};
 use clap::Args;
-use dvrk_calib::discrepancy::{discrepancy, joint_log, Options};
+use dvrk_calib::discrepancy::Options;
 use std::path::PathBuf;
 
 #[derive(Debug, Args)]
@@ -16,8 +16,8 @@ pub struct DiscrepancyArgs {
     /// Joint recording with setpoints and efforts.
     #[arg(long)]
     pub recording: PathBuf,
-    /// mcap (/<ARM>/setpoint_js and /<ARM>/measured_js with efforts); wpi-csv and csv are not
-    /// read yet.
+    /// mcap (/<ARM>/setpoint_js and /<ARM>/measured_js with efforts) or wpi-csv (the WPI
+    /// dynamics recordings: no setpoints, tool channels in actuator space); csv is not read yet.
     #[arg(long, default_value = "mcap")]
     pub format: String,
     #[arg(long, default_value = "PSM1")]
@@ -40,10 +40,17 @@ pub struct DiscrepancyArgs {
     /// Skip the tracking channel's replay through the simulator (faster).
     #[arg(long)]
     pub no_tracking: bool,
+    /// Prior standard deviation of the model's inertias, relative: ROT (rotational inertia) or
+    /// ROT,MASS (mass and first moments too); they are refitted within it next to every candidate.
+    #[arg(long, value_name = "ROT[,MASS]")]
+    pub inertia_prior: Option<String>,
+    /// Rounds of name-add-rerun (1: a single analysis).
+    #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u32).range(1..=20))]
+    pub max_rounds: u32,
 }
 
-/// The model file's text with `effect` appended as an `[[effects]]` table.
-fn model_text_with(model: &str, effect: &dvrk_kin::effects::EffectSpec) -> Result<String> {
+/// The model file's text with `effects` appended as `[[effects]]` tables.
+fn model_text_with(model: &str, effects: &[dvrk_kin::effects::EffectSpec]) -> Result<String> {
     let text = match dvrk_kin::load::builtin_text(model) {
         Some(t) => t.to_string(),
         None if model.ends_with(".toml") => std::fs::read_to_string(model).with_context(|| format!("{model}: cannot read"))?,
@@ -51,9 +58,9 @@ fn model_text_with(model: &str, effect: &dvrk_kin::effects::EffectSpec) -> Resul
     };
     #[derive(serde::Serialize)]
     struct Effects<'a> {
-        effects: [&'a dvrk_kin::effects::EffectSpec; 1],
+        effects: &'a [dvrk_kin::effects::EffectSpec],
     }
-    let table = toml::to_string(&Effects { effects: [effect] })?;
+    let table = toml::to_string(&Effects { effects })?;
     Ok(format!("{}\n# Added by dvrk discrepancy\n{table}", text.trim_end()))
 }
 
@@ -61,22 +68,25 @@ pub fn run(a: &DiscrepancyArgs) -> Result<()> {
     if a.marker_topic.is_some() {
         bail!("--marker-topic: the kinematic channel is not implemented yet (torque and tracking channels only)");
     }
-    let log = match a.format.as_str() {
-        "mcap" => joint_log::read_mcap(&a.recording, &a.arm)?,
-        "wpi-csv" | "csv" => bail!("--format {}: not read by dvrk discrepancy yet (use an MCAP with /{}/setpoint_js and /{}/measured_js)", a.format, a.arm, a.arm),
-        other => bail!("--format: `{other}` is not a format; valid: mcap, wpi-csv, csv"),
-    };
     let model = dvrk_kin::load(&a.model, None)?;
-    let scene = dvrk_calib::discrepancy::scene_for_arm(&a.arm).map_err(|e| anyhow!("--arm {}: {e}", a.arm))?;
-    let options = Options { tracking: !a.no_tracking, ..Default::default() };
-    let out = discrepancy(&model, &scene, &a.arm, &log, &options).map_err(|e| anyhow!("{}: {e}", a.recording.display()))?;
+    let mut options = Options { tracking: !a.no_tracking, ..Default::default() };
+    if let Some(text) = &a.inertia_prior {
+        let v: Vec<f64> = text.split(',').map(|x| x.trim().parse::<f64>()).collect::<std::result::Result<_, _>>().map_err(|_| anyhow::anyhow!("--inertia-prior {text}: expected ROT or ROT,MASS (numbers >= 0)"))?;
+        if v.is_empty() || v.len() > 2 || v.iter().any(|x| !(x.is_finite() && *x >= 0.0)) {
+            bail!("--inertia-prior {text}: expected ROT or ROT,MASS (finite numbers >= 0)");
+        }
+        options.inertia_prior = dvrk_calib::discrepancy::InertiaPrior { rotational: v[0], mass: v.get(1).copied().unwrap_or(options.inertia_prior.mass) };
+    }
+    let out = dvrk_calib::discrepancy::run::run(&a.recording, &a.format, &model, &a.arm, &options, a.max_rounds as usize)?;
     let r = &out.report;
     crate::io::write_atomic(&a.report, format!("{}\n", serde_json::to_string_pretty(r)?).as_bytes())?;
-    if let (Some(path), Some(effect)) = (&a.output, &out.named) {
-        let text = model_text_with(&a.model, effect)?;
-        // Check it loads before writing it.
-        dvrk_kin::load::load_toml_text(&text, path, None, None).with_context(|| format!("{}: the updated model does not load", path.display()))?;
-        crate::io::write_atomic(path, text.as_bytes())?;
+    if let Some(path) = &a.output {
+        if !out.named.is_empty() {
+            let text = model_text_with(&a.model, &out.named)?;
+            // Check it loads before writing it.
+            dvrk_kin::load::load_toml_text(&text, path, None, None).with_context(|| format!("{}: the updated model does not load", path.display()))?;
+            crate::io::write_atomic(path, text.as_bytes())?;
+        }
     }
     if a.plot.is_some() {
         bail!("--plot: not drawn yet (the report holds the numbers)");

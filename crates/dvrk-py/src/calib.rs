@@ -158,19 +158,18 @@ pub fn identify<'py>(py: Python<'py>, recording: PathBuf, model: &str, format: &
     to_py_json(py, &summary)
 }
 
-/// The discrepancy workflow (`dvrk discrepancy`) on an MCAP recording of `arm`
-/// (`/<arm>/setpoint_js`, `/<arm>/measured_js` with efforts): the report as a dict (`verdict`,
-/// `channel`, `effects`, `candidates`, `rms_before`, `rms_after`, `rms_heldout_before`,
-/// `rms_heldout_after`, `noise_floor`, ...).
+/// The discrepancy workflow (`dvrk discrepancy`) on a recording of `arm` (`format` "mcap":
+/// `/<arm>/setpoint_js`, `/<arm>/measured_js` with efforts; "wpi-csv"), repeated: each named
+/// effect added to the model and the analysis run again, up to `max_rounds`. The report as a dict
+/// (`verdict`, `channel`, `effects`, `candidates`, `rms_before`, `rms_after`, `rms_heldout_before`,
+/// `rms_heldout_after`, `noise_floor`, `steps`, ...).
 #[pyfunction]
-#[pyo3(signature = (recording, model="psm", arm="PSM1", tracking=true))]
-pub fn discrepancy<'py>(py: Python<'py>, recording: PathBuf, model: &str, arm: &str, tracking: bool) -> Result<Bound<'py, PyAny>> {
-    use dvrk_calib::discrepancy::{discrepancy, joint_log, scene_for_arm, Options};
+#[pyo3(signature = (recording, model="psm", arm="PSM1", tracking=true, format="mcap", max_rounds=4))]
+pub fn discrepancy<'py>(py: Python<'py>, recording: PathBuf, model: &str, arm: &str, tracking: bool, format: &str, max_rounds: usize) -> Result<Bound<'py, PyAny>> {
+    use dvrk_calib::discrepancy::{run, Options};
     let m = dvrk_calib::dvrk_kin::load(model, None)?;
     let report = py.detach(|| -> Result<serde_json::Value> {
-        let log = joint_log::read_mcap(&recording, arm)?;
-        let scene = scene_for_arm(arm)?;
-        let out = discrepancy(&m, &scene, arm, &log, &Options { tracking, ..Default::default() })?;
+        let out = run::run(&recording, format, &m, arm, &Options { tracking, ..Default::default() }, max_rounds)?;
         serde_json::to_value(&out.report).map_err(|e| Error::Input(e.to_string()))
     })?;
     to_py_json(py, &report)

@@ -43,6 +43,29 @@ impl JointLog {
     }
 }
 
+/// A wpi-csv recording (`dvrk identify`'s reader) as a joint log of `model`'s joints: the tool's
+/// actuator channels taken to joint space (positions through `to_joint`, efforts through its
+/// transpose's inverse, by virtual work). It has no setpoints: the encoders stand in for them
+/// (the tracking channel then compares the replay with the recording itself).
+pub fn read_wpi_csv(path: &Path, model: &dvrk_kin::Model) -> Result<JointLog> {
+    let rec = crate::identify::read_wpi_csv(path, model)?;
+    let to_joint = &rec.to_joint;
+    let effort_map = to_joint
+        .transpose()
+        .try_inverse()
+        .ok_or_else(|| CalibError::data(path.display().to_string(), "the tool coupling is singular: actuator efforts cannot be taken to joint space"))?;
+    let mut log = JointLog { names: model.joints.iter().map(|j| j.name.clone()).collect(), ..Default::default() };
+    for i in 0..rec.len() {
+        let q = to_joint * nalgebra::DVector::from_column_slice(&rec.q[i]);
+        let tau = &effort_map * nalgebra::DVector::from_column_slice(&rec.tau[i]);
+        log.t.push(rec.t[i]);
+        log.position.push(q.iter().copied().collect());
+        log.setpoint.push(q.iter().copied().collect());
+        log.effort.push(tau.iter().copied().collect());
+    }
+    Ok(log)
+}
+
 /// Write `log` as MCAP: `/<arm>/setpoint_js` (position) and `/<arm>/measured_js` (position,
 /// effort), sensor_msgs/msg/JointState in CDR.
 pub fn write_mcap(log: &JointLog, arm: &str) -> Result<Vec<u8>> {
@@ -109,7 +132,10 @@ pub fn read_joint_states(path: &Path, wanted: &[&str]) -> Result<(BTreeMap<Strin
             tp.names = js.name.clone();
         }
         if js.name != tp.names || js.position.len() != tp.names.len() {
-            return Err(CalibError::file(path, format!("message {} on {topic}: joints {:?} ({} positions), earlier messages had {:?}", count + 1, js.name, js.position.len(), tp.names)));
+            return Err(CalibError::file(
+                path,
+                format!("message {} on {topic}: joints {:?} ({} positions), earlier messages had {:?}", count + 1, js.name, js.position.len(), tp.names),
+            ));
         }
         let t = if js.header.time() > 0.0 { js.header.time() } else { m.log_time as f64 * 1e-9 };
         tp.t.push(t);
@@ -140,7 +166,10 @@ pub fn read_mcap(path: &Path, arm: &str) -> Result<JointLog> {
     let mut j = 0;
     for (i, t) in meas.t.iter().enumerate() {
         if meas.effort[i].len() != nq {
-            return Err(CalibError::file(path, format!("{meas_topic} message {}: {} efforts for {nq} joints (the discrepancy workflow needs measured efforts)", i + 1, meas.effort[i].len())));
+            return Err(CalibError::file(
+                path,
+                format!("{meas_topic} message {}: {} efforts for {nq} joints (the discrepancy workflow needs measured efforts)", i + 1, meas.effort[i].len()),
+            ));
         }
         if let Some(k) = meas.position[i].iter().chain(&meas.effort[i]).position(|x| !x.is_finite()) {
             return Err(CalibError::file(path, format!("{meas_topic} message {} (t = {t} s): value {k} is not finite", i + 1)));

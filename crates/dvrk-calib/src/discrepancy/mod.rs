@@ -21,7 +21,9 @@ pub mod fit;
 pub mod generate;
 pub mod joint_log;
 pub mod nuisance;
+pub mod repeat;
 pub mod report;
+pub mod run;
 pub mod signals;
 pub mod stats;
 pub mod tracking;
@@ -30,6 +32,7 @@ pub mod workflow;
 pub use generate::{hidden_effect, Answer, Hidden, HiddenOptions, HiddenRecording};
 pub use joint_log::JointLog;
 pub use nuisance::InertiaPrior;
+pub use repeat::{discrepancy_repeated, Repeated};
 pub use report::Report;
 pub use workflow::{discrepancy, Options, Outcome};
 

@@ -60,6 +60,20 @@ pub struct TrackingReport {
     pub rms_after: Option<Vec<f64>>,
 }
 
+/// One round of the repeated workflow (the model with the effects of the rounds before it).
+#[derive(Debug, Clone, Serialize)]
+pub struct StepReport {
+    pub round: usize,
+    pub verdict: String,
+    /// `name on joint-or-link` of the effect named in this round.
+    pub named: Option<String>,
+    pub rms_before: f64,
+    pub rms_after: f64,
+    pub rms_heldout_before: f64,
+    pub rms_heldout_after: f64,
+    pub raw_rms_heldout_after: f64,
+}
+
 /// The whole report.
 #[derive(Debug, Clone, Serialize)]
 pub struct Report {
@@ -76,6 +90,10 @@ pub struct Report {
     pub rms_after: f64,
     pub rms_heldout_before: f64,
     pub rms_heldout_after: f64,
+    /// Held-out RMS of the raw (unfiltered) effort residual over each joint's sensor noise: 1 is
+    /// the noise floor of a single sample.
+    pub raw_rms_heldout_before: f64,
+    pub raw_rms_heldout_after: f64,
     /// The model as given (its inertias not refitted), fitted and held-out parts.
     pub rms_nominal: f64,
     pub rms_heldout_nominal: f64,
@@ -87,4 +105,6 @@ pub struct Report {
     pub samples: usize,
     pub heldout_from: f64,
     pub notes: Vec<String>,
+    /// The rounds of the repeated workflow (empty for a single analysis).
+    pub steps: Vec<StepReport>,
 }

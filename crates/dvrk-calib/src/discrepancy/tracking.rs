@@ -64,3 +64,17 @@ pub fn compare(scene: &Scene, arm: usize, log: &JointLog, named: Option<&EffectS
     };
     Ok(TrackingReport { joints: log.names.clone(), rms_before, rms_after })
 }
+
+/// The setpoints replayed on arm `arm` (by name) of `scene` with model `before`, then `after`
+/// (each put on the arm's mount).
+pub fn compare_models(scene: &Scene, arm: &str, log: &JointLog, before: &dvrk_kin::Model, after: &dvrk_kin::Model) -> Result<TrackingReport> {
+    let a = scene.arm_index(arm).map_err(|e| crate::error::CalibError::field("--arm", e.to_string()))?;
+    let with = |m: &dvrk_kin::Model| -> Result<Vec<f64>> {
+        let mut s = scene.clone();
+        s.set_model(a, m.clone()).map_err(sim_error)?;
+        replay(&s, a, log)
+    };
+    let rms_before = with(before)?;
+    let rms_after = if after.effects.len() > before.effects.len() { Some(with(after)?) } else { None };
+    Ok(TrackingReport { joints: log.names.clone(), rms_before, rms_after })
+}

@@ -5,9 +5,9 @@
 //! the held-out part, and a verdict.
 
 use super::candidates::{self, Candidate, Table};
-use super::fit::{Fitter, Rows};
-use super::nuisance::{InertiaPrior, Nuisance};
+use super::fit::{per_joint_ratio, Fitter, Rows};
 use super::joint_log::JointLog;
+use super::nuisance::{InertiaPrior, Nuisance};
 use super::report::{CandidateReport, EffectReport, JointRms, Report};
 use super::signals::{prepare, Predictor, Prepared, Processing};
 use super::stats::{chi2_sf, effective_fraction};
@@ -44,7 +44,17 @@ pub struct Options {
 
 impl Default for Options {
     fn default() -> Self {
-        Options { processing: Processing::default(), min_delta_bic: 10.0, max_p_value: 1e-3, min_effect_to_noise: 1.0, ambiguity_bic: 10.0, bootstrap: 199, tracking: true, seed: 1, inertia_prior: InertiaPrior::default() }
+        Options {
+            processing: Processing::default(),
+            min_delta_bic: 10.0,
+            max_p_value: 1e-3,
+            min_effect_to_noise: 1.0,
+            ambiguity_bic: 10.0,
+            bootstrap: 199,
+            tracking: true,
+            seed: 1,
+            inertia_prior: InertiaPrior::default(),
+        }
     }
 }
 
@@ -105,12 +115,11 @@ fn score_linear(c: &Candidate, fit: &Fitter, r: &Table, o: &Options, rng: &mut C
     let a = train.matrix(columns);
     let x = fit.solve(&a, &y, &c.lower)?;
     let e1 = &y - &a * &x;
-    let (rss0, rss1) = (fit.rss(&y), fit.rss(&e1));
+    let rss1 = fit.rss(&e1);
     let n = train.len() as f64;
     let white = fit.whitened(&e1);
     let frac = effective_fraction(&train.series(&white));
-    let n_eff = n * frac;
-    let stat = lr(n_eff, rss0, rss1);
+    let (stat, n_eff) = fit.likelihood_ratio(&train, &y, &e1);
     let delta_bic = stat - (p + profiled.is_some() as usize) as f64 * n_eff.ln();
     let on_bound = c.lower.iter().zip(x.iter()).any(|(lo, v)| lo.is_some_and(|lo| *v <= lo + 1e-12 * (1.0 + lo.abs())));
     let p_value = if on_bound && o.bootstrap > 0 {
@@ -133,7 +142,7 @@ fn score_linear(c: &Candidate, fit: &Fitter, r: &Table, o: &Options, rng: &mut C
                 i += block;
             }
             let xs = fit.solve(&a, &ys, &c.lower)?;
-            if lr(n_eff, fit.rss(&ys), fit.rss(&(&ys - &a * &xs))) >= stat {
+            if fit.likelihood_ratio(&train, &ys, &(&ys - &a * &xs)).0 >= stat {
                 exceed += 1;
             }
         }
@@ -154,8 +163,7 @@ fn score_linear(c: &Candidate, fit: &Fitter, r: &Table, o: &Options, rng: &mut C
     let yh = hold.vector(r);
     let eh0 = fit.held_out(&y, &yh);
     let eh1 = fit.held_out(&e1, &(&yh - &ah * &x));
-    let nh = hold.len() as f64 * effective_fraction(&hold.series(&eh1));
-    let heldout_p = chi2_sf(lr(nh, eh0.norm_squared(), eh1.norm_squared()), p);
+    let heldout_p = chi2_sf(per_joint_ratio(&hold, &eh0, &eh1).0, p);
     let mut effect: Table = (0..prep.t.len()).map(|i| (0..r[0].len()).map(|k| columns.iter().zip(x.iter()).map(|(col, v)| col[i][k] * v).sum()).collect()).collect();
     let size = (effect[..prep.split].iter().map(|e| e[c.focus].powi(2)).sum::<f64>() / prep.split as f64).sqrt() / prep.noise[c.focus];
     add(&mut effect, &fit.nuisance_effort(&e1));
@@ -221,16 +229,16 @@ fn score_profile(fit: &Fitter, r: &Table, grid: &[f64], make: &dyn Fn(f64) -> Ta
     let rr = minus(&sig);
     let (y, e1, h0, h1) = (train.vector(r), train.vector(&rr), hold.vector(r), hold.vector(&rr));
     let frac = effective_fraction(&train.series(&fit.whitened(&e1)));
-    let n_eff = train.len() as f64 * frac;
-    let stat = lr(n_eff, fit.rss(&y), rss1);
-    let inside: Vec<f64> = points.iter().filter(|(_, r)| lr(n_eff, *r, rss1) <= 3.841).map(|(v, _)| *v).collect();
+    let n_eff_pooled = train.len() as f64 * frac;
+    let (stat, n_eff) = fit.likelihood_ratio(&train, &y, &e1);
+    let inside: Vec<f64> = points.iter().filter(|(_, r)| lr(n_eff_pooled, *r, rss1) <= 3.841).map(|(v, _)| *v).collect();
     let mut ci = [inside.first().copied().unwrap_or(value), inside.last().copied().unwrap_or(value)];
     // Between grid points: the profile's parabola through the best point and its neighbours (in
     // ln v on a geometric grid) where the likelihood ratio reaches 3.84.
     if let Some(i) = points.iter().position(|p| p.0 == value).filter(|&i| i > 0 && i + 1 < points.len()) {
         let x = |v: f64| if geometric { v.ln() } else { v };
         let (x0, x1, x2) = (x(points[i - 1].0), x(points[i].0), x(points[i + 1].0));
-        let (l0, l1, l2) = (lr(n_eff, points[i - 1].1, rss1), 0.0, lr(n_eff, points[i + 1].1, rss1));
+        let (l0, l1, l2) = (lr(n_eff_pooled, points[i - 1].1, rss1), 0.0, lr(n_eff_pooled, points[i + 1].1, rss1));
         // Second divided difference: the curvature a of l(x) = a (x - xm)^2 + c.
         let a = ((l2 - l1) / (x2 - x1) - (l1 - l0) / (x1 - x0)) / (x2 - x0);
         if a > 0.0 {
@@ -241,7 +249,7 @@ fn score_profile(fit: &Fitter, r: &Table, grid: &[f64], make: &dyn Fn(f64) -> Ta
         }
     }
     let (eh0, eh1) = (fit.held_out(&y, &h0), fit.held_out(&e1, &h1));
-    let nh = hold.len() as f64 * effective_fraction(&hold.series(&eh1));
+
     let size_at = |k: usize| (sig[..prep.split].iter().map(|e| e[k] * e[k]).sum::<f64>() / prep.split as f64).sqrt() / prep.noise[k];
     let size = match focus {
         Some(k) => size_at(k),
@@ -250,7 +258,16 @@ fn score_profile(fit: &Fitter, r: &Table, grid: &[f64], make: &dyn Fn(f64) -> Ta
     let mut effect = sig;
     add(&mut effect, &fit.nuisance_effort(&e1));
     let p_value = if stat > 0.0 { chi2_sf(stat, 1) } else { 1.0 };
-    Score { x: vec![value], ci: vec![ci], delta_bic: stat - n_eff.ln(), p_value, heldout_p: chi2_sf(lr(nh, eh0.norm_squared(), eh1.norm_squared()), 1), effect_to_noise: size, effect, profiled: None }
+    Score {
+        x: vec![value],
+        ci: vec![ci],
+        delta_bic: stat - n_eff.ln(),
+        p_value,
+        heldout_p: chi2_sf(per_joint_ratio(&hold, &eh0, &eh1).0, 1),
+        effect_to_noise: size,
+        effect,
+        profiled: None,
+    }
 }
 
 /// `n` points from `lo` to `hi`, geometric.
@@ -282,6 +299,14 @@ fn normalised_rms(prep: &Prepared, r: &Table, range: std::ops::Range<usize>) -> 
     (range.flat_map(|i| prep.active.iter().map(move |&k| (i, k))).map(|(i, k)| (r[i][k] / prep.floor[k]).powi(2)).sum::<f64>() / n).sqrt()
 }
 
+/// RMS of the raw (unfiltered) effort residual of prediction `pred`, each joint over its raw
+/// effort noise, over the active joints: 1 at the sensor's noise floor.
+fn raw_rms(prep: &Prepared, pred: &Table, range: std::ops::Range<usize>) -> f64 {
+    let r = residual(prep, pred, false);
+    let n = (range.len() * prep.active.len()).max(1) as f64;
+    (range.flat_map(|i| prep.active.iter().map(move |&k| (i, k))).map(|(i, k)| (r[i][k] / prep.noise[k]).powi(2)).sum::<f64>() / n).sqrt()
+}
+
 fn rms(r: &Table, k: usize, range: std::ops::Range<usize>) -> f64 {
     let n = range.len().max(1) as f64;
     (range.map(|i| r[i][k] * r[i][k]).sum::<f64>() / n).sqrt()
@@ -300,15 +325,48 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
     let arm = &scene.arms[a];
     let prep = prepare(log, &o.processing)?;
     let mut predictor = Predictor::new(&arm.model, arm, scene.gravity)?;
-    let base = predictor.series(&prep)?;
-    let r = residual(&prep, &base, true);
+    let rigid = predictor.series(&prep)?;
     let inertias = arm.inertials.body_inertias(&arm.model).map_err(|e| CalibError::data("inertials", e.to_string()))?;
     let inertias = dvrk_kin::effects::payload_inertias(&arm.model, &arm.model.effects, &inertias)?;
+    let offsets = candidates::offset_sensitivities(&predictor, arm, scene.gravity, &prep, &rigid)?;
+    let dm = dvrk_kin::DynamicsModel::new(&arm.model, inertias.clone())?;
+    let link_m = super::drive::link_inertias(&arm.model, &dm, &prep)?;
+    let nq = arm.model.nq();
+    // Joint j's drive load along the recorded motion, for a prediction `base`.
+    let joint_load = |j: usize, base: &Table| -> Option<super::drive::JointLoad> {
+        let d = offsets.iter().find(|(k, _)| *k == j).map(|(_, d)| d)?;
+        (arm.armature[j] > 0.0).then(|| super::drive::JointLoad {
+            joint: j,
+            load: (0..prep.t.len()).map(|i| base[i][j] - arm.armature[j] * prep.qdd[i][j]).collect(),
+            inertia: link_m.iter().map(|m| m.column(j).iter().copied().collect()).collect(),
+            stiffness: d.clone(),
+            motor: arm.armature[j],
+            damping: predictor.joint_damping(j),
+        })
+    };
+    // The model's own drive and stream effects, which inverse dynamics does not hold (a model
+    // from an earlier round of the workflow has them).
+    let mut base = rigid.clone();
+    for e in &arm.model.effects {
+        let law = match (e.kind, e.joint) {
+            (EffectKind::JointCompliance, Some(j)) => Some((j, super::drive::Law::Compliance(e.get("stiffness")))),
+            (EffectKind::Backlash, Some(j)) => Some((j, super::drive::Law::Backlash(e.get("b")))),
+            _ => None,
+        };
+        if let Some((j, law)) = law {
+            if let Some(jl) = joint_load(j, &base) {
+                add(&mut base, &super::drive::signature(&prep, &jl, law, nq));
+            }
+        }
+    }
+    for e in arm.model.effects.iter().filter(|e| e.kind == EffectKind::Latency) {
+        base = shifted(&base, prep.dt, e.get("seconds"));
+    }
+    let r = residual(&prep, &base, true);
     let gravity = nalgebra::Vector3::from(scene.gravity);
     let nuisance = Nuisance::new(&arm.model, &inertias, &gravity, &prep, &o.inertia_prior, 1.0 / prep.noise_fraction)?;
     let fit = Fitter { prep: &prep, nuisance: nuisance.as_ref() };
-    let offsets = candidates::offset_sensitivities(&predictor, arm, scene.gravity, &prep, &base)?;
-    let cands = candidates::build(&predictor, arm, scene.gravity, &prep, &base, &offsets)?;
+    let cands = candidates::build(&predictor, arm, scene.gravity, &prep, &rigid, &offsets)?;
     let mut rng = ChaCha8Rng::seed_from_u64(o.seed);
     let mut scored: Vec<(Option<&Candidate>, EffectKind, String, Score, Option<usize>)> = Vec::new();
     for c in &cands {
@@ -320,22 +378,10 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
     let lat_grid: Vec<f64> = (0..=60).map(|i| i as f64 * 1e-3).collect();
     scored.push((None, EffectKind::Latency, "latency".into(), score_profile(&fit, &r, &lat_grid, &shift, None), None));
     // The drives: compliance and play per moving joint, each a profile of its own simulation.
-    let dm = dvrk_kin::DynamicsModel::new(&arm.model, inertias.clone())?;
-    let link_m = super::drive::link_inertias(&arm.model, &dm, &prep)?;
     for &j in &prep.active {
-        let Some(d) = offsets.iter().find(|(k, _)| *k == j).map(|(_, d)| d) else { continue };
-        if arm.armature[j] <= 0.0 {
+        let Some(jl) = joint_load(j, &base) else {
             continue;
-        }
-        let jl = super::drive::JointLoad {
-            joint: j,
-            load: (0..prep.t.len()).map(|i| base[i][j] - arm.armature[j] * prep.qdd[i][j]).collect(),
-            inertia: link_m.iter().map(|m| m.column(j).iter().copied().collect()).collect(),
-            stiffness: d.clone(),
-            motor: arm.armature[j],
-            damping: predictor.joint_damping(j),
         };
-        let nq = arm.model.nq();
         let name = &arm.model.joints[j].name;
         let comp = |k: f64| super::drive::signature(&prep, &jl, super::drive::Law::Compliance(k), nq);
         let s = score_profile(&fit, &r, &geometric(1.0, 1e5, 26), &comp, Some(j));
@@ -465,6 +511,8 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
         rms_after: normalised_rms(&prep, &f1, tr.clone()),
         rms_heldout_before: normalised_rms(&prep, &f0, ho.clone()),
         rms_heldout_after: normalised_rms(&prep, &f1, ho.clone()),
+        raw_rms_heldout_before: raw_rms(&prep, &before, ho.clone()),
+        raw_rms_heldout_after: raw_rms(&prep, &after, ho.clone()),
         rms_nominal: normalised_rms(&prep, &fn0, tr.clone()),
         rms_heldout_nominal: normalised_rms(&prep, &fn0, ho.clone()),
         noise_floor: 1.0,
@@ -474,6 +522,7 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
         samples: prep.t.len(),
         heldout_from: prep.t[prep.split],
         notes: vec!["kinematic channel (marker tracker) not analysed yet: it needs --marker-topic data".into()],
+        steps: Vec::new(),
     };
     Ok(Outcome { report, named })
 }
