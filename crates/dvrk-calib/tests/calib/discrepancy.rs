@@ -4,6 +4,7 @@
 //! with its parameter; an effect-free recording gives `none`; bad recordings are refused.
 //! The full detection-rate table is the ignored `detection_rate_table`.
 
+use dvrk_calib::discrepancy::generate::HIDDEN_KINDS;
 use dvrk_calib::discrepancy::{discrepancy, hidden_effect, joint_log, Hidden, HiddenOptions, HiddenRecording, Options};
 use dvrk_kin::effects::EffectKind;
 
@@ -36,16 +37,7 @@ fn main_parameter(kind: &str) -> &'static str {
 /// cut by at least half.
 #[test]
 fn each_supported_effect_is_named_with_its_parameter() {
-    let kinds = [
-        EffectKind::CoulombFriction,
-        EffectKind::ViscousFriction,
-        EffectKind::Spring,
-        EffectKind::JointCompliance,
-        EffectKind::Backlash,
-        EffectKind::Latency,
-        EffectKind::JointOffset,
-        EffectKind::PayloadMass,
-    ];
+    let kinds = HIDDEN_KINDS;
     for kind in kinds {
         let h = trial(Hidden::Kind(kind), 11, Some(5.0), 20.0);
         let out = analyse(&h, false);
@@ -138,16 +130,7 @@ fn joint_logs_round_trip_and_bad_recordings_are_refused() {
 #[ignore]
 fn detection_rate_table() {
     let trials: u64 = std::env::var("DVRK_TRIALS").ok().and_then(|s| s.parse().ok()).unwrap_or(10);
-    let kinds = [
-        EffectKind::CoulombFriction,
-        EffectKind::ViscousFriction,
-        EffectKind::Spring,
-        EffectKind::Latency,
-        EffectKind::JointOffset,
-        EffectKind::PayloadMass,
-        EffectKind::JointCompliance,
-        EffectKind::Backlash,
-    ];
+    let kinds = HIDDEN_KINDS;
     println!("| class | trials | named correctly | named wrong | ambiguous | none | CI covers | held-out after / band floor (median) | raw held-out after / noise (median) |");
     println!("|---|---|---|---|---|---|---|---|---|");
     for kind in kinds {

@@ -15,6 +15,26 @@ fn wpi(file: &str) -> Option<PathBuf> {
     }
 }
 
+/// The CAD PSM identified on `one`, with both recordings (None, with a message, without them).
+struct Fitted {
+    model: dvrk_kin::Model,
+    prior: Vec<dvrk_kin::BodyInertia>,
+    r1: dvrk_calib::identify::TorqueRecording,
+    r2: dvrk_calib::identify::TorqueRecording,
+    options: IdentifyOptions,
+    id: dvrk_calib::identify::Identification,
+}
+
+fn fitted_on_one() -> Option<Fitted> {
+    let (one, two) = (wpi("psm_one_results.csv")?, wpi("psm_two_results.csv")?);
+    let model = psm();
+    let prior = dvrk_sim::scene::builtin_inertials("psm", &model).unwrap().body_inertias(&model).unwrap();
+    let (r1, r2) = (read_wpi_csv(&one, &model).unwrap(), read_wpi_csv(&two, &model).unwrap());
+    let options = IdentifyOptions::for_model(&model);
+    let (id, _) = identify(&model, &prior, &r1, &options).unwrap();
+    Some(Fitted { model, prior, r1, r2, options, id })
+}
+
 /// Published by the recordings' authors for their model on `two` (q1..q7).
 const PUBLISHED: [f64; 7] = [0.093, 0.178, 0.191, 0.134, 0.239, 0.213, 0.264];
 
@@ -107,12 +127,7 @@ fn bad_wpi_files_name_the_line_and_column() {
 fn identified_model_replays_the_held_out_efforts_closer_than_cad() {
     use dvrk_calib::identify::output::identified_model;
     use dvrk_calib::identify::replay::{identified_scene, torque_replay, IDENTIFIED_PGS_ITERATIONS};
-    let (Some(one), Some(two)) = (wpi("psm_one_results.csv"), wpi("psm_two_results.csv")) else { return };
-    let model = psm();
-    let prior = dvrk_sim::scene::builtin_inertials("psm", &model).unwrap().body_inertias(&model).unwrap();
-    let (r1, r2) = (read_wpi_csv(&one, &model).unwrap(), read_wpi_csv(&two, &model).unwrap());
-    let options = IdentifyOptions::for_model(&model);
-    let (id, _) = identify(&model, &prior, &r1, &options).unwrap();
+    let Some(Fitted { model, prior, r1, r2, options, id }) = fitted_on_one() else { return };
     let base = dvrk_sim::Scene::load("psm").unwrap();
     let identified = identified_model(&model, &id, &options.processing, &r1.to_joint, &prior, "one").unwrap();
     assert!(identified.kept_prior.is_empty(), "{:?}", identified.kept_prior);
@@ -143,12 +158,7 @@ fn identified_model_replays_the_held_out_efforts_closer_than_cad() {
 fn identify_output_is_a_model_file_the_simulator_loads() {
     use dvrk_calib::identify::output::{identified_model, output_toml};
     use dvrk_calib::identify::replay::{identified_scene, torque_replay};
-    let (Some(one), Some(two)) = (wpi("psm_one_results.csv"), wpi("psm_two_results.csv")) else { return };
-    let model = psm();
-    let prior = dvrk_sim::scene::builtin_inertials("psm", &model).unwrap().body_inertias(&model).unwrap();
-    let (r1, r2) = (read_wpi_csv(&one, &model).unwrap(), read_wpi_csv(&two, &model).unwrap());
-    let options = IdentifyOptions::for_model(&model);
-    let (id, _) = identify(&model, &prior, &r1, &options).unwrap();
+    let Some(Fitted { model, prior, r1, r2, options, id }) = fitted_on_one() else { return };
     let identified = identified_model(&model, &id, &options.processing, &r1.to_joint, &prior, "one").unwrap();
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("psm-identified.toml");
