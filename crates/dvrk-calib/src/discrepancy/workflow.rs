@@ -79,6 +79,9 @@ struct Score {
     effect: Table,
     /// The profiled parameter's value, for a candidate that has one.
     profiled: Option<f64>,
+    /// A profile whose best point is the grid's end: the value is not determined (the effect
+    /// stands in for something outside the grid's physical range), so it is never named.
+    at_edge: bool,
 }
 
 fn residual(prep: &Prepared, pred: &Table, filtered: bool) -> Table {
@@ -167,7 +170,7 @@ fn score_linear(c: &Candidate, fit: &Fitter, r: &Table, o: &Options, rng: &mut C
     let mut effect: Table = (0..prep.t.len()).map(|i| (0..r[0].len()).map(|k| columns.iter().zip(x.iter()).map(|(col, v)| col[i][k] * v).sum()).collect()).collect();
     let size = (effect[..prep.split].iter().map(|e| e[c.focus].powi(2)).sum::<f64>() / prep.split as f64).sqrt() / prep.noise[c.focus];
     add(&mut effect, &fit.nuisance_effort(&e1));
-    Ok(Score { x: x.iter().copied().collect(), ci, delta_bic, p_value, heldout_p, effect_to_noise: size, effect, profiled })
+    Ok(Score { x: x.iter().copied().collect(), ci, delta_bic, p_value, heldout_p, effect_to_noise: size, effect, profiled, at_edge: false })
 }
 
 /// `a += b`, element by element.
@@ -267,6 +270,7 @@ fn score_profile(fit: &Fitter, r: &Table, grid: &[f64], make: &dyn Fn(f64) -> Ta
         effect_to_noise: size,
         effect,
         profiled: None,
+        at_edge: value <= grid[0] || value >= grid[grid.len() - 1],
     }
 }
 
@@ -391,7 +395,7 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
         scored.push((None, EffectKind::Backlash, format!("backlash on {name}"), s, Some(j)));
     }
     scored.sort_by(|x, y| y.3.delta_bic.total_cmp(&x.3.delta_bic));
-    let supported = |s: &Score| s.delta_bic > o.min_delta_bic && s.p_value < o.max_p_value && s.heldout_p < 0.01 && s.effect_to_noise >= o.min_effect_to_noise;
+    let supported = |s: &Score| !s.at_edge && s.delta_bic > o.min_delta_bic && s.p_value < o.max_p_value && s.heldout_p < 0.01 && s.effect_to_noise >= o.min_effect_to_noise;
     // The profiled effects' one parameter, by kind.
     let profiled_name = |kind: EffectKind| match kind {
         EffectKind::Latency => "seconds",
