@@ -44,7 +44,7 @@ pub struct IdentifyOptions {
 impl IdentifyOptions {
     /// Every effect term, the spring on the channels listed.
     pub fn full(spring_channels: Vec<usize>) -> IdentifyOptions {
-        IdentifyOptions { processing: Processing::default(), terms: Terms { effects: EffectTerm::ALL.to_vec(), spring_channels, joint_friction: Vec::new(), cross: Vec::new(), winding_channels: Vec::new() }, prior_fraction: 0.25, consistency_margin: 0.0 }
+        IdentifyOptions { processing: Processing::default(), terms: Terms { effects: EffectTerm::ALL.to_vec(), spring_channels, ..Terms::default() }, prior_fraction: 0.25, consistency_margin: 0.0 }
     }
 
     /// The settings for a PSM recorded as the WPI recordings are (channels yaw, pitch,
@@ -96,7 +96,7 @@ impl IdentifyOptions {
 
     /// The rigid-body-only model: no effect of any kind, same processing and prior.
     pub fn rigid_only(&self) -> IdentifyOptions {
-        IdentifyOptions { terms: Terms { effects: Vec::new(), spring_channels: Vec::new(), joint_friction: Vec::new(), cross: Vec::new(), winding_channels: Vec::new() }, ..self.clone() }
+        IdentifyOptions { terms: Terms::default(), ..self.clone() }
     }
 }
 

@@ -69,15 +69,9 @@ fn unit(term: EffectTerm, prismatic: bool) -> &'static str {
 /// smaller raised equally until the largest is their sum) change the body by that round-off,
 /// where keeping the CAD prior would replace the body altogether.
 fn physical_body(id: &Identification, b: usize) -> Option<BodyInertia> {
-    let p = &id.theta.as_slice()[b * PARAMETERS_PER_BODY..(b + 1) * PARAMETERS_PER_BODY];
-    let m = p[0];
-    if !(m.is_finite() && m > 0.0) {
-        return None;
-    }
-    let c = nalgebra::Vector3::new(p[1], p[2], p[3]) / m;
-    let j = nalgebra::Matrix3::new(p[4], p[5], p[6], p[5], p[7], p[8], p[6], p[8], p[9]);
-    let about_com = j - (nalgebra::Matrix3::identity() * c.norm_squared() - c * c.transpose()) * m;
-    let eig = nalgebra::SymmetricEigen::new(about_com);
+    let p: &[f64; PARAMETERS_PER_BODY] = id.theta.as_slice()[b * PARAMETERS_PER_BODY..(b + 1) * PARAMETERS_PER_BODY].try_into().ok()?;
+    let raw = BodyInertia::from_parameters_unchecked(p)?;
+    let eig = nalgebra::SymmetricEigen::new(raw.inertia);
     let mut e = eig.eigenvalues.map(|x| x.max(0.0));
     let (k, _) = e.argmax();
     let excess = e[k] - (e.sum() - e[k]);
@@ -88,7 +82,7 @@ fn physical_body(id: &Identification, b: usize) -> Option<BodyInertia> {
     }
     let inertia = eig.eigenvectors * nalgebra::Matrix3::from_diagonal(&e) * eig.eigenvectors.transpose();
     let inertia = 0.5 * (inertia + inertia.transpose());
-    let ine = BodyInertia { mass: m, com: c, inertia };
+    let ine = BodyInertia { inertia, ..raw };
     ine.check("identified body").ok().map(|_| ine)
 }
 
@@ -176,7 +170,7 @@ pub fn identified_model(model: &Model, id: &Identification, processing: &Process
             Some(ine) => (ine, source.clone()),
             None => {
                 kept_prior.push(body.name.clone());
-                (prior[b].clone(), "prior (the identification left this body degenerate)".to_string())
+                (prior[b], "prior (the identification left this body degenerate)".to_string())
             }
         };
         let i = ine.inertia;

@@ -56,8 +56,8 @@ impl EffectTerm {
     }
 }
 
-/// What the regression contains.
-#[derive(Debug, Clone, PartialEq)]
+/// What the regression contains (the default: rigid bodies only).
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct Terms {
     /// Effect terms added to every channel.
     pub effects: Vec<EffectTerm>,

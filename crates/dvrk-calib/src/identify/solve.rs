@@ -223,7 +223,7 @@ mod tests {
     fn the_margin_keeps_bodies_inside_the_cone() {
         use crate::identify::problem::{Layout, Terms};
         let model = dvrk_kin::load("psm", None).unwrap();
-        let layout = Layout::new(&model, 7, &Terms { effects: vec![], spring_channels: vec![], joint_friction: vec![], cross: vec![], winding_channels: vec![] });
+        let layout = Layout::new(&model, 7, &Terms::default());
         let prior = dvrk_sim::scene::builtin_inertials("psm", &model).unwrap().body_inertias(&model).unwrap();
         let theta0 = DVector::from_iterator(layout.len(), prior.iter().flat_map(|b| b.parameters()));
         let scale = theta0.map(|x| x.abs() + 1e-3);

@@ -96,15 +96,22 @@ impl BodyInertia {
     /// Back from the linear form (the inverse of [`BodyInertia::parameters`]), checked for
     /// physical consistency (`what` names the body in errors).
     pub fn from_parameters(p: &[f64; PARAMETERS_PER_BODY], what: &str) -> Result<BodyInertia> {
+        let b = BodyInertia::from_parameters_unchecked(p)
+            .ok_or_else(|| KinError::Value { what: format!("{what} parameter m"), value: p[0], message: "must be a positive finite mass (kg)".into() })?;
+        b.check(what)?;
+        Ok(b)
+    }
+
+    /// Back from the linear form without the consistency check (a fit's raw output, to be
+    /// projected onto the physical set); `None` unless the mass is positive and finite.
+    pub fn from_parameters_unchecked(p: &[f64; PARAMETERS_PER_BODY]) -> Option<BodyInertia> {
         let m = p[0];
         if !(m.is_finite() && m > 0.0) {
-            return Err(KinError::Value { what: format!("{what} parameter m"), value: m, message: "must be a positive finite mass (kg)".into() });
+            return None;
         }
         let c = Vector3::new(p[1], p[2], p[3]) / m;
         let j = Matrix3::new(p[4], p[5], p[6], p[5], p[7], p[8], p[6], p[8], p[9]);
         let inertia = j - (Matrix3::identity() * c.norm_squared() - c * c.transpose()) * m;
-        let b = BodyInertia { mass: m, com: c, inertia };
-        b.check(what)?;
-        Ok(b)
+        Some(BodyInertia { mass: m, com: c, inertia })
     }
 }
