@@ -19,7 +19,7 @@ fn main() {
         println!("  named {} {:?} {:?} ci {:?} dBIC {:.1} p {:.2e}", e.name, e.joint, e.parameters, e.ci95, e.delta_bic, e.p_value);
     }
     for c in r.candidates.iter().take(5) {
-        println!("  cand {:40} dBIC {:10.1} p {:.1e} hold p {:.1e} size {:.2} {:?}", c.label, c.delta_bic, c.p_value, c.heldout_p_value, c.effect_to_noise, c.parameters);
+        println!("  cand {:40} dBIC {:10.1} p {:.1e} hold p {:.1e} size {:.2} {:?}", c.label, c.effect.delta_bic, c.effect.p_value, c.heldout_p_value, c.effect_to_noise, c.effect.parameters);
     }
     println!("  rms nominal {:.3} ho {:.3}; {:.3} -> {:.3}; held out {:.3} -> {:.3}", r.rms_nominal, r.rms_heldout_nominal, r.rms_before, r.rms_after, r.rms_heldout_before, r.rms_heldout_after);
     for j in &r.joints {

@@ -27,10 +27,6 @@ impl<'a> Rows<'a> {
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }
-    /// First row's index among all rows.
-    pub fn start(&self) -> usize {
-        self.range.start * self.prep.active.len()
-    }
     pub fn vector(&self, t: &Table) -> DVector<f64> {
         let p = self.prep;
         DVector::from_iterator(self.len(), self.range.clone().flat_map(|i| p.active.iter().map(move |&k| t[i][k] / p.floor[k])))

@@ -61,23 +61,22 @@ pub struct Nuisance {
 }
 
 impl Nuisance {
-    /// The nuisance for `model` with `inertias` (the prior's centre) on `prep`, or `None` when the
-    /// prior holds everything. `lambda`: the prior's weight against a row (`1 / (n_eff / n)` of
-    /// the band-limited noise: rows are correlated, the prior is not).
-    pub fn new(model: &Model, inertias: &[BodyInertia], gravity: &Vector3<f64>, prep: &Prepared, prior: &InertiaPrior, lambda: f64) -> Result<Option<Nuisance>> {
+    /// The nuisance for `model` with `dm`'s inertias (the prior's centre) on `prep`, or `None`
+    /// when the prior holds everything. `lambda`: the prior's weight against a row
+    /// (`1 / (n_eff / n)` of the band-limited noise: rows are correlated, the prior is not).
+    pub fn new(model: &Model, dm: &DynamicsModel, gravity: &Vector3<f64>, prep: &Prepared, prior: &InertiaPrior, lambda: f64) -> Result<Option<Nuisance>> {
         if prior.is_off() {
             return Ok(None);
         }
-        let dm = DynamicsModel::new(model, inertias.to_vec())?;
         let mut data = DynamicsData::new(model);
         let nq = model.nq();
-        let stds: Vec<f64> = inertias.iter().flat_map(|b| prior.stds(b)).collect();
+        let stds: Vec<f64> = dm.inertias().iter().flat_map(|b| prior.stds(b)).collect();
         // Only parameters that change some effort and have room to move.
         let mut y = DMatrix::zeros(nq, stds.len());
         let na = prep.active.len();
         let mut full = DMatrix::zeros(prep.t.len() * na, stds.len());
         for i in 0..prep.t.len() {
-            dvrk_kin::regressor(model, &dm, &mut data, &prep.q[i], &prep.qd[i], &prep.qdd[i], gravity, &mut y)?;
+            dvrk_kin::regressor(model, dm, &mut data, &prep.q[i], &prep.qd[i], &prep.qdd[i], gravity, &mut y)?;
             for (a, &k) in prep.active.iter().enumerate() {
                 for c in 0..stds.len() {
                     full[(i * na + a, c)] = y[(k, c)] * stds[c] / prep.floor[k];
@@ -130,14 +129,5 @@ impl Nuisance {
     pub fn normal_equations(&self, c: &DMatrix<f64>, y: &DVector<f64>) -> (DMatrix<f64>, DVector<f64>) {
         let (zc, zy) = (self.project_columns(c), self.project(y));
         (c.tr_mul(c) - zc.tr_mul(&zc), c.tr_mul(y) - zc.tr_mul(&zy))
-    }
-
-    /// Number of nuisance parameters.
-    pub fn len(&self) -> usize {
-        self.n.ncols()
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.n.ncols() == 0
     }
 }

@@ -25,15 +25,15 @@ pub struct Repeated {
 /// so far. The tracking channel (if `o.tracking`) is replayed on the last round only.
 pub fn discrepancy_repeated(model: &Model, scene: &Scene, arm: &str, log: &JointLog, o: &Options, max_rounds: usize) -> Result<Repeated> {
     let mut current = model.clone();
-    let mut named = Vec::new();
-    let mut first: Option<Report> = None;
+    let mut named: Vec<EffectSpec> = Vec::new();
+    let mut report: Option<Report> = None;
     let mut steps = Vec::new();
     let quiet = Options { tracking: false, ..o.clone() };
-    for round in 0..max_rounds.max(1) {
+    for round in 1..=max_rounds.max(1) {
         let out = discrepancy(&current, scene, arm, log, &quiet)?;
         let r = out.report;
         steps.push(StepReport {
-            round: round + 1,
+            round,
             verdict: r.verdict.clone(),
             named: r.effects.first().map(|e| match e.joint.clone().or(e.link.clone()) {
                 Some(at) => format!("{} on {at}", e.name),
@@ -45,47 +45,39 @@ pub fn discrepancy_repeated(model: &Model, scene: &Scene, arm: &str, log: &Joint
             rms_heldout_after: r.rms_heldout_after,
             raw_rms_heldout_after: r.raw_rms_heldout_after,
         });
-        let effects = r.effects.clone();
-        let last = r.clone();
-        let first = first.get_or_insert(r);
         // The same effect on the same joint or link again: its linearised fit has not converged
         // in one step, or it stands in for something the vocabulary lacks; stop rather than stack.
-        let again = out.named.as_ref().is_some_and(|e| named.iter().any(|n: &EffectSpec| n.name == e.name && n.joint == e.joint && n.link == e.link));
-        if again {
+        if out.named.as_ref().is_some_and(|e| named.iter().any(|n| n.name == e.name && n.joint == e.joint && n.link == e.link)) {
             if let Some(s) = steps.last_mut() {
                 s.verdict = "repeated".into();
             }
             break;
         }
-        let stop = match out.named {
-            Some(e) => {
-                current = with_effect(&current, &e)?;
-                named.push(e);
-                false
+        // The first round gives the candidates and the "before" figures; each later one adds its
+        // named effect and the "after" figures.
+        let merged = match report.as_mut() {
+            Some(m) => {
+                m.effects.extend(r.effects.iter().cloned());
+                m
             }
-            None => true,
+            None => report.insert(r.clone()),
         };
-        if round > 0 {
-            first.effects.extend(effects);
+        merged.rms_after = r.rms_after;
+        merged.rms_heldout_after = r.rms_heldout_after;
+        merged.raw_rms_heldout_after = r.raw_rms_heldout_after;
+        merged.joints = r.joints;
+        if r.verdict == "ambiguous" {
+            merged.experiment = r.experiment;
         }
-        first.verdict = if named.is_empty() { last.verdict.clone() } else { "named".into() };
-        if last.verdict == "ambiguous" {
-            first.verdict = if named.is_empty() { "ambiguous".into() } else { "named".into() };
-            first.experiment = last.experiment.clone();
-        }
-        first.rms_after = last.rms_after;
-        first.rms_heldout_after = last.rms_heldout_after;
-        first.raw_rms_heldout_after = last.raw_rms_heldout_after;
-        first.joints = last.joints.clone();
-        if stop {
-            break;
-        }
+        let Some(e) = out.named else { break };
+        current = with_effect(&current, &e)?;
+        named.push(e);
+        merged.verdict = "named".into();
     }
-    let mut report = first.expect("at least one round");
-    // The last round's "after" is with every named effect: its own before is the model with all
-    // but its own named one; with none named in it, before and after are equal.
+    let mut report = report.expect("the first round is never a repeat");
     if o.tracking {
-        report.tracking = Some(super::tracking::compare_models(scene, arm, log, model, &current)?);
+        let a = scene.arm_index(arm).map_err(|e| crate::error::CalibError::field("--arm", e.to_string()))?;
+        report.tracking = Some(super::tracking::compare(scene, a, log, model, (!named.is_empty()).then_some(&current))?);
     }
     report.steps = steps;
     Ok(Repeated { report, model: current, named })

@@ -18,17 +18,13 @@ pub struct EffectReport {
     pub p_value: f64,
 }
 
-/// One ranked candidate.
+/// One ranked candidate: its effect and evidence (the same fields as a named effect's), and
+/// what decided whether it is supported.
 #[derive(Debug, Clone, Serialize)]
 pub struct CandidateReport {
     pub label: String,
-    pub name: String,
-    pub joint: Option<String>,
-    pub link: Option<String>,
-    pub parameters: BTreeMap<String, f64>,
-    pub ci95: BTreeMap<String, [f64; 2]>,
-    pub delta_bic: f64,
-    pub p_value: f64,
+    #[serde(flatten)]
+    pub effect: EffectReport,
     /// The fitted effect's likelihood-ratio test on the held-out part.
     pub heldout_p_value: f64,
     /// RMS of the fitted effect on its joint over that joint's effort noise.

@@ -196,6 +196,11 @@ impl Predictor {
         })
     }
 
+    /// The dynamics it evaluates: the arm's inertias with the model's payloads.
+    pub fn dynamics(&self) -> &DynamicsModel {
+        &self.dm
+    }
+
     /// The damping the drive and tree joints put on joint `j`'s own velocity (N·m s/rad, N s/m).
     pub fn joint_damping(&self, j: usize) -> f64 {
         self.damping[(j, j)]

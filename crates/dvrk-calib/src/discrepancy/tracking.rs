@@ -1,12 +1,10 @@
 //! The tracking channel: the recording's setpoints replayed through the simulated arm under its
 //! PID, the simulated encoder positions against the recorded ones; with the nominal model, then
-//! with the named effect added (the gap should shrink).
+//! with the named effects added (the gap should shrink).
 
-use super::generate::with_effect;
 use super::joint_log::JointLog;
 use super::report::TrackingReport;
 use crate::error::{CalibError, Result};
-use dvrk_kin::effects::EffectSpec;
 use dvrk_sim::trajectory::Trajectory;
 use dvrk_sim::{Scene, Sim, SimOptions};
 
@@ -48,33 +46,13 @@ fn replay(scene: &Scene, arm: usize, log: &JointLog) -> Result<Vec<f64>> {
     Ok(sum.iter().map(|s| (s / count.max(1) as f64).sqrt()).collect())
 }
 
-/// Tracking RMS before and (with `named`) after.
-pub fn compare(scene: &Scene, arm: usize, log: &JointLog, named: Option<&EffectSpec>) -> Result<TrackingReport> {
-    let rms_before = replay(scene, arm, log)?;
-    let rms_after = match named {
-        Some(e) => {
-            let mut s = scene.clone();
-            let mut m = with_effect(&s.arms[arm].model, e)?;
-            // The arm's model carries the mount in its base, which set_model puts back.
-            m.base = s.arms[arm].original_base;
-            s.set_model(arm, m).map_err(sim_error)?;
-            Some(replay(&s, arm, log)?)
-        }
-        None => None,
-    };
-    Ok(TrackingReport { joints: log.names.clone(), rms_before, rms_after })
-}
-
-/// The setpoints replayed on arm `arm` (by name) of `scene` with model `before`, then `after`
-/// (each put on the arm's mount).
-pub fn compare_models(scene: &Scene, arm: &str, log: &JointLog, before: &dvrk_kin::Model, after: &dvrk_kin::Model) -> Result<TrackingReport> {
-    let a = scene.arm_index(arm).map_err(|e| crate::error::CalibError::field("--arm", e.to_string()))?;
+/// Tracking RMS with model `before` on arm `arm` of `scene`, and with `after` if given (each
+/// put on the arm's mount).
+pub fn compare(scene: &Scene, arm: usize, log: &JointLog, before: &dvrk_kin::Model, after: Option<&dvrk_kin::Model>) -> Result<TrackingReport> {
     let with = |m: &dvrk_kin::Model| -> Result<Vec<f64>> {
         let mut s = scene.clone();
-        s.set_model(a, m.clone()).map_err(sim_error)?;
-        replay(&s, a, log)
+        s.set_model(arm, m.clone()).map_err(sim_error)?;
+        replay(&s, arm, log)
     };
-    let rms_before = with(before)?;
-    let rms_after = if after.effects.len() > before.effects.len() { Some(with(after)?) } else { None };
-    Ok(TrackingReport { joints: log.names.clone(), rms_before, rms_after })
+    Ok(TrackingReport { joints: log.names.clone(), rms_before: with(before)?, rms_after: after.map(with).transpose()? })
 }

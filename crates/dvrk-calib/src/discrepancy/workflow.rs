@@ -84,9 +84,23 @@ struct Score {
     at_edge: bool,
 }
 
+/// A scored candidate: a linear one (`candidate`) or a profile (latency, a drive's compliance or
+/// play on `joint`).
+struct Scored<'a> {
+    candidate: Option<&'a Candidate>,
+    kind: EffectKind,
+    label: String,
+    score: Score,
+    joint: Option<usize>,
+}
+
 fn residual(prep: &Prepared, pred: &Table, filtered: bool) -> Table {
-    let m = if filtered { &prep.effort } else { &prep.raw_effort };
-    m.iter().zip(pred).map(|(e, p)| e.iter().zip(p).map(|(a, b)| a - b).collect()).collect()
+    sub(if filtered { &prep.effort } else { &prep.raw_effort }, pred)
+}
+
+/// `a - b`, element by element.
+fn sub(a: &Table, b: &Table) -> Table {
+    a.iter().zip(b).map(|(x, y)| x.iter().zip(y).map(|(u, v)| u - v).collect()).collect()
 }
 
 fn lr(n_eff: f64, rss0: f64, rss1: f64) -> f64 {
@@ -122,7 +136,7 @@ fn score_linear(c: &Candidate, fit: &Fitter, r: &Table, o: &Options, rng: &mut C
     let n = train.len() as f64;
     let white = fit.whitened(&e1);
     let frac = effective_fraction(&train.series(&white));
-    let (stat, n_eff) = fit.likelihood_ratio(&train, &y, &e1);
+    let (stat, n_eff) = per_joint_ratio(&train, &fit.whitened(&y), &white);
     let delta_bic = stat - (p + profiled.is_some() as usize) as f64 * n_eff.ln();
     let on_bound = c.lower.iter().zip(x.iter()).any(|(lo, v)| lo.is_some_and(|lo| *v <= lo + 1e-12 * (1.0 + lo.abs())));
     let p_value = if on_bound && o.bootstrap > 0 {
@@ -209,8 +223,7 @@ fn shifted(base: &Table, dt: f64, tau: f64) -> Table {
 fn score_profile(fit: &Fitter, r: &Table, grid: &[f64], make: &dyn Fn(f64) -> Table, focus: Option<usize>) -> Score {
     let prep = fit.prep;
     let (train, hold) = (Rows::train(prep), Rows::held_out(prep));
-    let minus = |sig: &Table| -> Table { r.iter().zip(sig).map(|(a, b)| a.iter().zip(b).map(|(x, y)| x - y).collect()).collect() };
-    let eval = |v: f64| fit.rss(&train.vector(&minus(&make(v))));
+    let eval = |v: f64| fit.rss(&train.vector(&sub(r, &make(v))));
     let mut points: Vec<(f64, f64)> = grid.iter().map(|&v| (v, eval(v))).collect();
     let geometric = grid[0] > 0.0;
     // Twice: the best point's neighbourhood filled in, each time 8 times finer.
@@ -229,11 +242,11 @@ fn score_profile(fit: &Fitter, r: &Table, grid: &[f64], make: &dyn Fn(f64) -> Ta
     points.sort_by(|a, b| a.0.total_cmp(&b.0));
     let (value, rss1) = points.iter().copied().min_by(|a, b| a.1.total_cmp(&b.1)).unwrap_or((grid[0], f64::INFINITY));
     let sig = make(value);
-    let rr = minus(&sig);
+    let rr = sub(r, &sig);
     let (y, e1, h0, h1) = (train.vector(r), train.vector(&rr), hold.vector(r), hold.vector(&rr));
-    let frac = effective_fraction(&train.series(&fit.whitened(&e1)));
-    let n_eff_pooled = train.len() as f64 * frac;
-    let (stat, n_eff) = fit.likelihood_ratio(&train, &y, &e1);
+    let white = fit.whitened(&e1);
+    let n_eff_pooled = train.len() as f64 * effective_fraction(&train.series(&white));
+    let (stat, n_eff) = per_joint_ratio(&train, &fit.whitened(&y), &white);
     let inside: Vec<f64> = points.iter().filter(|(_, r)| lr(n_eff_pooled, *r, rss1) <= 3.841).map(|(v, _)| *v).collect();
     let mut ci = [inside.first().copied().unwrap_or(value), inside.last().copied().unwrap_or(value)];
     // Between grid points: the profile's parabola through the best point and its neighbours (in
@@ -252,7 +265,6 @@ fn score_profile(fit: &Fitter, r: &Table, grid: &[f64], make: &dyn Fn(f64) -> Ta
         }
     }
     let (eh0, eh1) = (fit.held_out(&y, &h0), fit.held_out(&e1, &h1));
-
     let size_at = |k: usize| (sig[..prep.split].iter().map(|e| e[k] * e[k]).sum::<f64>() / prep.split as f64).sqrt() / prep.noise[k];
     let size = match focus {
         Some(k) => size_at(k),
@@ -330,11 +342,8 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
     let prep = prepare(log, &o.processing)?;
     let mut predictor = Predictor::new(&arm.model, arm, scene.gravity)?;
     let rigid = predictor.series(&prep)?;
-    let inertias = arm.inertials.body_inertias(&arm.model).map_err(|e| CalibError::data("inertials", e.to_string()))?;
-    let inertias = dvrk_kin::effects::payload_inertias(&arm.model, &arm.model.effects, &inertias)?;
     let offsets = candidates::offset_sensitivities(&predictor, arm, scene.gravity, &prep, &rigid)?;
-    let dm = dvrk_kin::DynamicsModel::new(&arm.model, inertias.clone())?;
-    let link_m = super::drive::link_inertias(&arm.model, &dm, &prep)?;
+    let link_m = super::drive::link_inertias(&arm.model, predictor.dynamics(), &prep)?;
     let nq = arm.model.nq();
     // Joint j's drive load along the recorded motion, for a prediction `base`.
     let joint_load = |j: usize, base: &Table| -> Option<super::drive::JointLoad> {
@@ -368,19 +377,19 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
     }
     let r = residual(&prep, &base, true);
     let gravity = nalgebra::Vector3::from(scene.gravity);
-    let nuisance = Nuisance::new(&arm.model, &inertias, &gravity, &prep, &o.inertia_prior, 1.0 / prep.noise_fraction)?;
+    let nuisance = Nuisance::new(&arm.model, predictor.dynamics(), &gravity, &prep, &o.inertia_prior, 1.0 / prep.noise_fraction)?;
     let fit = Fitter { prep: &prep, nuisance: nuisance.as_ref() };
     let cands = candidates::build(&predictor, arm, scene.gravity, &prep, &rigid, &offsets)?;
     let mut rng = ChaCha8Rng::seed_from_u64(o.seed);
-    let mut scored: Vec<(Option<&Candidate>, EffectKind, String, Score, Option<usize>)> = Vec::new();
+    let mut scored: Vec<Scored> = Vec::new();
     for c in &cands {
         let s = score_linear(c, &fit, &r, o, &mut rng)?;
-        scored.push((Some(c), c.kind, c.label(&arm.model), s, c.joint));
+        scored.push(Scored { candidate: Some(c), kind: c.kind, label: c.label(&arm.model), score: s, joint: c.joint });
     }
     // Latency: the prediction shifted later, 0-60 ms.
-    let shift = |tau: f64| -> Table { shifted(&base, prep.dt, tau).iter().zip(&base).map(|(a, b)| a.iter().zip(b).map(|(x, y)| x - y).collect()).collect() };
+    let shift = |tau: f64| sub(&shifted(&base, prep.dt, tau), &base);
     let lat_grid: Vec<f64> = (0..=60).map(|i| i as f64 * 1e-3).collect();
-    scored.push((None, EffectKind::Latency, "latency".into(), score_profile(&fit, &r, &lat_grid, &shift, None), None));
+    scored.push(Scored { candidate: None, kind: EffectKind::Latency, label: "latency".into(), score: score_profile(&fit, &r, &lat_grid, &shift, None), joint: None });
     // The drives: compliance and play per moving joint, each a profile of its own simulation.
     for &j in &prep.active {
         let Some(jl) = joint_load(j, &base) else {
@@ -389,12 +398,12 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
         let name = &arm.model.joints[j].name;
         let comp = |k: f64| super::drive::signature(&prep, &jl, super::drive::Law::Compliance(k), nq);
         let s = score_profile(&fit, &r, &geometric(1.0, 1e5, 26), &comp, Some(j));
-        scored.push((None, EffectKind::JointCompliance, format!("joint_compliance on {name}"), s, Some(j)));
+        scored.push(Scored { candidate: None, kind: EffectKind::JointCompliance, label: format!("joint_compliance on {name}"), score: s, joint: Some(j) });
         let play = |b: f64| super::drive::signature(&prep, &jl, super::drive::Law::Backlash(b), nq);
         let s = score_profile(&fit, &r, &geometric(2.5e-4, 0.04, 21), &play, Some(j));
-        scored.push((None, EffectKind::Backlash, format!("backlash on {name}"), s, Some(j)));
+        scored.push(Scored { candidate: None, kind: EffectKind::Backlash, label: format!("backlash on {name}"), score: s, joint: Some(j) });
     }
-    scored.sort_by(|x, y| y.3.delta_bic.total_cmp(&x.3.delta_bic));
+    scored.sort_by(|x, y| y.score.delta_bic.total_cmp(&x.score.delta_bic));
     let supported = |s: &Score| !s.at_edge && s.delta_bic > o.min_delta_bic && s.p_value < o.max_p_value && s.heldout_p < 0.01 && s.effect_to_noise >= o.min_effect_to_noise;
     // The profiled effects' one parameter, by kind.
     let profiled_name = |kind: EffectKind| match kind {
@@ -434,7 +443,22 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
         }
         m
     };
-    let winners: Vec<usize> = (0..scored.len()).filter(|&i| supported(&scored[i].3)).collect();
+    // A scored candidate as a model-file effect and as the report's entry.
+    let report_of = |e: &Scored| -> (EffectSpec, EffectReport) {
+        let s = &e.score;
+        let spec = spec_of(e.candidate, e.kind, e.joint, s);
+        let report = EffectReport {
+            name: spec.name.clone(),
+            joint: spec.joint.clone(),
+            link: spec.link.as_ref().map(|l| l.to_string()),
+            parameters: spec.parameters.clone(),
+            ci95: ci_of(e.candidate, e.kind, s),
+            delta_bic: s.delta_bic,
+            p_value: s.p_value,
+        };
+        (spec, report)
+    };
+    let winners: Vec<usize> = (0..scored.len()).filter(|&i| supported(&scored[i].score)).collect();
     let mut verdict = "none";
     let mut experiment = None;
     let mut effects = Vec::new();
@@ -446,49 +470,31 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
     let mut after = before.clone();
     if let Some(&b) = winners.first() {
         let best = &scored[b];
-        let rival = winners.iter().skip(1).map(|&i| &scored[i]).find(|s| s.2 != best.2 && s.1 != best.1 && best.3.delta_bic - s.3.delta_bic < o.ambiguity_bic);
+        let rival = winners.iter().skip(1).map(|&i| &scored[i]).find(|s| s.label != best.label && s.kind != best.kind && best.score.delta_bic - s.score.delta_bic < o.ambiguity_bic);
         if let Some(rv) = rival {
             verdict = "ambiguous";
-            experiment = Some(separating_experiment(best.1, rv.1));
+            experiment = Some(separating_experiment(best.kind, rv.kind));
         } else {
             verdict = "named";
-            let spec = spec_of(best.0, best.1, best.4, &best.3);
-            effects.push(EffectReport {
-                name: spec.name.clone(),
-                joint: spec.joint.clone(),
-                link: best.0.and_then(|c| c.link.clone()),
-                parameters: spec.parameters.clone(),
-                ci95: ci_of(best.0, best.1, &best.3),
-                delta_bic: best.3.delta_bic,
-                p_value: best.3.p_value,
-            });
+            let (spec, report) = report_of(best);
+            effects.push(report);
             after = base.clone();
-            add(&mut after, &best.3.effect);
+            add(&mut after, &best.score.effect);
             named = Some(spec);
         }
     }
     let candidates: Vec<CandidateReport> = scored
         .iter()
         .take(12)
-        .map(|(c, kind, label, s, joint)| {
-            let spec = spec_of(*c, *kind, *joint, s);
-            CandidateReport {
-                label: label.clone(),
-                name: spec.name,
-                joint: spec.joint,
-                link: spec.link.map(|l| l.to_string()),
-                parameters: spec.parameters,
-                ci95: ci_of(*c, *kind, s),
-                delta_bic: s.delta_bic,
-                p_value: s.p_value,
-                heldout_p_value: s.heldout_p,
-                effect_to_noise: s.effect_to_noise,
-                supported: supported(s),
-            }
+        .map(|entry| CandidateReport {
+            label: entry.label.clone(),
+            effect: report_of(entry).1,
+            heldout_p_value: entry.score.heldout_p,
+            effect_to_noise: entry.score.effect_to_noise,
+            supported: supported(&entry.score),
         })
         .collect();
     let (f0, f1) = (residual(&prep, &before, true), residual(&prep, &after, true));
-    let fn0 = residual(&prep, &base, true);
     let (tr, ho) = (0..prep.split, prep.split..prep.t.len());
     let joints = prep
         .active
@@ -504,7 +510,10 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
             band_rms_heldout_after: rms(&f1, k, ho.clone()),
         })
         .collect();
-    let tracking = if o.tracking { Some(super::tracking::compare(&scene, a, log, named.as_ref())?) } else { None };
+    let tracking = match o.tracking {
+        true => Some(super::tracking::compare(&scene, a, log, model, named.as_ref().map(|e| super::generate::with_effect(model, e)).transpose()?.as_ref())?),
+        false => None,
+    };
     let report = Report {
         verdict: verdict.into(),
         channel: "torque".into(),
@@ -517,8 +526,8 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
         rms_heldout_after: normalised_rms(&prep, &f1, ho.clone()),
         raw_rms_heldout_before: raw_rms(&prep, &before, ho.clone()),
         raw_rms_heldout_after: raw_rms(&prep, &after, ho.clone()),
-        rms_nominal: normalised_rms(&prep, &fn0, tr.clone()),
-        rms_heldout_nominal: normalised_rms(&prep, &fn0, ho.clone()),
+        rms_nominal: normalised_rms(&prep, &r, tr.clone()),
+        rms_heldout_nominal: normalised_rms(&prep, &r, ho.clone()),
         noise_floor: 1.0,
         rms_units: "each joint's effort residual in the analysis band over its noise floor there, RMS over the moving joints".into(),
         joints,

@@ -75,7 +75,7 @@ fn an_effect_free_recording_names_nothing() {
     let h = trial(Hidden::None, 3, None, 20.0);
     let out = analyse(&h, true);
     let r = &out.report;
-    eprintln!("none: best candidate {:?}", r.candidates.first().map(|c| (&c.label, c.delta_bic, c.effect_to_noise)));
+    eprintln!("none: best candidate {:?}", r.candidates.first().map(|c| (&c.label, c.effect.delta_bic, c.effect_to_noise)));
     assert_eq!(r.verdict, "none");
     assert!(r.effects.is_empty() && out.named.is_none());
     let t = r.tracking.as_ref().unwrap();
