@@ -15,7 +15,7 @@ pub enum SynthCommand {
     /// A synthetic motion-capture recording (.mcap or plain .csv).
     Mocap(MocapArgs),
     /// A joint recording (.mcap: /<ARM>/setpoint_js, /<ARM>/measured_js with efforts) of an arm
-    /// with one hidden physical effect (or none), and the answer in a separate JSON file.
+    /// with one or two hidden physical effects (or none), and the answer in a separate JSON file.
     HiddenEffect(HiddenEffectArgs),
 }
 
@@ -26,8 +26,8 @@ pub struct HiddenEffectArgs {
     pub model: String,
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// none, random, or an effect: coulomb_friction, viscous_friction, spring, joint_compliance,
-    /// backlash, latency, joint_offset, payload_mass.
+    /// none, random, random-pair, an effect (coulomb_friction, viscous_friction, spring,
+    /// joint_compliance, backlash, latency, joint_offset, payload_mass) or two joined by `+`.
     #[arg(long, default_value = "random")]
     pub effect: String,
     /// Effort noise per joint (N·m, N), comma-separated; about 1% of each joint's effort when absent.
@@ -36,7 +36,7 @@ pub struct HiddenEffectArgs {
     /// Encoder noise (rad, m).
     #[arg(long, default_value_t = dvrk_calib::discrepancy::generate::POSITION_NOISE)]
     pub position_noise: f64,
-    /// Set the noise of the effect's joint so the effect's RMS is this many times it.
+    /// Set the noise of each effect's joint so the effect's RMS is this many times it.
     #[arg(long)]
     pub enr: Option<f64>,
     /// Recorded time (s).
@@ -45,7 +45,7 @@ pub struct HiddenEffectArgs {
     /// Output recording (.mcap), written whole or not at all.
     #[arg(short, long)]
     pub output: PathBuf,
-    /// The answer (JSON): the hidden effect, its joint or link, parameters, effect-to-noise ratio.
+    /// The answer (JSON): `effects`, each with its joint or link, parameters, effect-to-noise ratio.
     #[arg(long)]
     pub answer: PathBuf,
 }
@@ -116,7 +116,10 @@ fn hidden_effect(a: &HiddenEffectArgs) -> Result<()> {
     let arm = dvrk_sim::Scene::load(&a.model)?.arms[0].name.clone();
     crate::io::write_atomic(&a.output, &joint_log::write_mcap(&h.log, &arm)?)?;
     crate::io::write_atomic(&a.answer, format!("{}\n", serde_json::to_string_pretty(&h.answer)?).as_bytes())?;
-    let what = h.answer.effect.as_ref().map_or("no effect".to_string(), |e| e.name.clone());
+    let what = match h.answer.effects.is_empty() {
+        true => "no effect".to_string(),
+        false => h.answer.effects.iter().map(|e| format!("{} (ENR {:.1})", e.spec.name, e.enr)).collect::<Vec<_>>().join(" and "),
+    };
     outln!("wrote {} ({} samples, {:.0} s) with {what} hidden; answer in {}", a.output.display(), h.log.len(), a.duration, a.answer.display());
     Ok(())
 }

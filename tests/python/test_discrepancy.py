@@ -9,12 +9,12 @@ import dvrk_twin
 def test_a_hidden_viscous_friction_is_named(tmp_path):
     rec = tmp_path / "hidden.mcap"
     answer = dvrk_twin.synth_hidden_effect(rec, effect="viscous_friction", seed=3)
-    assert answer["effect"]["name"] == "viscous_friction"
+    assert answer["effects"][0]["name"] == "viscous_friction"
     report = dvrk_twin.discrepancy(rec, model="psm", arm="PSM1", tracking=False)
     assert report["verdict"] == "named", report["verdict"]
     named = report["effects"][0]
     assert named["name"] == "viscous_friction"
-    assert named["joint"] == answer["effect"]["joint"]
+    assert named["joint"] == answer["effects"][0]["joint"]
     assert report["rms_heldout_after"] < report["rms_heldout_before"]
 
 

@@ -176,8 +176,9 @@ pub fn discrepancy<'py>(py: Python<'py>, recording: PathBuf, model: &str, arm: &
 }
 
 /// `dvrk synth hidden-effect`: simulate a recording of the `scene` arm (built-in `psm` or `ecm`)
-/// with one hidden physical effect (`effect`: a vocabulary name, `none` or `random`) and write it
-/// to `path` (MCAP); returns the answer (the effect, its parameters, the effect-to-noise ratio).
+/// with hidden physical effects (`effect`: a vocabulary name, two joined by `+`, `none`, `random`
+/// or `random-pair`) and write it to `path` (MCAP); returns the answer (`effects`: each with its
+/// parameters and effect-to-noise ratio).
 #[pyfunction]
 #[pyo3(signature = (path, effect="random", seed=1, scene="psm", duration=30.0))]
 pub fn synth_hidden_effect<'py>(py: Python<'py>, path: PathBuf, effect: &str, seed: u64, scene: &str, duration: f64) -> Result<Bound<'py, PyAny>> {

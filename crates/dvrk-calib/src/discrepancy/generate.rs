@@ -1,5 +1,5 @@
-//! `dvrk synth hidden-effect`: a recording from a "truth" arm that has one physical effect the
-//! nominal model lacks (or none), and a separate answer. The truth avoids the inverse crime where
+//! `dvrk synth hidden-effect`: a recording from a "truth" arm that has one or two physical
+//! effects the nominal model lacks (or none), and a separate answer. The truth avoids the inverse crime where
 //! it is cheap: it is integrated at a finer step (0.25 ms against the analysis' 1 ms samples),
 //! the bodies' rotational inertias are perturbed by a few percent, the effects are dvrk-sim's
 //! physics (a two-mass drive with play, a delayed measurement stream) while the workflow's
@@ -32,24 +32,41 @@ pub const HIDDEN_KINDS: [EffectKind; 8] = [
     EffectKind::PayloadMass,
 ];
 
-/// Which effect to hide.
+/// Which effect(s) to hide.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Hidden {
     None,
     Kind(EffectKind),
+    /// Two different kinds, both in the truth.
+    Pair(EffectKind, EffectKind),
     /// One of [`HIDDEN_KINDS`], drawn from the seed.
     Random,
+    /// Two different ones of [`HIDDEN_KINDS`], drawn from the seed.
+    RandomPair,
 }
 
 impl std::str::FromStr for Hidden {
     type Err = String;
+    /// `none`, `random`, `random-pair`, a kind (`backlash`) or two joined by `+`
+    /// (`coulomb_friction+payload_mass`).
     fn from_str(s: &str) -> std::result::Result<Hidden, String> {
+        let kind = |name: &str| match EffectKind::from_name(name) {
+            Some(k) if HIDDEN_KINDS.contains(&k) => Ok(k),
+            _ => Err(format!("`{name}` is not an effect the generator hides (valid: none, random, random-pair, {}, or two joined by +)", HIDDEN_KINDS.map(|k| k.name()).join(", "))),
+        };
         match s {
             "none" => Ok(Hidden::None),
             "random" => Ok(Hidden::Random),
-            _ => match EffectKind::from_name(s) {
-                Some(k) if HIDDEN_KINDS.contains(&k) => Ok(Hidden::Kind(k)),
-                _ => Err(format!("`{s}` is not an effect the generator hides (valid: none, random, {})", HIDDEN_KINDS.map(|k| k.name()).join(", "))),
+            "random-pair" => Ok(Hidden::RandomPair),
+            _ => match s.split_once('+') {
+                Some((a, b)) => {
+                    let (a, b) = (kind(a.trim())?, kind(b.trim())?);
+                    if a == b {
+                        return Err(format!("`{s}`: a pair is two different effects"));
+                    }
+                    Ok(Hidden::Pair(a, b))
+                }
+                None => Ok(Hidden::Kind(kind(s)?)),
             },
         }
     }
@@ -92,19 +109,28 @@ impl Default for HiddenOptions {
     }
 }
 
+/// One hidden effect and how strongly it shows.
+#[derive(Debug, Clone, Serialize)]
+pub struct HiddenEffect {
+    /// The effect as a model file writes it.
+    #[serde(flatten)]
+    pub spec: EffectSpec,
+    /// Joint index of a joint effect; the joint most affected for the others.
+    pub joint_index: usize,
+    /// RMS of what the effect adds to the recorded effort of `joint_index` (N·m, N): the truth
+    /// against the truth without this effect (the other one kept).
+    pub effect_rms: f64,
+    /// `effect_rms` over that joint's effort noise.
+    pub enr: f64,
+}
+
 /// What was hidden, for the test to compare with (never read by the workflow).
 #[derive(Debug, Clone, Serialize)]
 pub struct Answer {
     pub seed: u64,
     pub scene: String,
-    /// The hidden effect as a model file writes it (`None`: effect-free).
-    pub effect: Option<EffectSpec>,
-    /// Joint index of a joint effect; the joint most affected for the others.
-    pub joint_index: Option<usize>,
-    /// RMS of what the effect adds to the recorded effort of `joint_index` (N·m, N).
-    pub effect_rms: Option<f64>,
-    /// `effect_rms` over that joint's effort noise.
-    pub enr: Option<f64>,
+    /// The hidden effects (none: effect-free).
+    pub effects: Vec<HiddenEffect>,
     /// Effort noise per joint (N·m, N) and encoder noise (rad, m).
     pub effort_noise: Vec<f64>,
     pub position_noise: f64,
@@ -282,42 +308,64 @@ pub fn hidden_effect(scene_name: &str, o: &HiddenOptions) -> Result<HiddenRecord
             }
         }
     }
-    let kind = match o.hidden {
-        Hidden::None => None,
-        Hidden::Kind(k) => Some(k),
-        Hidden::Random => Some(HIDDEN_KINDS[rng.random_range(0..HIDDEN_KINDS.len())]),
-    };
-    let effect = kind.map(|k| draw(k, &nominal, &mut rng, o.magnitude));
-    let excitation = MultiSine::new(&nominal, o.seed);
-    let clean = simulate(&scene, &excitation, o.duration, o.rate)?;
-    let (log, joint_index, effect_rms) = match &effect {
-        None => (clean, None, None),
-        Some(e) => {
-            let mut truth = scene.clone();
-            let mut m = with_effect(&nominal, e)?;
-            m.base = scene.arms[0].original_base;
-            truth.set_model(0, m).map_err(sim_error)?;
-            let log = simulate(&truth, &excitation, o.duration, o.rate)?;
-            // What the effect adds to each joint's effort, past the fade-in.
-            let skip = log.t.iter().position(|t| *t >= 2.0).unwrap_or(0);
-            let rms: Vec<f64> = (0..nq)
-                .map(|k| {
-                    let n = (log.len() - skip) as f64;
-                    (log.effort[skip..].iter().zip(&clean.effort[skip..]).map(|(a, b)| (a[k] - b[k]).powi(2)).sum::<f64>() / n).sqrt()
-                })
-                .collect();
-            let j = match e.joint.as_deref() {
-                Some(name) => nominal.joint_id(name)?,
-                // Largest relative to the joint's noise.
-                None => (0..nq.min(6)).max_by(|a, b| (rms[*a] / effort_noise[*a]).total_cmp(&(rms[*b] / effort_noise[*b]))).unwrap_or(0),
-            };
-            (log, Some(j), Some(rms[j]))
+    let random = |rng: &mut ChaCha8Rng| HIDDEN_KINDS[rng.random_range(0..HIDDEN_KINDS.len())];
+    let kinds = match o.hidden {
+        Hidden::None => vec![],
+        Hidden::Kind(k) => vec![k],
+        Hidden::Pair(a, b) => vec![a, b],
+        Hidden::Random => vec![random(&mut rng)],
+        Hidden::RandomPair => {
+            let a = random(&mut rng);
+            let mut b = random(&mut rng);
+            while b == a {
+                b = random(&mut rng);
+            }
+            vec![a, b]
         }
     };
-    if let (Some(target), Some(j), Some(r)) = (o.enr, joint_index, effect_rms) {
-        effort_noise[j] = r / target;
+    let specs: Vec<EffectSpec> = kinds.iter().map(|&k| draw(k, &nominal, &mut rng, o.magnitude)).collect();
+    let excitation = MultiSine::new(&nominal, o.seed);
+    // The truth with the effects in `keep` (indices into `specs`).
+    let run = |keep: &[usize]| -> Result<JointLog> {
+        let mut truth = scene.clone();
+        let mut m = nominal.clone();
+        for &i in keep {
+            m = with_effect(&m, &specs[i])?;
+        }
+        m.base = scene.arms[0].original_base;
+        truth.set_model(0, m).map_err(sim_error)?;
+        simulate(&truth, &excitation, o.duration, o.rate)
+    };
+    let all: Vec<usize> = (0..specs.len()).collect();
+    let log = run(&all)?;
+    // What each effect adds to each joint's effort (the truth against the truth without it),
+    // past the fade-in.
+    let skip = log.t.iter().position(|t| *t >= 2.0).unwrap_or(0);
+    let mut shown = Vec::new();
+    for (i, e) in specs.iter().enumerate() {
+        let without = run(&all.iter().copied().filter(|&k| k != i).collect::<Vec<_>>())?;
+        let n = (log.len() - skip) as f64;
+        let rms: Vec<f64> = (0..nq).map(|k| (log.effort[skip..].iter().zip(&without.effort[skip..]).map(|(a, b)| (a[k] - b[k]).powi(2)).sum::<f64>() / n).sqrt()).collect();
+        let j = match e.joint.as_deref() {
+            Some(name) => nominal.joint_id(name)?,
+            // Largest relative to the joint's noise.
+            None => (0..nq.min(6)).max_by(|a, b| (rms[*a] / effort_noise[*a]).total_cmp(&(rms[*b] / effort_noise[*b]))).unwrap_or(0),
+        };
+        shown.push((j, rms[j]));
     }
-    let enr = joint_index.zip(effect_rms).map(|(j, r)| if effort_noise[j] > 0.0 { r / effort_noise[j] } else { f64::INFINITY });
+    if let Some(target) = o.enr {
+        // Each effect at least `target` times its joint's noise (two on one joint: the weaker sets it).
+        for j in 0..nq {
+            if let Some(r) = shown.iter().filter(|(k, _)| *k == j).map(|(_, r)| *r).min_by(f64::total_cmp) {
+                effort_noise[j] = r / target;
+            }
+        }
+    }
+    let effects = specs
+        .into_iter()
+        .zip(shown)
+        .map(|(spec, (j, r))| HiddenEffect { spec, joint_index: j, effect_rms: r, enr: if effort_noise[j] > 0.0 { r / effort_noise[j] } else { f64::INFINITY } })
+        .collect();
     let mut log = log;
     let unit = Normal::new(0.0, 1.0).expect("unit normal");
     for i in 0..log.len() {
@@ -329,10 +377,7 @@ pub fn hidden_effect(scene_name: &str, o: &HiddenOptions) -> Result<HiddenRecord
     let answer = Answer {
         seed: o.seed,
         scene: scene_name.to_string(),
-        effect,
-        joint_index,
-        effect_rms,
-        enr,
+        effects,
         effort_noise,
         position_noise: o.position_noise,
         truth_dt: o.truth_dt,
