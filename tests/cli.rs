@@ -278,3 +278,31 @@ fn discrepancy_reads_the_wpi_recording() {
     let e = crate::util::dvrk_err(&["discrepancy", "--model", "psm", "--recording", rec, "--format", "wpi-csv", "--report", report.to_str().unwrap(), "--inertia-prior", "x"]);
     assert!(e.contains("--inertia-prior x"), "{e}");
 }
+
+/// The kinematic channel from the command line: `dvrk synth hidden-effect --marker-link` adds a
+/// tracked marker on the tool shaft; `dvrk discrepancy --marker-topic T --marker-link 12` (the
+/// paper's frame number of tool_roll) reads it, joins its evidence to the torque channel's and
+/// names the hidden play with the tracker's figures in the report. Bad marker flags are refused
+/// with the flag and value.
+#[test]
+fn discrepancy_reads_a_tracked_marker() {
+    let dir = tempdir();
+    let (rec, answer, report) = (dir.path().join("rec.mcap"), dir.path().join("a.json"), dir.path().join("r.json"));
+    let p = |x: &std::path::Path| x.to_str().unwrap().to_string();
+    dvrk_ok(&["synth", "hidden-effect", "--effect", "backlash", "--seed", "11", "--enr", "5", "--duration", "20", "--marker-link", "tool_roll", "-o", &p(&rec), "--answer", &p(&answer)]);
+    let a: Value = serde_json::from_slice(&std::fs::read(&answer).unwrap()).unwrap();
+    let topic = a["marker_topic"].as_str().unwrap().to_string();
+    dvrk_ok(&["discrepancy", "--model", "psm", "--recording", &p(&rec), "--marker-topic", &topic, "--marker-link", "12", "--report", &p(&report), "--no-tracking", "--max-rounds", "1"]);
+    let r: Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+    assert_eq!(r["channel"], "torque+kinematic");
+    assert_eq!(r["verdict"], "named");
+    assert_eq!(r["effects"][0]["name"], "backlash");
+    assert_eq!(r["effects"][0]["joint"], a["effects"][0]["joint"]);
+    let k = &r["kinematic"];
+    assert_eq!(k["link"], "tool_roll");
+    assert!(k["rms_heldout_before"].as_f64().unwrap() > 3.0 && k["rms_heldout_after"].as_f64().unwrap() < 1.3, "{k}");
+    let e = crate::util::dvrk_err(&["discrepancy", "--model", "psm", "--recording", &p(&rec), "--marker-topic", &topic, "--marker-link", "99", "--report", &p(&report)]);
+    assert!(e.contains("--marker-link") && e.contains("99"), "{e}");
+    let e = crate::util::dvrk_err(&["discrepancy", "--model", "psm", "--recording", &p(&rec), "--marker-topic", "/nope", "--marker-link", "12", "--report", &p(&report)]);
+    assert!(e.contains("/nope") && e.contains("rec.mcap"), "{e}");
+}

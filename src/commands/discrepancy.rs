@@ -22,10 +22,11 @@ pub struct DiscrepancyArgs {
     pub format: String,
     #[arg(long, default_value = "PSM1")]
     pub arm: String,
-    /// Tracker topic for the kinematic channel (not analysed yet).
+    /// Pose topic of a tracked marker body (geometry_msgs/PoseStamped, TF child frame or Foxglove
+    /// pose, MCAP only): the kinematic channel, its evidence joined to the torque channel's.
     #[arg(long, requires = "marker_link")]
     pub marker_topic: Option<String>,
-    /// Frame name or paper frame number the marker is on.
+    /// The link the marker is fixed on: frame name, or the paper's frame number (PSM, ECM).
     #[arg(long, requires = "marker_topic")]
     pub marker_link: Option<String>,
     /// Write the report (JSON) here.
@@ -65,9 +66,6 @@ fn model_text_with(model: &str, effects: &[dvrk_kin::effects::EffectSpec]) -> Re
 }
 
 pub fn run(a: &DiscrepancyArgs) -> Result<()> {
-    if a.marker_topic.is_some() {
-        bail!("--marker-topic: the kinematic channel is not implemented yet (torque and tracking channels only)");
-    }
     let model = dvrk_kin::load(&a.model, None)?;
     let mut options = Options { tracking: !a.no_tracking, ..Default::default() };
     if let Some(text) = &a.inertia_prior {
@@ -77,7 +75,8 @@ pub fn run(a: &DiscrepancyArgs) -> Result<()> {
         }
         options.inertia_prior = dvrk_calib::discrepancy::InertiaPrior { rotational: v[0], mass: v.get(1).copied().unwrap_or(options.inertia_prior.mass) };
     }
-    let out = dvrk_calib::discrepancy::run::run(&a.recording, &a.format, &model, &a.arm, &options, a.max_rounds as usize)?;
+    let marker = a.marker_topic.as_ref().zip(a.marker_link.as_ref()).map(|(topic, link)| dvrk_calib::discrepancy::run::MarkerSource { topic: topic.clone(), link: link.clone() });
+    let out = dvrk_calib::discrepancy::run::run(&a.recording, &a.format, &model, &a.arm, marker.as_ref(), &options, a.max_rounds as usize)?;
     let r = &out.report;
     crate::io::write_atomic(&a.report, format!("{}\n", serde_json::to_string_pretty(r)?).as_bytes())?;
     if let Some(path) = &a.output {

@@ -42,6 +42,10 @@ pub struct HiddenEffectArgs {
     /// Recorded time (s).
     #[arg(long, default_value_t = 30.0)]
     pub duration: f64,
+    /// Add a tracker (100 Hz, 0.1 mm, 1 mrad; placed at random) following a marker on this link
+    /// (frame name or the paper's number): the kinematic channel, on the pose topic the answer names.
+    #[arg(long)]
+    pub marker_link: Option<String>,
     /// Output recording (.mcap), written whole or not at all.
     #[arg(short, long)]
     pub output: PathBuf,
@@ -111,7 +115,8 @@ fn hidden_effect(a: &HiddenEffectArgs) -> Result<()> {
     if ext != "mcap" {
         bail!("-o {}: the recording is written as MCAP (.mcap)", a.output.display());
     }
-    let o = HiddenOptions { hidden, seed: a.seed, duration: a.duration, effort_noise, position_noise: a.position_noise, enr: a.enr, ..Default::default() };
+    let marker = a.marker_link.clone().map(|link| dvrk_calib::discrepancy::generate::MarkerOptions { link, ..Default::default() });
+    let o = HiddenOptions { hidden, seed: a.seed, duration: a.duration, effort_noise, position_noise: a.position_noise, enr: a.enr, marker, ..Default::default() };
     let h = hidden_effect(&a.model, &o)?;
     let arm = dvrk_sim::Scene::load(&a.model)?.arms[0].name.clone();
     crate::io::write_atomic(&a.output, &joint_log::write_mcap(&h.log, &arm)?)?;

@@ -162,14 +162,21 @@ pub fn identify<'py>(py: Python<'py>, recording: PathBuf, model: &str, format: &
 /// `/<arm>/setpoint_js`, `/<arm>/measured_js` with efforts; "wpi-csv"), repeated: each named
 /// effect added to the model and the analysis run again, up to `max_rounds`. The report as a dict
 /// (`verdict`, `channel`, `effects`, `candidates`, `rms_before`, `rms_after`, `rms_heldout_before`,
-/// `rms_heldout_after`, `noise_floor`, `steps`, ...).
+/// `rms_heldout_after`, `noise_floor`, `steps`, `kinematic`, ...). `marker_topic` and
+/// `marker_link` (frame name or paper number) add the kinematic channel.
 #[pyfunction]
-#[pyo3(signature = (recording, model="psm", arm="PSM1", tracking=true, format="mcap", max_rounds=4))]
-pub fn discrepancy<'py>(py: Python<'py>, recording: PathBuf, model: &str, arm: &str, tracking: bool, format: &str, max_rounds: usize) -> Result<Bound<'py, PyAny>> {
+#[pyo3(signature = (recording, model="psm", arm="PSM1", tracking=true, format="mcap", max_rounds=4, marker_topic=None, marker_link=None))]
+#[allow(clippy::too_many_arguments)]
+pub fn discrepancy<'py>(py: Python<'py>, recording: PathBuf, model: &str, arm: &str, tracking: bool, format: &str, max_rounds: usize, marker_topic: Option<String>, marker_link: Option<String>) -> Result<Bound<'py, PyAny>> {
     use dvrk_calib::discrepancy::{run, Options};
     let m = dvrk_calib::dvrk_kin::load(model, None)?;
+    let marker = match (marker_topic, marker_link) {
+        (Some(topic), Some(link)) => Some(run::MarkerSource { topic, link }),
+        (None, None) => None,
+        _ => return Err(Error::Input("marker_topic and marker_link go together (the pose topic and the link its marker is on)".into())),
+    };
     let report = py.detach(|| -> Result<serde_json::Value> {
-        let out = run::run(&recording, format, &m, arm, &Options { tracking, ..Default::default() }, max_rounds)?;
+        let out = run::run(&recording, format, &m, arm, marker.as_ref(), &Options { tracking, ..Default::default() }, max_rounds)?;
         serde_json::to_value(&out.report).map_err(|e| Error::Input(e.to_string()))
     })?;
     to_py_json(py, &report)
@@ -180,12 +187,14 @@ pub fn discrepancy<'py>(py: Python<'py>, recording: PathBuf, model: &str, arm: &
 /// or `random-pair`) and write it to `path` (MCAP); returns the answer (`effects`: each with its
 /// parameters and effect-to-noise ratio).
 #[pyfunction]
-#[pyo3(signature = (path, effect="random", seed=1, scene="psm", duration=30.0))]
-pub fn synth_hidden_effect<'py>(py: Python<'py>, path: PathBuf, effect: &str, seed: u64, scene: &str, duration: f64) -> Result<Bound<'py, PyAny>> {
+#[pyo3(signature = (path, effect="random", seed=1, scene="psm", duration=30.0, marker_link=None))]
+pub fn synth_hidden_effect<'py>(py: Python<'py>, path: PathBuf, effect: &str, seed: u64, scene: &str, duration: f64, marker_link: Option<String>) -> Result<Bound<'py, PyAny>> {
+    use dvrk_calib::discrepancy::generate::MarkerOptions;
     use dvrk_calib::discrepancy::{hidden_effect, joint_log, Hidden, HiddenOptions};
     let hidden: Hidden = effect.parse().map_err(|e: String| Error::Input(format!("effect: {e}")))?;
+    let marker = marker_link.map(|link| MarkerOptions { link, ..Default::default() });
     let answer = py.detach(|| -> Result<serde_json::Value> {
-        let h = hidden_effect(scene, &HiddenOptions { hidden, seed, duration, ..Default::default() })?;
+        let h = hidden_effect(scene, &HiddenOptions { hidden, seed, duration, marker, ..Default::default() })?;
         let arm = dvrk_sim::Scene::load(scene)?.arms[0].name.clone();
         dvrk_calib::dvrk_kin::atomic::write_atomic(&path, &joint_log::write_mcap(&h.log, &arm)?)?;
         serde_json::to_value(&h.answer).map_err(|e| Error::Input(e.to_string()))

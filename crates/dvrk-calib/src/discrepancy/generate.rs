@@ -32,6 +32,9 @@ pub const HIDDEN_KINDS: [EffectKind; 8] = [
     EffectKind::PayloadMass,
 ];
 
+/// Effects only a tracker on the link sees (hidden only with [`HiddenOptions::marker`]).
+pub const TRACKED_KINDS: [EffectKind; 1] = [EffectKind::LinkLength];
+
 /// Which effect(s) to hide.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Hidden {
@@ -51,8 +54,12 @@ impl std::str::FromStr for Hidden {
     /// (`coulomb_friction+payload_mass`).
     fn from_str(s: &str) -> std::result::Result<Hidden, String> {
         let kind = |name: &str| match EffectKind::from_name(name) {
-            Some(k) if HIDDEN_KINDS.contains(&k) => Ok(k),
-            _ => Err(format!("`{name}` is not an effect the generator hides (valid: none, random, random-pair, {}, or two joined by +)", HIDDEN_KINDS.map(|k| k.name()).join(", "))),
+            Some(k) if HIDDEN_KINDS.contains(&k) || TRACKED_KINDS.contains(&k) => Ok(k),
+            _ => Err(format!(
+                "`{name}` is not an effect the generator hides (valid: none, random, random-pair, {}, {} (with a marker), or two joined by +)",
+                HIDDEN_KINDS.map(|k| k.name()).join(", "),
+                TRACKED_KINDS.map(|k| k.name()).join(", ")
+            )),
         };
         match s {
             "none" => Ok(Hidden::None),
@@ -101,11 +108,33 @@ pub struct HiddenOptions {
     pub inertia_perturbation: f64,
     /// Scale of the drawn effect's parameters (1: the realistic range).
     pub magnitude: f64,
+    /// A tracker on one link (the kinematic channel); `None`: joints only.
+    pub marker: Option<MarkerOptions>,
+}
+
+/// A motion tracker following a marker body on one link: it sees the link itself (after any
+/// play or compliance of its drive, and without the joint stream's latency).
+#[derive(Debug, Clone, PartialEq)]
+pub struct MarkerOptions {
+    /// The link: frame name, or the paper's frame number.
+    pub link: String,
+    /// Tracker rate (Hz).
+    pub rate: f64,
+    /// Noise per axis: position (m) and rotation (rad).
+    pub position_noise: f64,
+    pub rotation_noise: f64,
+}
+
+impl Default for MarkerOptions {
+    /// On the instrument's shaft, at an optical tracker's 100 Hz, 0.1 mm and 1 mrad.
+    fn default() -> Self {
+        MarkerOptions { link: "tool_roll".into(), rate: 100.0, position_noise: 1e-4, rotation_noise: 1e-3 }
+    }
 }
 
 impl Default for HiddenOptions {
     fn default() -> Self {
-        HiddenOptions { hidden: Hidden::Random, seed: 1, duration: 30.0, truth_dt: 2.5e-4, rate: 1000.0, effort_noise: None, position_noise: POSITION_NOISE, enr: None, inertia_perturbation: 0.03, magnitude: 1.0 }
+        HiddenOptions { hidden: Hidden::Random, seed: 1, duration: 30.0, truth_dt: 2.5e-4, rate: 1000.0, effort_noise: None, position_noise: POSITION_NOISE, enr: None, inertia_perturbation: 0.03, magnitude: 1.0, marker: None }
     }
 }
 
@@ -131,6 +160,8 @@ pub struct Answer {
     pub scene: String,
     /// The hidden effects (none: effect-free).
     pub effects: Vec<HiddenEffect>,
+    /// The tracked marker's pose topic, when a tracker was simulated.
+    pub marker_topic: Option<String>,
     /// Effort noise per joint (N·m, N) and encoder noise (rad, m).
     pub effort_noise: Vec<f64>,
     pub position_noise: f64,
@@ -157,8 +188,20 @@ fn joints_for(kind: EffectKind) -> &'static [usize] {
     }
 }
 
-/// Draw `kind` with realistic magnitudes (times `scale`).
-fn draw(kind: EffectKind, model: &Model, rng: &mut ChaCha8Rng, scale: f64) -> EffectSpec {
+/// Draw `kind` with realistic magnitudes (times `scale`); a DH length on a link the tracker on
+/// frame `marker` can see.
+fn draw(kind: EffectKind, model: &Model, rng: &mut ChaCha8Rng, scale: f64, marker: Option<usize>) -> Result<EffectSpec> {
+    if kind == EffectKind::LinkLength {
+        let frames = marker.map(|f| super::kinematic::observable_lengths(model, f)).unwrap_or_default();
+        if frames.is_empty() {
+            return Err(CalibError::field("effect", "link_length is hidden only with a tracker on a link beyond a moving joint (--marker-link)"));
+        }
+        let k = frames[rng.random_range(0..frames.len())];
+        let s: f64 = if rng.random::<bool>() { 1.0 } else { -1.0 };
+        let mut e = super::kinematic::length_effect(model, k, s * scale * rng.random_range(0.5e-3..2e-3));
+        e.source = "dvrk synth hidden-effect".into();
+        return Ok(e);
+    }
     let js = joints_for(kind);
     let j = js[rng.random_range(0..js.len())];
     let prismatic = model.joints[j].kind == dvrk_kin::JointType::Prismatic;
@@ -208,7 +251,43 @@ fn draw(kind: EffectKind, model: &Model, rng: &mut ChaCha8Rng, scale: f64) -> Ef
         }
         _ => unreachable!("not a hidden kind"),
     };
-    EffectSpec { name: kind.name().into(), joint: joint.map(|j| model.joints[j].name.clone()), link, parameters: p, source: "dvrk synth hidden-effect".into() }
+    Ok(EffectSpec { name: kind.name().into(), joint: joint.map(|j| model.joints[j].name.clone()), link, parameters: p, source: "dvrk synth hidden-effect".into() })
+}
+
+/// The tracker's poses of a marker on link `mo.link` of the truth `truth` (its own kinematics at
+/// the links' joint positions `link`, sampled at `t`), at the tracker's rate, placed by a drawn
+/// tracker-to-base and link-to-marker transform, with noise.
+fn track_marker(truth: &Model, t: &[f64], link: &[Vec<f64>], mo: &MarkerOptions, rng: &mut ChaCha8Rng) -> Result<super::markers::MarkerLog> {
+    use super::registration::pose_exp;
+    use nalgebra::Vector6;
+    if !(mo.rate.is_finite() && mo.rate > 0.0 && mo.position_noise.is_finite() && mo.position_noise >= 0.0 && mo.rotation_noise.is_finite() && mo.rotation_noise >= 0.0) {
+        return Err(CalibError::field("marker", format!("rate {} Hz, noise {} m, {} rad: rate > 0 and noise >= 0", mo.rate, mo.position_noise, mo.rotation_noise)));
+    }
+    let frame = super::markers::marker_frame(truth, &mo.link)?;
+    let mut u = |lo: f64, hi: f64| rng.random_range(lo..hi);
+    // A tracker 1-2 m away, any orientation; the marker body a few cm off the link's frame.
+    let x = pose_exp(&Vector6::new(u(-1.0, 1.0), u(-1.0, 1.0), u(1.0, 2.0), u(-3.0, 3.0), u(-3.0, 3.0), u(-3.0, 3.0)));
+    let y = pose_exp(&Vector6::new(u(-0.05, 0.05), u(-0.05, 0.05), u(-0.05, 0.05), u(-3.0, 3.0), u(-3.0, 3.0), u(-3.0, 3.0)));
+    let unit = Normal::new(0.0, 1.0).expect("unit normal");
+    let mut data = dvrk_kin::Data::new(truth);
+    let mut out = super::markers::MarkerLog { topic: super::markers::synthetic_topic(&truth.frames[frame].name), frame, t: Vec::new(), poses: Vec::new() };
+    let mut next = t.first().copied().unwrap_or(0.0);
+    for (ti, q) in t.iter().zip(link) {
+        if *ti + 1e-9 < next {
+            continue;
+        }
+        next += 1.0 / mo.rate;
+        dvrk_kin::compute_frame_placements(truth, &mut data, q);
+        let mut n = Vector6::zeros();
+        for k in 0..6 {
+            n[k] = unit.sample(rng) * if k < 3 { mo.position_noise } else { mo.rotation_noise };
+        }
+        out.t.push(*ti);
+        let p = x * data.frames[frame] * y;
+        let r = nalgebra::Rotation3::new(n.fixed_rows::<3>(3).into_owned()) * p.rotation;
+        out.poses.push(dvrk_kin::Pose::from_parts((p.translation.vector + n.fixed_rows::<3>(0)).into(), r));
+    }
+    Ok(out)
 }
 
 /// The frame a payload is hidden on: the instrument's wrist (what a grasped object loads).
@@ -237,8 +316,8 @@ fn sim_error(e: dvrk_sim::SimError) -> CalibError {
 }
 
 /// Simulate `scene` (arm 0) tracking `excitation` for `duration`, sampling setpoints, encoder
-/// positions and efforts at `rate`.
-pub fn simulate(scene: &Scene, excitation: &MultiSine, duration: f64, rate: f64) -> Result<JointLog> {
+/// positions and efforts at `rate`; and the links' own joint positions at the same samples.
+pub fn simulate(scene: &Scene, excitation: &MultiSine, duration: f64, rate: f64) -> Result<(JointLog, Vec<Vec<f64>>)> {
     let mut scene = scene.clone();
     let nq = scene.arms[0].model.nq();
     let (mut q, mut qd) = (vec![0.0; nq], vec![0.0; nq]);
@@ -250,6 +329,7 @@ pub fn simulate(scene: &Scene, excitation: &MultiSine, duration: f64, rate: f64)
     let steps = (duration / dt).round() as usize;
     let names = scene.arms[0].model.joints.iter().map(|j| j.name.clone()).collect();
     let mut log = JointLog { names, ..Default::default() };
+    let mut link = Vec::new();
     for s in 1..=steps {
         let t = s as f64 * dt;
         excitation.sample(t, &mut q, &mut qd);
@@ -262,12 +342,13 @@ pub fn simulate(scene: &Scene, excitation: &MultiSine, duration: f64, rate: f64)
             log.setpoint.push(q.clone());
             log.position.push(sim.q()[..nq].to_vec());
             log.effort.push((0..nq).map(|i| sim.effort(i).unwrap_or(f64::NAN)).collect());
+            link.push(sim.q_link()[..nq].to_vec());
         }
     }
     if log.position.iter().flatten().chain(log.effort.iter().flatten()).any(|x| !x.is_finite()) {
         return Err(CalibError::data("simulation", "the truth went non-finite (an effect too strong for the step?)"));
     }
-    Ok(log)
+    Ok((log, link))
 }
 
 /// Generate a hidden-effect recording of scene `scene_name` (its first arm).
@@ -323,27 +404,31 @@ pub fn hidden_effect(scene_name: &str, o: &HiddenOptions) -> Result<HiddenRecord
             vec![a, b]
         }
     };
-    let specs: Vec<EffectSpec> = kinds.iter().map(|&k| draw(k, &nominal, &mut rng, o.magnitude)).collect();
+    let marker_frame = o.marker.as_ref().map(|m| super::markers::marker_frame(&nominal, &m.link)).transpose()?;
+    let specs: Vec<EffectSpec> = kinds.iter().map(|&k| draw(k, &nominal, &mut rng, o.magnitude, marker_frame)).collect::<Result<_>>()?;
     let excitation = MultiSine::new(&nominal, o.seed);
     // The truth with the effects in `keep` (indices into `specs`).
-    let run = |keep: &[usize]| -> Result<JointLog> {
-        let mut truth = scene.clone();
+    let truth_model = |keep: &[usize]| -> Result<Model> {
         let mut m = nominal.clone();
         for &i in keep {
             m = with_effect(&m, &specs[i])?;
         }
         m.base = scene.arms[0].original_base;
-        truth.set_model(0, m).map_err(sim_error)?;
+        Ok(m)
+    };
+    let run = |keep: &[usize]| -> Result<(JointLog, Vec<Vec<f64>>)> {
+        let mut truth = scene.clone();
+        truth.set_model(0, truth_model(keep)?).map_err(sim_error)?;
         simulate(&truth, &excitation, o.duration, o.rate)
     };
     let all: Vec<usize> = (0..specs.len()).collect();
-    let log = run(&all)?;
+    let (log, link) = run(&all)?;
     // What each effect adds to each joint's effort (the truth against the truth without it),
     // past the fade-in.
     let skip = log.t.iter().position(|t| *t >= 2.0).unwrap_or(0);
     let mut shown = Vec::new();
     for (i, e) in specs.iter().enumerate() {
-        let without = run(&all.iter().copied().filter(|&k| k != i).collect::<Vec<_>>())?;
+        let (without, _) = run(&all.iter().copied().filter(|&k| k != i).collect::<Vec<_>>())?;
         let n = (log.len() - skip) as f64;
         let rms: Vec<f64> = (0..nq).map(|k| (log.effort[skip..].iter().zip(&without.effort[skip..]).map(|(a, b)| (a[k] - b[k]).powi(2)).sum::<f64>() / n).sqrt()).collect();
         let j = match e.joint.as_deref() {
@@ -354,19 +439,26 @@ pub fn hidden_effect(scene_name: &str, o: &HiddenOptions) -> Result<HiddenRecord
         shown.push((j, rms[j]));
     }
     if let Some(target) = o.enr {
-        // Each effect at least `target` times its joint's noise (two on one joint: the weaker sets it).
+        // Each effect at least `target` times its joint's noise (two on one joint: the weaker sets
+        // it); a length only the tracker sees keeps the effort noise.
         for j in 0..nq {
-            if let Some(r) = shown.iter().filter(|(k, _)| *k == j).map(|(_, r)| *r).min_by(f64::total_cmp) {
+            let on_j = shown.iter().zip(&specs).filter(|((k, _), e)| *k == j && e.name != EffectKind::LinkLength.name());
+            if let Some(r) = on_j.map(|((_, r), _)| *r).min_by(f64::total_cmp) {
                 effort_noise[j] = r / target;
             }
         }
     }
+    let markers = match &o.marker {
+        Some(mo) => Some(track_marker(&truth_model(&all)?, &log.t, &link, mo, &mut rng)?),
+        None => None,
+    };
     let effects = specs
         .into_iter()
         .zip(shown)
         .map(|(spec, (j, r))| HiddenEffect { spec, joint_index: j, effect_rms: r, enr: if effort_noise[j] > 0.0 { r / effort_noise[j] } else { f64::INFINITY } })
         .collect();
     let mut log = log;
+    log.markers = markers;
     let unit = Normal::new(0.0, 1.0).expect("unit normal");
     for i in 0..log.len() {
         for k in 0..nq {
@@ -378,6 +470,7 @@ pub fn hidden_effect(scene_name: &str, o: &HiddenOptions) -> Result<HiddenRecord
         seed: o.seed,
         scene: scene_name.to_string(),
         effects,
+        marker_topic: log.markers.as_ref().map(|m| m.topic.clone()),
         effort_noise,
         position_noise: o.position_noise,
         truth_dt: o.truth_dt,

@@ -21,6 +21,8 @@ pub struct JointLog {
     pub position: Vec<Vec<f64>>,
     /// Measured efforts per sample (N·m, N).
     pub effort: Vec<Vec<f64>>,
+    /// A tracker's poses of a marker on one link (the kinematic channel), when recorded.
+    pub markers: Option<super::markers::MarkerLog>,
 }
 
 impl JointLog {
@@ -67,7 +69,8 @@ pub fn read_wpi_csv(path: &Path, model: &dvrk_kin::Model) -> Result<JointLog> {
 }
 
 /// Write `log` as MCAP: `/<arm>/setpoint_js` (position) and `/<arm>/measured_js` (position,
-/// effort), sensor_msgs/msg/JointState in CDR.
+/// effort), sensor_msgs/msg/JointState in CDR; and the tracker's poses, if any, as
+/// geometry_msgs/msg/PoseStamped on their topic.
 pub fn write_mcap(log: &JointLog, arm: &str) -> Result<Vec<u8>> {
     let io = |e: mcap::McapError| CalibError::data("MCAP writer", e.to_string());
     let mut w = mcap::Writer::with_options(Cursor::new(Vec::new()), mcap::WriteOptions::new().profile("ros2")).map_err(io)?;
@@ -76,7 +79,26 @@ pub fn write_mcap(log: &JointLog, arm: &str) -> Result<Vec<u8>> {
     let sid = w.add_schema(n, "ros2msg", s.as_bytes()).map_err(io)?;
     let sp = w.add_channel(sid, &format!("/{arm}/setpoint_js"), "cdr", &meta).map_err(io)?;
     let me = w.add_channel(sid, &format!("/{arm}/measured_js"), "cdr", &meta).map_err(io)?;
+    // The tracker's poses, interleaved in time order.
+    let marker = match &log.markers {
+        Some(m) => {
+            let (n, s) = ros_msgs::pose_stamped_schema();
+            let pid = w.add_schema(n, "ros2msg", s.as_bytes()).map_err(io)?;
+            Some((m, w.add_channel(pid, &m.topic, "cdr", &meta).map_err(io)?))
+        }
+        None => None,
+    };
+    let mut next_pose = 0;
     for (i, t) in log.t.iter().enumerate() {
+        while let Some((m, ch)) = marker.filter(|(m, _)| next_pose < m.t.len() && m.t[next_pose] <= *t) {
+            let (tp, p) = (m.t[next_pose], &m.poses[next_pose]);
+            let q = nalgebra::UnitQuaternion::from_rotation_matrix(&p.rotation);
+            let v = p.translation.vector;
+            let msg = ros_msgs::PoseStamped { header: Header::at(tp, "tracker"), position: [v.x, v.y, v.z], orientation: [q.i, q.j, q.k, q.w] };
+            let ns = (tp.max(0.0) * 1e9).round() as u64;
+            w.write_to_known_channel(&mcap::records::MessageHeader { channel_id: ch, sequence: next_pose as u32 + 1, log_time: ns, publish_time: ns }, &msg.encode()).map_err(io)?;
+            next_pose += 1;
+        }
         let ns = (t.max(0.0) * 1e9).round() as u64;
         let seq = i as u32 + 1;
         let set = JointState { header: Header::at(*t, ""), name: log.names.clone(), position: log.setpoint[i].clone(), ..Default::default() };

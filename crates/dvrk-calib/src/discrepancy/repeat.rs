@@ -66,6 +66,10 @@ pub fn discrepancy_repeated(model: &Model, scene: &Scene, arm: &str, log: &Joint
         merged.rms_heldout_after = r.rms_heldout_after;
         merged.raw_rms_heldout_after = r.raw_rms_heldout_after;
         merged.joints = r.joints;
+        if let (Some(m), Some(k)) = (merged.kinematic.as_mut(), r.kinematic.as_ref()) {
+            m.rms_after = k.rms_after;
+            m.rms_heldout_after = k.rms_heldout_after;
+        }
         if r.verdict == "ambiguous" {
             merged.experiment = r.experiment;
         }

@@ -56,6 +56,30 @@ pub struct TrackingReport {
     pub rms_after: Option<Vec<f64>>,
 }
 
+/// The kinematic channel: a tracked marker on one link against the model's forward kinematics,
+/// the tracker's and the marker's placements estimated as nuisance. RMS are normalised: each
+/// residual axis over the tracker's noise on it, 1 at the noise floor.
+#[derive(Debug, Clone, Serialize)]
+pub struct KinematicReport {
+    pub topic: String,
+    pub link: String,
+    /// Tracked poses analysed; the first held-out one's time (s).
+    pub samples: usize,
+    pub heldout_from: f64,
+    /// The tracker's noise per axis (m, rad), from fourth differences of its poses.
+    pub noise_position: f64,
+    pub noise_rotation: f64,
+    /// Tracker <- base and link <- marker, as `[x, y, z]` (m) and a rotation vector (rad).
+    pub tracker_from_base: [f64; 6],
+    pub link_from_marker: [f64; 6],
+    pub rms_before: f64,
+    pub rms_after: f64,
+    pub rms_heldout_before: f64,
+    pub rms_heldout_after: f64,
+    /// The channel's own ranking (best change in BIC first).
+    pub candidates: Vec<CandidateReport>,
+}
+
 /// One round of the repeated workflow (the model with the effects of the rounds before it).
 #[derive(Debug, Clone, Serialize)]
 pub struct StepReport {
@@ -97,6 +121,8 @@ pub struct Report {
     pub rms_units: String,
     pub joints: Vec<JointRms>,
     pub tracking: Option<TrackingReport>,
+    /// With `--marker-topic`: the kinematic channel.
+    pub kinematic: Option<KinematicReport>,
     /// Analysed samples and the start of the held-out part (s).
     pub samples: usize,
     pub heldout_from: f64,

@@ -21,9 +21,25 @@ pub fn read_log(path: &Path, format: &str, model: &Model, arm: &str) -> Result<J
     }
 }
 
-/// The repeated workflow on recording `path` of arm `arm` against `model`.
-pub fn run(path: &Path, format: &str, model: &Model, arm: &str, options: &Options, max_rounds: usize) -> Result<Repeated> {
-    let log = read_log(path, format, model, arm)?;
+/// The kinematic channel's input: a pose topic and the link (frame name or paper number) its
+/// marker is on.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MarkerSource {
+    pub topic: String,
+    pub link: String,
+}
+
+/// The repeated workflow on recording `path` of arm `arm` against `model`, with the tracked
+/// marker `marker` if given.
+pub fn run(path: &Path, format: &str, model: &Model, arm: &str, marker: Option<&MarkerSource>, options: &Options, max_rounds: usize) -> Result<Repeated> {
+    let mut log = read_log(path, format, model, arm)?;
+    if let Some(m) = marker {
+        let frame = super::markers::marker_frame(model, &m.link)?;
+        log.markers = Some(match format {
+            "mcap" => super::markers::read_mcap(path, &m.topic, frame)?,
+            other => return Err(CalibError::field("--marker-topic", format!("tracked poses are read from MCAP recordings; --format {other} has none"))),
+        });
+    }
     let scene = super::scene_for_arm(arm)?;
     discrepancy_repeated(model, &scene, arm, &log, options, max_rounds).map_err(|e| CalibError::data(path.display().to_string(), e.to_string()))
 }

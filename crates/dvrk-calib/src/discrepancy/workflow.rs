@@ -71,6 +71,8 @@ struct Score {
     x: Vec<f64>,
     ci: Vec<[f64; 2]>,
     delta_bic: f64,
+    /// The likelihood ratio behind `delta_bic`.
+    stat: f64,
     p_value: f64,
     heldout_p: f64,
     effect_to_noise: f64,
@@ -92,6 +94,8 @@ struct Scored<'a> {
     label: String,
     score: Score,
     joint: Option<usize>,
+    /// A kinematic-channel-only candidate: its effect and intervals as that channel gives them.
+    kinematic: Option<(EffectSpec, BTreeMap<String, [f64; 2]>)>,
 }
 
 fn residual(prep: &Prepared, pred: &Table, filtered: bool) -> Table {
@@ -184,7 +188,7 @@ fn score_linear(c: &Candidate, fit: &Fitter, r: &Table, o: &Options, rng: &mut C
     let mut effect: Table = (0..prep.t.len()).map(|i| (0..r[0].len()).map(|k| columns.iter().zip(x.iter()).map(|(col, v)| col[i][k] * v).sum()).collect()).collect();
     let size = (effect[..prep.split].iter().map(|e| e[c.focus].powi(2)).sum::<f64>() / prep.split as f64).sqrt() / prep.noise[c.focus];
     add(&mut effect, &fit.nuisance_effort(&e1));
-    Ok(Score { x: x.iter().copied().collect(), ci, delta_bic, p_value, heldout_p, effect_to_noise: size, effect, profiled, at_edge: false })
+    Ok(Score { x: x.iter().copied().collect(), ci, delta_bic, stat, p_value, heldout_p, effect_to_noise: size, effect, profiled, at_edge: false })
 }
 
 /// `a += b`, element by element.
@@ -277,12 +281,67 @@ fn score_profile(fit: &Fitter, r: &Table, grid: &[f64], make: &dyn Fn(f64) -> Ta
         x: vec![value],
         ci: vec![ci],
         delta_bic: stat - n_eff.ln(),
+        stat,
         p_value,
         heldout_p: chi2_sf(per_joint_ratio(&hold, &eh0, &eh1).0, 1),
         effect_to_noise: size,
         effect,
         profiled: None,
         at_edge: value <= grid[0] || value >= grid[grid.len() - 1],
+    }
+}
+
+/// The kinematic channel's evidence joined to the torque channel's: a candidate both channels
+/// fit (an offset, latency, a drive's compliance or play) gets their combined likelihood ratio at
+/// the precision-weighted value (so a torque fit the tracker contradicts loses its support); a
+/// candidate only the tracker sees (a DH length, an offset gravity does not load) is added.
+fn with_kinematic(scored: &mut Vec<Scored>, kc: &super::kinematic::KinematicChannel, model: &Model, samples: usize, nq: usize) {
+    use super::kinematic::{combine, Evidence};
+    let mut used = vec![false; kc.candidates.len()];
+    for s in scored.iter_mut() {
+        let Some(i) = kc.candidates.iter().position(|k| k.kind == s.kind && k.joint == s.joint && k.link.is_none()) else { continue };
+        let k = &kc.candidates[i];
+        used[i] = true;
+        let sc = &mut s.score;
+        // Compliance is linear in 1 / stiffness on the tracker: combine there.
+        let compliance = s.kind == EffectKind::JointCompliance;
+        let to = |v: f64| if compliance { 1.0 / v.max(1e-300) } else { v };
+        let [lo, hi] = sc.ci[0];
+        let (a, b) = (to(lo), to(hi));
+        let torque = Evidence { value: to(sc.x[0]), variance: ((a - b).abs() / 3.92).powi(2), stat: sc.stat };
+        let both = combine(&torque, &Evidence { value: k.value, variance: k.variance, stat: k.stat }, k.lower());
+        let h = 1.96 * both.variance.sqrt();
+        sc.delta_bic += both.stat - sc.stat;
+        sc.stat = both.stat;
+        sc.p_value = if both.stat > 0.0 { chi2_sf(both.stat, 1) } else { 1.0 };
+        sc.heldout_p = sc.heldout_p.min(k.heldout_p);
+        sc.effect_to_noise = sc.effect_to_noise.max(k.effect_to_noise);
+        sc.x[0] = to(both.value);
+        sc.ci[0] = if compliance { [to(both.value + h), if both.value - h > 0.0 { to(both.value - h) } else { f64::INFINITY }] } else { [both.value - h, both.value + h] };
+        s.label += " (torque and kinematic)";
+    }
+    for (k, _) in kc.candidates.iter().zip(&used).filter(|(_, u)| !**u) {
+        let (spec, ci) = k.spec(model, "dvrk discrepancy");
+        scored.push(Scored {
+            candidate: None,
+            kind: k.kind,
+            label: k.label(model),
+            score: Score {
+                x: vec![k.value],
+                ci: vec![[k.value; 2]],
+                delta_bic: k.delta_bic,
+                stat: k.stat,
+                p_value: k.p_value,
+                heldout_p: k.heldout_p,
+                effect_to_noise: k.effect_to_noise,
+                // No change of the predicted effort.
+                effect: vec![vec![0.0; nq]; samples],
+                profiled: None,
+                at_edge: false,
+            },
+            joint: k.joint,
+            kinematic: Some((spec, ci)),
+        });
     }
 }
 
@@ -295,7 +354,9 @@ fn geometric(lo: f64, hi: f64, n: usize) -> Vec<f64> {
 pub fn separating_experiment(a: EffectKind, b: EffectKind) -> String {
     use EffectKind::*;
     let pair = |x: EffectKind, y: EffectKind| (a == x && b == y) || (a == y && b == x);
-    if pair(ViscousFriction, Latency) {
+    if a == b {
+        format!("a motion or a tracker that moves the two places of {} separately (another marker link, other poses)", a.name())
+    } else if pair(ViscousFriction, Latency) {
         "a speed sweep: viscous friction grows with speed at any frequency, a latency's residual with speed times frequency".into()
     } else if pair(JointCompliance, LinkLength) || pair(JointCompliance, JointOffset) || pair(JointCompliance, PayloadMass) {
         "a payload change: a compliant drive's deflection follows the load, a geometric error does not".into()
@@ -384,12 +445,12 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
     let mut scored: Vec<Scored> = Vec::new();
     for c in &cands {
         let s = score_linear(c, &fit, &r, o, &mut rng)?;
-        scored.push(Scored { candidate: Some(c), kind: c.kind, label: c.label(&arm.model), score: s, joint: c.joint });
+        scored.push(Scored { candidate: Some(c), kind: c.kind, label: c.label(&arm.model), score: s, joint: c.joint, kinematic: None });
     }
     // Latency: the prediction shifted later, 0-60 ms.
     let shift = |tau: f64| sub(&shifted(&base, prep.dt, tau), &base);
     let lat_grid: Vec<f64> = (0..=60).map(|i| i as f64 * 1e-3).collect();
-    scored.push(Scored { candidate: None, kind: EffectKind::Latency, label: "latency".into(), score: score_profile(&fit, &r, &lat_grid, &shift, None), joint: None });
+    scored.push(Scored { candidate: None, kind: EffectKind::Latency, label: "latency".into(), score: score_profile(&fit, &r, &lat_grid, &shift, None), joint: None, kinematic: None });
     // The drives: compliance and play per moving joint, each a profile of its own simulation.
     for &j in &prep.active {
         let Some(jl) = joint_load(j, &base) else {
@@ -398,10 +459,17 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
         let name = &arm.model.joints[j].name;
         let comp = |k: f64| super::drive::signature(&prep, &jl, super::drive::Law::Compliance(k), nq);
         let s = score_profile(&fit, &r, &geometric(1.0, 1e5, 26), &comp, Some(j));
-        scored.push(Scored { candidate: None, kind: EffectKind::JointCompliance, label: format!("joint_compliance on {name}"), score: s, joint: Some(j) });
+        scored.push(Scored { candidate: None, kind: EffectKind::JointCompliance, label: format!("joint_compliance on {name}"), score: s, joint: Some(j), kinematic: None });
         let play = |b: f64| super::drive::signature(&prep, &jl, super::drive::Law::Backlash(b), nq);
         let s = score_profile(&fit, &r, &geometric(2.5e-4, 0.04, 21), &play, Some(j));
-        scored.push(Scored { candidate: None, kind: EffectKind::Backlash, label: format!("backlash on {name}"), score: s, joint: Some(j) });
+        scored.push(Scored { candidate: None, kind: EffectKind::Backlash, label: format!("backlash on {name}"), score: s, joint: Some(j), kinematic: None });
+    }
+    let kin = match &log.markers {
+        Some(mk) => Some(super::kinematic::analyse(&super::kinematic::Inputs { model: &arm.model, log, markers: mk, prep: &prep, armature: &arm.armature })?),
+        None => None,
+    };
+    if let Some(kc) = &kin {
+        with_kinematic(&mut scored, kc, &arm.model, prep.t.len(), nq);
     }
     scored.sort_by(|x, y| y.score.delta_bic.total_cmp(&x.score.delta_bic));
     let supported = |s: &Score| !s.at_edge && s.delta_bic > o.min_delta_bic && s.p_value < o.max_p_value && s.heldout_p < 0.01 && s.effect_to_noise >= o.min_effect_to_noise;
@@ -446,13 +514,16 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
     // A scored candidate as a model-file effect and as the report's entry.
     let report_of = |e: &Scored| -> (EffectSpec, EffectReport) {
         let s = &e.score;
-        let spec = spec_of(e.candidate, e.kind, e.joint, s);
+        let (spec, ci95) = match &e.kinematic {
+            Some((spec, ci)) => (spec.clone(), ci.clone()),
+            None => (spec_of(e.candidate, e.kind, e.joint, s), ci_of(e.candidate, e.kind, s)),
+        };
         let report = EffectReport {
             name: spec.name.clone(),
             joint: spec.joint.clone(),
             link: spec.link.as_ref().map(|l| l.to_string()),
             parameters: spec.parameters.clone(),
-            ci95: ci_of(e.candidate, e.kind, s),
+            ci95,
             delta_bic: s.delta_bic,
             p_value: s.p_value,
         };
@@ -470,7 +541,8 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
     let mut after = before.clone();
     if let Some(&b) = winners.first() {
         let best = &scored[b];
-        let rival = winners.iter().skip(1).map(|&i| &scored[i]).find(|s| s.label != best.label && s.kind != best.kind && best.score.delta_bic - s.score.delta_bic < o.ambiguity_bic);
+        // Another effect, or the same kind elsewhere (two links' lengths a tracker sees alike).
+        let rival = winners.iter().skip(1).map(|&i| &scored[i]).find(|s| s.label != best.label && best.score.delta_bic - s.score.delta_bic < o.ambiguity_bic);
         if let Some(rv) = rival {
             verdict = "ambiguous";
             experiment = Some(separating_experiment(best.kind, rv.kind));
@@ -516,7 +588,7 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
     };
     let report = Report {
         verdict: verdict.into(),
-        channel: "torque".into(),
+        channel: if kin.is_some() { "torque+kinematic" } else { "torque" }.into(),
         effects,
         candidates,
         experiment,
@@ -532,9 +604,13 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
         rms_units: "each joint's effort residual in the analysis band over its noise floor there, RMS over the moving joints".into(),
         joints,
         tracking,
+        kinematic: kin.as_ref().map(|kc| kc.report(&arm.model, named.as_ref(), "dvrk discrepancy")),
         samples: prep.t.len(),
         heldout_from: prep.t[prep.split],
-        notes: vec!["kinematic channel (marker tracker) not analysed yet: it needs --marker-topic data".into()],
+        notes: match kin {
+            Some(_) => vec!["the kinematic channel's evidence is joined to the torque channel's per candidate; the torque residual after uses the torque channel's own fit".into()],
+            None => vec!["kinematic channel not analysed: it needs a tracked marker (--marker-topic, --marker-link)".into()],
+        },
         steps: Vec::new(),
     };
     Ok(Outcome { report, named })
