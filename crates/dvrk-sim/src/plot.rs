@@ -11,7 +11,7 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 /// One scatter panel.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, Default, PartialEq)]
 pub struct Panel {
     pub title: String,
     pub x_label: String,
@@ -24,6 +24,17 @@ pub struct Panel {
     pub equal: bool,
     /// Polylines drawn over the points.
     pub lines: Vec<Line>,
+    /// Scatter series in their own colours (opaque dots), in order over the points, under the lines.
+    pub scatter: Vec<Scatter>,
+}
+
+/// A scatter series of a panel in one colour.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Scatter {
+    /// Points (x, y) in the panel's units.
+    pub points: Vec<(f64, f64)>,
+    /// RGB colour.
+    pub color: [u8; 3],
 }
 
 /// A polyline of a panel.
@@ -75,6 +86,7 @@ pub fn cloud(points: &[Vector3<f64>], pivot: &Vector3<f64>, title: &str) -> Resu
         marks: vec![(0.0, 0.0)],
         equal: true,
         lines: vec![],
+        scatter: vec![],
     };
     Ok(Figure {
         title: title.into(),
@@ -106,7 +118,7 @@ struct Frame {
 impl Frame {
     fn new(fig: &Figure, k: usize) -> Frame {
         let p = &fig.panels[k];
-        let all = || p.points.iter().chain(&p.marks).chain(p.lines.iter().flat_map(|l| &l.points));
+        let all = || p.points.iter().chain(&p.marks).chain(p.lines.iter().flat_map(|l| &l.points)).chain(p.scatter.iter().flat_map(|s| &s.points));
         let mut x = range(all().map(|q| q.0));
         let mut y = range(all().map(|q| q.1));
         if p.equal {
@@ -189,6 +201,14 @@ impl Figure {
                 }
                 s += "</g>\n";
             }
+            for sc in &p.scatter {
+                let [r, g, b] = sc.color;
+                let _ = write!(s, "<g fill=\"#{r:02x}{g:02x}{b:02x}\">");
+                for (x, y) in sc.points.iter().filter(|(x, y)| x.is_finite() && y.is_finite()) {
+                    let _ = write!(s, "<circle cx=\"{:.1}\" cy=\"{:.1}\" r=\"1.3\"/>", f.px(*x), f.py(*y));
+                }
+                s += "</g>\n";
+            }
             for l in &p.lines {
                 let [r, g, b] = l.color;
                 let _ = write!(s, "<polyline fill=\"none\" stroke=\"#{r:02x}{g:02x}{b:02x}\" stroke-width=\"{}\" points=\"", l.width.max(1));
@@ -236,6 +256,14 @@ impl Figure {
                 let (cx, cy) = (f.px(*x).round() as i64, f.py(*y).round() as i64);
                 for (dx, dy) in [(0, 0), (1, 0), (0, 1), (-1, 0), (0, -1)] {
                     img.blend(cx + dx, cy + dy, BLUE);
+                }
+            }
+            for sc in &p.scatter {
+                for (x, y) in sc.points.iter().filter(|(x, y)| x.is_finite() && y.is_finite()) {
+                    let (cx, cy) = (f.px(*x).round() as i64, f.py(*y).round() as i64);
+                    for (dx, dy) in [(0, 0), (1, 0), (0, 1), (-1, 0), (0, -1)] {
+                        img.set(cx + dx, cy + dy, sc.color);
+                    }
                 }
             }
             for l in &p.lines {
