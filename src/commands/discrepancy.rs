@@ -31,7 +31,8 @@ pub struct DiscrepancyArgs {
     /// Write the report (JSON) here.
     #[arg(long)]
     pub report: PathBuf,
-    /// Residual before and after (PNG).
+    /// Residual before and after against time, velocity, load and position, per moving joint
+    /// (.png or .svg).
     #[arg(long)]
     pub plot: Option<PathBuf>,
     /// Write the model with the named effect added (as [[effects]]) here.
@@ -68,6 +69,12 @@ pub fn run(a: &DiscrepancyArgs) -> Result<()> {
     if a.marker_topic.is_some() {
         bail!("--marker-topic: the kinematic channel is not implemented yet (torque and tracking channels only)");
     }
+    if let Some(p) = &a.plot {
+        match p.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
+            Some("png" | "svg") => {}
+            _ => bail!("--plot {}: unknown image format; valid: .png, .svg", p.display()),
+        }
+    }
     let model = dvrk_kin::load(&a.model, None)?;
     let mut options = Options { tracking: !a.no_tracking, ..Default::default() };
     if let Some(text) = &a.inertia_prior {
@@ -79,6 +86,14 @@ pub fn run(a: &DiscrepancyArgs) -> Result<()> {
     }
     let out = dvrk_calib::discrepancy::run::run(&a.recording, &a.format, &model, &a.arm, &options, a.max_rounds as usize)?;
     let r = &out.report;
+    // Drawn before anything is written: a failure leaves no partial set of outputs.
+    let image = match &a.plot {
+        Some(p) => {
+            let title = format!("{}: torque residual in the analysis band, before (orange) and after (blue), noise floor (grey), held out from {:.1} s (green)", a.recording.display(), r.heldout_from);
+            Some(dvrk_calib::discrepancy::plot::figure(&out.residuals, &title)?.encode(p)?)
+        }
+        None => None,
+    };
     crate::io::write_atomic(&a.report, format!("{}\n", serde_json::to_string_pretty(r)?).as_bytes())?;
     if let Some(path) = &a.output {
         if !out.named.is_empty() {
@@ -88,8 +103,8 @@ pub fn run(a: &DiscrepancyArgs) -> Result<()> {
             crate::io::write_atomic(path, text.as_bytes())?;
         }
     }
-    if a.plot.is_some() {
-        bail!("--plot: not drawn yet (the report holds the numbers)");
+    if let (Some(p), Some(image)) = (&a.plot, &image) {
+        crate::io::write_atomic(p, image).with_context(|| format!("--plot {}", p.display()))?;
     }
     let named = r.effects.iter().map(|e| format!("{} {}", e.name, e.joint.clone().or(e.link.clone()).unwrap_or_default())).collect::<Vec<_>>().join(", ");
     outln!(

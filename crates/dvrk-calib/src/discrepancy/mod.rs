@@ -8,7 +8,8 @@
 //! - [`candidates`]: each candidate effect's signature from the model itself;
 //! - [`stats`]: bounded fits, effective sample size, chi-square tails;
 //! - [`workflow`]: fit, score, hold out, verdict ([`discrepancy`]); [`report`] its JSON;
-//! - [`tracking`]: the setpoints replayed through the simulator, before and after.
+//! - [`tracking`]: the setpoints replayed through the simulator, before and after;
+//! - [`plot`]: the residual before and after against time, velocity, load and position.
 //!
 //! Channels: torque (measured effort against inverse dynamics at the measured motion) carries
 //! the evidence; tracking is replayed for the before/after gap. The kinematic channel (a tracker
@@ -21,6 +22,7 @@ pub mod fit;
 pub mod generate;
 pub mod joint_log;
 pub mod nuisance;
+pub mod plot;
 pub mod repeat;
 pub mod report;
 pub mod run;
@@ -32,6 +34,7 @@ pub mod workflow;
 pub use generate::{hidden_effect, Answer, Hidden, HiddenOptions, HiddenRecording};
 pub use joint_log::JointLog;
 pub use nuisance::InertiaPrior;
+pub use plot::Residuals;
 pub use repeat::{discrepancy_repeated, Repeated};
 pub use report::Report;
 pub use workflow::{discrepancy, Options, Outcome};
