@@ -16,8 +16,10 @@ pub struct DiscrepancyArgs {
     /// Joint recording with setpoints and efforts.
     #[arg(long)]
     pub recording: PathBuf,
-    /// mcap (/<ARM>/setpoint_js and /<ARM>/measured_js with efforts) or wpi-csv (the WPI
-    /// dynamics recordings: no setpoints, tool channels in actuator space); csv is not read yet.
+    /// mcap (/<ARM>/setpoint_js and /<ARM>/measured_js with efforts), wpi-csv (the WPI dynamics
+    /// recordings: no setpoints, tool channels in actuator space) or csv (header
+    /// time,q1..qN,tau1..tauN[,setpoint1..setpointN]: s, rad or m, N·m or N; without setpoints
+    /// the encoders stand in for them).
     #[arg(long, default_value = "mcap")]
     pub format: String,
     #[arg(long, default_value = "PSM1")]

@@ -14,8 +14,9 @@ use std::path::PathBuf;
 pub enum SynthCommand {
     /// A synthetic motion-capture recording (.mcap or plain .csv).
     Mocap(MocapArgs),
-    /// A joint recording (.mcap: /<ARM>/setpoint_js, /<ARM>/measured_js with efforts) of an arm
-    /// with one hidden physical effect (or none), and the answer in a separate JSON file.
+    /// A joint recording (.mcap: /<ARM>/setpoint_js, /<ARM>/measured_js with efforts; or .csv:
+    /// time,q1..qN,tau1..tauN,setpoint1..setpointN) of an arm with one hidden physical effect
+    /// (or none), and the answer in a separate JSON file.
     HiddenEffect(HiddenEffectArgs),
 }
 
@@ -42,7 +43,8 @@ pub struct HiddenEffectArgs {
     /// Recorded time (s).
     #[arg(long, default_value_t = 30.0)]
     pub duration: f64,
-    /// Output recording (.mcap), written whole or not at all.
+    /// Output recording: .mcap or .csv (`dvrk discrepancy --format csv`), written whole or not at
+    /// all.
     #[arg(short, long)]
     pub output: PathBuf,
     /// The answer (JSON): the hidden effect, its joint or link, parameters, effect-to-noise ratio.
@@ -108,13 +110,16 @@ fn hidden_effect(a: &HiddenEffectArgs) -> Result<()> {
     let hidden: Hidden = a.effect.parse().map_err(|e| anyhow!("--effect: {e}"))?;
     let effort_noise = a.noise.as_deref().map(|t| crate::io::parse_list("--noise", t)).transpose()?;
     let ext = a.output.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
-    if ext != "mcap" {
-        bail!("-o {}: the recording is written as MCAP (.mcap)", a.output.display());
+    if ext != "mcap" && ext != "csv" {
+        bail!("-o {}: the recording is written as MCAP (.mcap) or plain CSV (.csv)", a.output.display());
     }
     let o = HiddenOptions { hidden, seed: a.seed, duration: a.duration, effort_noise, position_noise: a.position_noise, enr: a.enr, ..Default::default() };
     let h = hidden_effect(&a.model, &o)?;
-    let arm = dvrk_sim::Scene::load(&a.model)?.arms[0].name.clone();
-    crate::io::write_atomic(&a.output, &joint_log::write_mcap(&h.log, &arm)?)?;
+    let bytes = match ext.as_str() {
+        "csv" => dvrk_calib::discrepancy::csv_log::write(&h.log).into_bytes(),
+        _ => joint_log::write_mcap(&h.log, &dvrk_sim::Scene::load(&a.model)?.arms[0].name)?,
+    };
+    crate::io::write_atomic(&a.output, &bytes)?;
     crate::io::write_atomic(&a.answer, format!("{}\n", serde_json::to_string_pretty(&h.answer)?).as_bytes())?;
     let what = h.answer.effect.as_ref().map_or("no effect".to_string(), |e| e.name.clone());
     outln!("wrote {} ({} samples, {:.0} s) with {what} hidden; answer in {}", a.output.display(), h.log.len(), a.duration, a.answer.display());

@@ -4,6 +4,7 @@
 //! - [`generate`]: recordings with a hidden effect and their answers (`dvrk synth hidden-effect`),
 //!   on an exciting multi-sine ([`excitation`]);
 //! - [`joint_log`]: setpoints, encoder positions and efforts read from (written to) a recording;
+//!   [`csv_log`] the same as plain CSV;
 //! - [`signals`]: filtering, the noise floor and the nominal model's effort;
 //! - [`candidates`]: each candidate effect's signature from the model itself;
 //! - [`stats`]: bounded fits, effective sample size, chi-square tails;
@@ -16,6 +17,7 @@
 //! on the link) is not implemented yet.
 
 pub mod candidates;
+pub mod csv_log;
 pub mod drive;
 pub mod excitation;
 pub mod fit;
