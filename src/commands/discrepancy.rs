@@ -72,10 +72,7 @@ pub fn run(a: &DiscrepancyArgs) -> Result<()> {
         bail!("--marker-topic: the kinematic channel is not implemented yet (torque and tracking channels only)");
     }
     if let Some(p) = &a.plot {
-        match p.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
-            Some("png" | "svg") => {}
-            _ => bail!("--plot {}: unknown image format; valid: .png, .svg", p.display()),
-        }
+        dvrk_calib::plot::check_path(p)?;
     }
     let model = dvrk_kin::load(&a.model, None)?;
     let mut options = Options { tracking: !a.no_tracking, ..Default::default() };
@@ -90,10 +87,7 @@ pub fn run(a: &DiscrepancyArgs) -> Result<()> {
     let r = &out.report;
     // Drawn before anything is written: a failure leaves no partial set of outputs.
     let image = match &a.plot {
-        Some(p) => {
-            let title = format!("{}: torque residual in the analysis band, before (orange) and after (blue), noise floor (grey), held out from {:.1} s (green)", a.recording.display(), r.heldout_from);
-            Some(dvrk_calib::discrepancy::plot::figure(&out.residuals, &title)?.encode(p)?)
-        }
+        Some(p) => Some(dvrk_calib::discrepancy::plot::figure(&out.residuals, &a.recording.display().to_string())?.encode(p)?),
         None => None,
     };
     crate::io::write_atomic(&a.report, format!("{}\n", serde_json::to_string_pretty(r)?).as_bytes())?;

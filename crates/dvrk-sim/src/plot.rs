@@ -96,6 +96,23 @@ pub fn cloud(points: &[Vector3<f64>], pivot: &Vector3<f64>, title: &str) -> Resu
     })
 }
 
+/// The image formats [`Figure::encode`] writes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ImageFormat {
+    Png,
+    Svg,
+}
+
+/// The image format `path`'s extension names (.png, .svg; any case), or an error naming
+/// `--plot` and the path: checked before a long computation whose result is plotted.
+pub fn check_path(path: &Path) -> Result<ImageFormat> {
+    match path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
+        Some("svg") => Ok(ImageFormat::Svg),
+        Some("png") => Ok(ImageFormat::Png),
+        _ => Err(SimError::field(path.display().to_string(), "--plot", "unknown image format; valid: .png, .svg")),
+    }
+}
+
 /// Axis range with a margin, never empty.
 fn range(v: impl Iterator<Item = f64>) -> (f64, f64) {
     let (lo, hi) = v.filter(|x| x.is_finite()).fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| (a.min(x), b.max(x)));
@@ -169,10 +186,9 @@ impl Figure {
 
     /// SVG or PNG bytes, chosen by `path`'s extension.
     pub fn encode(&self, path: &Path) -> Result<Vec<u8>> {
-        match path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
-            Some("svg") => Ok(self.svg().into_bytes()),
-            Some("png") => self.png().map_err(|e| SimError::field(path.display().to_string(), "--plot", e.to_string())),
-            _ => Err(SimError::field(path.display().to_string(), "--plot", "unknown image format; valid: .png, .svg")),
+        match check_path(path)? {
+            ImageFormat::Svg => Ok(self.svg().into_bytes()),
+            ImageFormat::Png => self.png().map_err(|e| SimError::field(path.display().to_string(), "--plot", e.to_string())),
         }
     }
 

@@ -17,7 +17,7 @@ pub const COLUMNS: usize = 4;
 pub const PANEL: (usize, usize) = (320, 250);
 /// At most this many points per series: the analysed samples are thinned evenly beyond it (a
 /// 100 Hz, 60 s recording would otherwise put 6000 dots in a panel 230 px wide).
-pub const MAX_POINTS: usize = 1500;
+pub const MAX_POINTS: usize = 1000;
 
 /// The torque channel's residual in the analysis band, before and after, at the analysed
 /// samples; per moving joint, `[joint][sample]`.
@@ -51,8 +51,9 @@ fn thinned(n: usize) -> impl Iterator<Item = usize> {
     (0..n).step_by(n.div_ceil(MAX_POINTS).max(1))
 }
 
-/// The figure: one row of [`COLUMNS`] panels per moving joint, titled `title`.
-pub fn figure(r: &Residuals, title: &str) -> Result<Figure> {
+/// The figure: one row of [`COLUMNS`] panels per moving joint, its title naming `source` (the
+/// recording) and the colours.
+pub fn figure(r: &Residuals, source: &str) -> Result<Figure> {
     if r.joints.is_empty() || r.t.is_empty() {
         return Err(CalibError::data("plot", "no residual to draw"));
     }
@@ -83,7 +84,8 @@ pub fn figure(r: &Residuals, title: &str) -> Result<Figure> {
             });
         }
     }
-    Ok(Figure { title: title.into(), panels, columns: COLUMNS, panel_size: PANEL })
+    let title = format!("{source}: torque residual in the analysis band, before (orange) and after (blue), noise floor (grey), held out from {:.1} s (green)", r.heldout_from);
+    Ok(Figure { title, panels, columns: COLUMNS, panel_size: PANEL })
 }
 
 #[cfg(test)]
@@ -113,7 +115,7 @@ mod tests {
         let fig = figure(&residuals(6000), "t").unwrap();
         assert_eq!(fig.panels.len(), 8);
         assert_eq!(fig.size(), (4 * PANEL.0, 20 + 2 * PANEL.1));
-        assert!(fig.panels.iter().all(|p| p.scatter.iter().all(|s| s.points.len() == 1500)));
+        assert!(fig.panels.iter().all(|p| p.scatter.iter().all(|s| s.points.len() == 1000)));
         // The floor's two lines everywhere, the held-out start on the time panels.
         assert_eq!(fig.panels[0].lines.len(), 3);
         assert_eq!(fig.panels[1].lines.len(), 2);
