@@ -159,17 +159,28 @@ pub fn identify<'py>(py: Python<'py>, recording: PathBuf, model: &str, format: &
 }
 
 /// The discrepancy workflow (`dvrk discrepancy`) on a recording of `arm` (`format` "mcap":
-/// `/<arm>/setpoint_js`, `/<arm>/measured_js` with efforts; "wpi-csv"), repeated: each named
-/// effect added to the model and the analysis run again, up to `max_rounds`. The report as a dict
+/// `/<arm>/setpoint_js`, `/<arm>/measured_js` with efforts; "wpi-csv"; "csv": `time`, `q1..qN`,
+/// `tau1..tauN`, optional `setpoint1..setpointN`), repeated: each named effect added to the model
+/// and the analysis run again, up to `max_rounds`. `plot` (.png or .svg): the residual before and
+/// after against time, velocity, load and position per moving joint. The report as a dict
 /// (`verdict`, `channel`, `effects`, `candidates`, `rms_before`, `rms_after`, `rms_heldout_before`,
 /// `rms_heldout_after`, `noise_floor`, `steps`, ...).
 #[pyfunction]
-#[pyo3(signature = (recording, model="psm", arm="PSM1", tracking=true, format="mcap", max_rounds=4))]
-pub fn discrepancy<'py>(py: Python<'py>, recording: PathBuf, model: &str, arm: &str, tracking: bool, format: &str, max_rounds: usize) -> Result<Bound<'py, PyAny>> {
-    use dvrk_calib::discrepancy::{run, Options};
+#[pyo3(signature = (recording, model="psm", arm="PSM1", tracking=true, format="mcap", max_rounds=4, plot=None))]
+#[allow(clippy::too_many_arguments)]
+pub fn discrepancy<'py>(py: Python<'py>, recording: PathBuf, model: &str, arm: &str, tracking: bool, format: &str, max_rounds: usize, plot: Option<PathBuf>) -> Result<Bound<'py, PyAny>> {
+    use dvrk_calib::discrepancy::{plot as residual_plot, run, Options};
+    use dvrk_calib::plot::check_path;
     let m = dvrk_calib::dvrk_kin::load(model, None)?;
+    if let Some(p) = &plot {
+        check_path(p)?;
+    }
     let report = py.detach(|| -> Result<serde_json::Value> {
         let out = run::run(&recording, format, &m, arm, &Options { tracking, ..Default::default() }, max_rounds)?;
+        if let Some(p) = &plot {
+            let image = residual_plot::figure(&out.residuals, &recording.display().to_string())?.encode(p)?;
+            dvrk_calib::dvrk_kin::atomic::write_atomic(p, &image)?;
+        }
         serde_json::to_value(&out.report).map_err(|e| Error::Input(e.to_string()))
     })?;
     to_py_json(py, &report)
@@ -177,7 +188,8 @@ pub fn discrepancy<'py>(py: Python<'py>, recording: PathBuf, model: &str, arm: &
 
 /// `dvrk synth hidden-effect`: simulate a recording of the `scene` arm (built-in `psm` or `ecm`)
 /// with one hidden physical effect (`effect`: a vocabulary name, `none` or `random`) and write it
-/// to `path` (MCAP); returns the answer (the effect, its parameters, the effect-to-noise ratio).
+/// to `path` (plain CSV when it ends in .csv, MCAP otherwise); returns the answer (the effect,
+/// its parameters, the effect-to-noise ratio).
 #[pyfunction]
 #[pyo3(signature = (path, effect="random", seed=1, scene="psm", duration=30.0))]
 pub fn synth_hidden_effect<'py>(py: Python<'py>, path: PathBuf, effect: &str, seed: u64, scene: &str, duration: f64) -> Result<Bound<'py, PyAny>> {
@@ -185,8 +197,11 @@ pub fn synth_hidden_effect<'py>(py: Python<'py>, path: PathBuf, effect: &str, se
     let hidden: Hidden = effect.parse().map_err(|e: String| Error::Input(format!("effect: {e}")))?;
     let answer = py.detach(|| -> Result<serde_json::Value> {
         let h = hidden_effect(scene, &HiddenOptions { hidden, seed, duration, ..Default::default() })?;
-        let arm = dvrk_sim::Scene::load(scene)?.arms[0].name.clone();
-        dvrk_calib::dvrk_kin::atomic::write_atomic(&path, &joint_log::write_mcap(&h.log, &arm)?)?;
+        let bytes = match path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
+            Some("csv") => dvrk_calib::discrepancy::csv_log::write(&h.log).into_bytes(),
+            _ => joint_log::write_mcap(&h.log, &dvrk_sim::Scene::load(scene)?.arms[0].name)?,
+        };
+        dvrk_calib::dvrk_kin::atomic::write_atomic(&path, &bytes)?;
         serde_json::to_value(&h.answer).map_err(|e| Error::Input(e.to_string()))
     })?;
     to_py_json(py, &answer)
