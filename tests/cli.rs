@@ -305,4 +305,76 @@ fn discrepancy_reads_a_tracked_marker() {
     assert!(e.contains("--marker-link") && e.contains("99"), "{e}");
     let e = crate::util::dvrk_err(&["discrepancy", "--model", "psm", "--recording", &p(&rec), "--marker-topic", "/nope", "--marker-link", "12", "--report", &p(&report)]);
     assert!(e.contains("/nope") && e.contains("rec.mcap"), "{e}");
+
+/// `dvrk synth hidden-effect` (viscous friction, 12 s) to `rec.<ext>`; its path.
+fn hidden_viscous_friction(dir: &std::path::Path, ext: &str) -> String {
+    let rec = dir.join(format!("rec.{ext}"));
+    let answer = dir.join(format!("answer-{ext}.json"));
+    dvrk_ok(&["synth", "hidden-effect", "--effect", "viscous_friction", "--seed", "3", "--duration", "12", "-o", rec.to_str().unwrap(), "--answer", answer.to_str().unwrap()]);
+    rec.to_str().unwrap().to_string()
+}
+
+/// `dvrk discrepancy --plot out.png`: a row of four panels per moving joint (residual against
+/// time, velocity, load, position), the residual before and after in their colours; a bad
+/// extension is refused before the analysis, naming the flag and the path, writing nothing.
+#[test]
+fn discrepancy_plots_the_residual_before_and_after() {
+    use dvrk_calib::discrepancy::plot::{AFTER, BEFORE, COLUMNS, PANEL};
+    use dvrk_calib::plot::{Figure, Panel};
+    let dir = tempdir();
+    let rec = hidden_viscous_friction(dir.path(), "mcap");
+    let (report, plot) = (dir.path().join("r.json"), dir.path().join("out.png"));
+    dvrk_ok(&["discrepancy", "--model", "psm", "--recording", &rec, "--report", report.to_str().unwrap(), "--plot", plot.to_str().unwrap(), "--no-tracking", "--max-rounds", "2"]);
+    let r: Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+    assert_eq!(r["verdict"], "named");
+    // The report's keys are those of a run without --plot.
+    assert!(r.get("residuals").is_none());
+    let moving = r["joints"].as_array().unwrap().len();
+    assert!(moving >= 6, "{moving} moving joints");
+    let like = Figure { title: String::new(), panels: vec![Panel::default(); COLUMNS * moving], columns: COLUMNS, panel_size: PANEL };
+    let decoder = png::Decoder::new(std::io::Cursor::new(std::fs::read(&plot).unwrap()));
+    let mut d = decoder.read_info().unwrap();
+    let mut px = vec![0; d.output_buffer_size().unwrap()];
+    let info = d.next_frame(&mut px).unwrap();
+    assert_eq!((info.width as usize, info.height as usize), like.size());
+    assert_eq!(like.size(), (4 * 320, 20 + moving * 250));
+    assert_eq!(info.color_type, png::ColorType::Rgb);
+    let count = |c: [u8; 3]| px.chunks(3).filter(|p| *p == c).count();
+    assert!(count(BEFORE) > 1000 && count(AFTER) > 1000, "before {} px, after {} px", count(BEFORE), count(AFTER));
+    assert!(std::fs::metadata(&plot).unwrap().len() < 1_000_000);
+    let (report2, bad) = (dir.path().join("r2.json"), dir.path().join("out.txt"));
+    let e = crate::util::dvrk_err(&["discrepancy", "--model", "psm", "--recording", &rec, "--report", report2.to_str().unwrap(), "--plot", bad.to_str().unwrap()]);
+    assert!(e.contains("--plot") && e.contains("out.txt") && e.contains(".png, .svg"), "{e}");
+    assert!(!report2.exists() && !bad.exists());
+}
+
+/// The same hidden-effect recording as MCAP and as plain CSV (`synth hidden-effect -o rec.csv`,
+/// `discrepancy --format csv`): the same verdict, effect and parameter; the CSV run's SVG plot
+/// holds both colours.
+#[test]
+fn discrepancy_reads_a_csv_joint_log_as_it_reads_mcap() {
+    let dir = tempdir();
+    let mut reports = Vec::new();
+    for (ext, format) in [("mcap", "mcap"), ("csv", "csv")] {
+        let rec = hidden_viscous_friction(dir.path(), ext);
+        let report = dir.path().join(format!("r-{ext}.json"));
+        let plot = dir.path().join(format!("p-{ext}.svg"));
+        dvrk_ok(&["discrepancy", "--model", "psm", "--recording", &rec, "--format", format, "--report", report.to_str().unwrap(), "--plot", plot.to_str().unwrap(), "--no-tracking", "--max-rounds", "2"]);
+        let svg = std::fs::read_to_string(&plot).unwrap();
+        assert!(svg.contains("fill=\"#e6550d\"") && svg.contains("fill=\"#1f77b4\""));
+        reports.push(serde_json::from_slice::<Value>(&std::fs::read(&report).unwrap()).unwrap());
+    }
+    let (m, c) = (&reports[0], &reports[1]);
+    assert_eq!(m["verdict"], "named");
+    assert_eq!(c["verdict"], m["verdict"]);
+    assert_eq!(c["effects"][0]["name"], "viscous_friction");
+    assert_eq!(c["effects"][0]["joint"], m["effects"][0]["joint"]);
+    let fv = |r: &Value| r["effects"][0]["parameters"]["fv"].as_f64().unwrap();
+    assert!((fv(c) - fv(m)).abs() < 1e-9 * fv(m), "{} vs {}", fv(c), fv(m));
+    // A CSV joint log that lacks a column is refused with its name.
+    let text = std::fs::read_to_string(dir.path().join("rec.csv")).unwrap();
+    let bad = dir.path().join("bad.csv");
+    std::fs::write(&bad, text.replacen(",tau3,", ",torque3,", 1)).unwrap();
+    let e = crate::util::dvrk_err(&["discrepancy", "--model", "psm", "--recording", bad.to_str().unwrap(), "--format", "csv", "--report", dir.path().join("rb.json").to_str().unwrap()]);
+    assert!(e.contains("bad.csv") && e.contains("tau3"), "{e}");
 }

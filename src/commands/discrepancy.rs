@@ -16,8 +16,10 @@ pub struct DiscrepancyArgs {
     /// Joint recording with setpoints and efforts.
     #[arg(long)]
     pub recording: PathBuf,
-    /// mcap (/<ARM>/setpoint_js and /<ARM>/measured_js with efforts) or wpi-csv (the WPI
-    /// dynamics recordings: no setpoints, tool channels in actuator space); csv is not read yet.
+    /// mcap (/<ARM>/setpoint_js and /<ARM>/measured_js with efforts), wpi-csv (the WPI dynamics
+    /// recordings: no setpoints, tool channels in actuator space) or csv (header
+    /// time,q1..qN,tau1..tauN[,setpoint1..setpointN]: s, rad or m, N·m or N; without setpoints
+    /// the encoders stand in for them).
     #[arg(long, default_value = "mcap")]
     pub format: String,
     #[arg(long, default_value = "PSM1")]
@@ -32,7 +34,8 @@ pub struct DiscrepancyArgs {
     /// Write the report (JSON) here.
     #[arg(long)]
     pub report: PathBuf,
-    /// Residual before and after (PNG).
+    /// Residual before and after against time, velocity, load and position, per moving joint
+    /// (.png or .svg).
     #[arg(long)]
     pub plot: Option<PathBuf>,
     /// Write the model with the named effect added (as [[effects]]) here.
@@ -66,6 +69,9 @@ fn model_text_with(model: &str, effects: &[dvrk_kin::effects::EffectSpec]) -> Re
 }
 
 pub fn run(a: &DiscrepancyArgs) -> Result<()> {
+    if let Some(p) = &a.plot {
+        dvrk_calib::plot::check_path(p)?;
+    }
     let model = dvrk_kin::load(&a.model, None)?;
     let mut options = Options { tracking: !a.no_tracking, ..Default::default() };
     if let Some(text) = &a.inertia_prior {
@@ -78,6 +84,11 @@ pub fn run(a: &DiscrepancyArgs) -> Result<()> {
     let marker = a.marker_topic.as_ref().zip(a.marker_link.as_ref()).map(|(topic, link)| dvrk_calib::discrepancy::run::MarkerSource { topic: topic.clone(), link: link.clone() });
     let out = dvrk_calib::discrepancy::run::run(&a.recording, &a.format, &model, &a.arm, marker.as_ref(), &options, a.max_rounds as usize)?;
     let r = &out.report;
+    // Drawn before anything is written: a failure leaves no partial set of outputs.
+    let image = match &a.plot {
+        Some(p) => Some(dvrk_calib::discrepancy::plot::figure(&out.residuals, &a.recording.display().to_string())?.encode(p)?),
+        None => None,
+    };
     crate::io::write_atomic(&a.report, format!("{}\n", serde_json::to_string_pretty(r)?).as_bytes())?;
     if let Some(path) = &a.output {
         if !out.named.is_empty() {
@@ -87,8 +98,8 @@ pub fn run(a: &DiscrepancyArgs) -> Result<()> {
             crate::io::write_atomic(path, text.as_bytes())?;
         }
     }
-    if a.plot.is_some() {
-        bail!("--plot: not drawn yet (the report holds the numbers)");
+    if let (Some(p), Some(image)) = (&a.plot, &image) {
+        crate::io::write_atomic(p, image).with_context(|| format!("--plot {}", p.display()))?;
     }
     let named = r.effects.iter().map(|e| format!("{} {}", e.name, e.joint.clone().or(e.link.clone()).unwrap_or_default())).collect::<Vec<_>>().join(", ");
     outln!(

@@ -14,8 +14,10 @@ use std::path::PathBuf;
 pub enum SynthCommand {
     /// A synthetic motion-capture recording (.mcap or plain .csv).
     Mocap(MocapArgs),
-    /// A joint recording (.mcap: /<ARM>/setpoint_js, /<ARM>/measured_js with efforts) of an arm
-    /// with one or two hidden physical effects (or none), and the answer in a separate JSON file.
+    /// A joint recording (.mcap: /<ARM>/setpoint_js, /<ARM>/measured_js with efforts, and a
+    /// tracked marker's poses with --marker-link; or .csv: time,q1..qN,tau1..tauN,
+    /// setpoint1..setpointN) of an arm with one or two hidden physical effects (or none), and the
+    /// answer in a separate JSON file.
     HiddenEffect(HiddenEffectArgs),
 }
 
@@ -43,10 +45,12 @@ pub struct HiddenEffectArgs {
     #[arg(long, default_value_t = 30.0)]
     pub duration: f64,
     /// Add a tracker (100 Hz, 0.1 mm, 1 mrad; placed at random) following a marker on this link
-    /// (frame name or the paper's number): the kinematic channel, on the pose topic the answer names.
+    /// (frame name or the paper's number): the kinematic channel, on the pose topic the answer
+    /// names (MCAP only).
     #[arg(long)]
     pub marker_link: Option<String>,
-    /// Output recording (.mcap), written whole or not at all.
+    /// Output recording: .mcap or .csv (`dvrk discrepancy --format csv`), written whole or not at
+    /// all.
     #[arg(short, long)]
     pub output: PathBuf,
     /// The answer (JSON): `effects`, each with its joint or link, parameters, effect-to-noise ratio.
@@ -112,14 +116,20 @@ fn hidden_effect(a: &HiddenEffectArgs) -> Result<()> {
     let hidden: Hidden = a.effect.parse().map_err(|e| anyhow!("--effect: {e}"))?;
     let effort_noise = a.noise.as_deref().map(|t| crate::io::parse_list("--noise", t)).transpose()?;
     let ext = a.output.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
-    if ext != "mcap" {
-        bail!("-o {}: the recording is written as MCAP (.mcap)", a.output.display());
+    if ext != "mcap" && ext != "csv" {
+        bail!("-o {}: the recording is written as MCAP (.mcap) or plain CSV (.csv)", a.output.display());
+    }
+    if ext == "csv" && a.marker_link.is_some() {
+        bail!("--marker-link: the tracked poses are written to MCAP recordings only (-o {})", a.output.display());
     }
     let marker = a.marker_link.clone().map(|link| dvrk_calib::discrepancy::generate::MarkerOptions { link, ..Default::default() });
     let o = HiddenOptions { hidden, seed: a.seed, duration: a.duration, effort_noise, position_noise: a.position_noise, enr: a.enr, marker, ..Default::default() };
     let h = hidden_effect(&a.model, &o)?;
-    let arm = dvrk_sim::Scene::load(&a.model)?.arms[0].name.clone();
-    crate::io::write_atomic(&a.output, &joint_log::write_mcap(&h.log, &arm)?)?;
+    let bytes = match ext.as_str() {
+        "csv" => dvrk_calib::discrepancy::csv_log::write(&h.log).into_bytes(),
+        _ => joint_log::write_mcap(&h.log, &dvrk_sim::Scene::load(&a.model)?.arms[0].name)?,
+    };
+    crate::io::write_atomic(&a.output, &bytes)?;
     crate::io::write_atomic(&a.answer, format!("{}\n", serde_json::to_string_pretty(&h.answer)?).as_bytes())?;
     let what = match h.answer.effects.is_empty() {
         true => "no effect".to_string(),

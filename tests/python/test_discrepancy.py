@@ -23,3 +23,17 @@ def test_discrepancy_names_a_missing_topic(tmp_path):
     dvrk_twin.synth_hidden_effect(rec, effect="none", seed=1, duration=5.0)
     with pytest.raises(dvrk_twin.DvrkError, match="/PSM2/measured_js"):
         dvrk_twin.discrepancy(rec, arm="PSM2")
+
+
+def test_a_csv_log_is_analysed_and_the_residual_plotted(tmp_path):
+    rec = tmp_path / "hidden.csv"
+    dvrk_twin.synth_hidden_effect(rec, effect="viscous_friction", seed=3, duration=12.0)
+    assert rec.read_text().splitlines()[2].startswith("time,q1,")
+    png = tmp_path / "residual.png"
+    report = dvrk_twin.discrepancy(rec, format="csv", tracking=False, max_rounds=2, plot=png)
+    assert report["verdict"] == "named", report["verdict"]
+    assert report["effects"][0]["name"] == "viscous_friction"
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    with pytest.raises(dvrk_twin.DvrkError, match="--plot"):
+        dvrk_twin.discrepancy(rec, format="csv", plot=tmp_path / "residual.txt")
+    assert not (tmp_path / "residual.txt").exists()

@@ -67,6 +67,7 @@ pub mod plot {
                 marks: vec![],
                 equal: false,
                 lines: vec![],
+                scatter: vec![],
             })
             .collect();
         Ok(Figure { title: format!("axis residuals: {}", report.source), panels, columns: 0, panel_size: PANEL_SIZE })

@@ -159,17 +159,34 @@ pub fn identify<'py>(py: Python<'py>, recording: PathBuf, model: &str, format: &
 }
 
 /// The discrepancy workflow (`dvrk discrepancy`) on a recording of `arm` (`format` "mcap":
-/// `/<arm>/setpoint_js`, `/<arm>/measured_js` with efforts; "wpi-csv"), repeated: each named
-/// effect added to the model and the analysis run again, up to `max_rounds`. The report as a dict
+/// `/<arm>/setpoint_js`, `/<arm>/measured_js` with efforts; "wpi-csv"; "csv": `time`, `q1..qN`,
+/// `tau1..tauN`, optional `setpoint1..setpointN`), repeated: each named effect added to the model
+/// and the analysis run again, up to `max_rounds`. `plot` (.png or .svg): the residual before and
+/// after against time, velocity, load and position per moving joint. The report as a dict
 /// (`verdict`, `channel`, `effects`, `candidates`, `rms_before`, `rms_after`, `rms_heldout_before`,
 /// `rms_heldout_after`, `noise_floor`, `steps`, `kinematic`, ...). `marker_topic` and
 /// `marker_link` (frame name or paper number) add the kinematic channel.
 #[pyfunction]
-#[pyo3(signature = (recording, model="psm", arm="PSM1", tracking=true, format="mcap", max_rounds=4, marker_topic=None, marker_link=None))]
+#[pyo3(signature = (recording, model="psm", arm="PSM1", tracking=true, format="mcap", max_rounds=4, plot=None, marker_topic=None, marker_link=None))]
 #[allow(clippy::too_many_arguments)]
-pub fn discrepancy<'py>(py: Python<'py>, recording: PathBuf, model: &str, arm: &str, tracking: bool, format: &str, max_rounds: usize, marker_topic: Option<String>, marker_link: Option<String>) -> Result<Bound<'py, PyAny>> {
-    use dvrk_calib::discrepancy::{run, Options};
+pub fn discrepancy<'py>(
+    py: Python<'py>,
+    recording: PathBuf,
+    model: &str,
+    arm: &str,
+    tracking: bool,
+    format: &str,
+    max_rounds: usize,
+    plot: Option<PathBuf>,
+    marker_topic: Option<String>,
+    marker_link: Option<String>,
+) -> Result<Bound<'py, PyAny>> {
+    use dvrk_calib::discrepancy::{plot as residual_plot, run, Options};
+    use dvrk_calib::plot::check_path;
     let m = dvrk_calib::dvrk_kin::load(model, None)?;
+    if let Some(p) = &plot {
+        check_path(p)?;
+    }
     let marker = match (marker_topic, marker_link) {
         (Some(topic), Some(link)) => Some(run::MarkerSource { topic, link }),
         (None, None) => None,
@@ -177,6 +194,10 @@ pub fn discrepancy<'py>(py: Python<'py>, recording: PathBuf, model: &str, arm: &
     };
     let report = py.detach(|| -> Result<serde_json::Value> {
         let out = run::run(&recording, format, &m, arm, marker.as_ref(), &Options { tracking, ..Default::default() }, max_rounds)?;
+        if let Some(p) = &plot {
+            let image = residual_plot::figure(&out.residuals, &recording.display().to_string())?.encode(p)?;
+            dvrk_calib::dvrk_kin::atomic::write_atomic(p, &image)?;
+        }
         serde_json::to_value(&out.report).map_err(|e| Error::Input(e.to_string()))
     })?;
     to_py_json(py, &report)
@@ -184,8 +205,9 @@ pub fn discrepancy<'py>(py: Python<'py>, recording: PathBuf, model: &str, arm: &
 
 /// `dvrk synth hidden-effect`: simulate a recording of the `scene` arm (built-in `psm` or `ecm`)
 /// with hidden physical effects (`effect`: a vocabulary name, two joined by `+`, `none`, `random`
-/// or `random-pair`) and write it to `path` (MCAP); returns the answer (`effects`: each with its
-/// parameters and effect-to-noise ratio).
+/// or `random-pair`) and write it to `path` (plain CSV when it ends in .csv, MCAP otherwise);
+/// returns the answer (`effects`: each with its parameters and effect-to-noise ratio;
+/// `marker_topic` when `marker_link` adds a tracker on that link, MCAP only).
 #[pyfunction]
 #[pyo3(signature = (path, effect="random", seed=1, scene="psm", duration=30.0, marker_link=None))]
 pub fn synth_hidden_effect<'py>(py: Python<'py>, path: PathBuf, effect: &str, seed: u64, scene: &str, duration: f64, marker_link: Option<String>) -> Result<Bound<'py, PyAny>> {
@@ -195,8 +217,12 @@ pub fn synth_hidden_effect<'py>(py: Python<'py>, path: PathBuf, effect: &str, se
     let marker = marker_link.map(|link| MarkerOptions { link, ..Default::default() });
     let answer = py.detach(|| -> Result<serde_json::Value> {
         let h = hidden_effect(scene, &HiddenOptions { hidden, seed, duration, marker, ..Default::default() })?;
-        let arm = dvrk_sim::Scene::load(scene)?.arms[0].name.clone();
-        dvrk_calib::dvrk_kin::atomic::write_atomic(&path, &joint_log::write_mcap(&h.log, &arm)?)?;
+        let bytes = match path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
+            Some("csv") if h.log.markers.is_some() => return Err(Error::Input("marker_link: the tracked poses are written to MCAP recordings only".into())),
+            Some("csv") => dvrk_calib::discrepancy::csv_log::write(&h.log).into_bytes(),
+            _ => joint_log::write_mcap(&h.log, &dvrk_sim::Scene::load(scene)?.arms[0].name)?,
+        };
+        dvrk_calib::dvrk_kin::atomic::write_atomic(&path, &bytes)?;
         serde_json::to_value(&h.answer).map_err(|e| Error::Input(e.to_string()))
     })?;
     to_py_json(py, &answer)

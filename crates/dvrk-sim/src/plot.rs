@@ -11,7 +11,7 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 /// One scatter panel.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, Default, PartialEq)]
 pub struct Panel {
     pub title: String,
     pub x_label: String,
@@ -24,6 +24,17 @@ pub struct Panel {
     pub equal: bool,
     /// Polylines drawn over the points.
     pub lines: Vec<Line>,
+    /// Scatter series in their own colours (opaque dots), in order over the points, under the lines.
+    pub scatter: Vec<Scatter>,
+}
+
+/// A scatter series of a panel in one colour.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Scatter {
+    /// Points (x, y) in the panel's units.
+    pub points: Vec<(f64, f64)>,
+    /// RGB colour.
+    pub color: [u8; 3],
 }
 
 /// A polyline of a panel.
@@ -75,6 +86,7 @@ pub fn cloud(points: &[Vector3<f64>], pivot: &Vector3<f64>, title: &str) -> Resu
         marks: vec![(0.0, 0.0)],
         equal: true,
         lines: vec![],
+        scatter: vec![],
     };
     Ok(Figure {
         title: title.into(),
@@ -82,6 +94,23 @@ pub fn cloud(points: &[Vector3<f64>], pivot: &Vector3<f64>, title: &str) -> Resu
         columns: 0,
         panel_size: PANEL_SIZE,
     })
+}
+
+/// The image formats [`Figure::encode`] writes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ImageFormat {
+    Png,
+    Svg,
+}
+
+/// The image format `path`'s extension names (.png, .svg; any case), or an error naming
+/// `--plot` and the path: checked before a long computation whose result is plotted.
+pub fn check_path(path: &Path) -> Result<ImageFormat> {
+    match path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
+        Some("svg") => Ok(ImageFormat::Svg),
+        Some("png") => Ok(ImageFormat::Png),
+        _ => Err(SimError::field(path.display().to_string(), "--plot", "unknown image format; valid: .png, .svg")),
+    }
 }
 
 /// Axis range with a margin, never empty.
@@ -106,7 +135,7 @@ struct Frame {
 impl Frame {
     fn new(fig: &Figure, k: usize) -> Frame {
         let p = &fig.panels[k];
-        let all = || p.points.iter().chain(&p.marks).chain(p.lines.iter().flat_map(|l| &l.points));
+        let all = || p.points.iter().chain(&p.marks).chain(p.lines.iter().flat_map(|l| &l.points)).chain(p.scatter.iter().flat_map(|s| &s.points));
         let mut x = range(all().map(|q| q.0));
         let mut y = range(all().map(|q| q.1));
         if p.equal {
@@ -157,10 +186,9 @@ impl Figure {
 
     /// SVG or PNG bytes, chosen by `path`'s extension.
     pub fn encode(&self, path: &Path) -> Result<Vec<u8>> {
-        match path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
-            Some("svg") => Ok(self.svg().into_bytes()),
-            Some("png") => self.png().map_err(|e| SimError::field(path.display().to_string(), "--plot", e.to_string())),
-            _ => Err(SimError::field(path.display().to_string(), "--plot", "unknown image format; valid: .png, .svg")),
+        match check_path(path)? {
+            ImageFormat::Svg => Ok(self.svg().into_bytes()),
+            ImageFormat::Png => self.png().map_err(|e| SimError::field(path.display().to_string(), "--plot", e.to_string())),
         }
     }
 
@@ -185,6 +213,14 @@ impl Figure {
             if !p.points.is_empty() {
                 s += "<g fill=\"#1f77b4\" fill-opacity=\"0.35\">";
                 for (x, y) in &p.points {
+                    let _ = write!(s, "<circle cx=\"{:.1}\" cy=\"{:.1}\" r=\"1.3\"/>", f.px(*x), f.py(*y));
+                }
+                s += "</g>\n";
+            }
+            for sc in &p.scatter {
+                let [r, g, b] = sc.color;
+                let _ = write!(s, "<g fill=\"#{r:02x}{g:02x}{b:02x}\">");
+                for (x, y) in sc.points.iter().filter(|(x, y)| x.is_finite() && y.is_finite()) {
                     let _ = write!(s, "<circle cx=\"{:.1}\" cy=\"{:.1}\" r=\"1.3\"/>", f.px(*x), f.py(*y));
                 }
                 s += "</g>\n";
@@ -236,6 +272,14 @@ impl Figure {
                 let (cx, cy) = (f.px(*x).round() as i64, f.py(*y).round() as i64);
                 for (dx, dy) in [(0, 0), (1, 0), (0, 1), (-1, 0), (0, -1)] {
                     img.blend(cx + dx, cy + dy, BLUE);
+                }
+            }
+            for sc in &p.scatter {
+                for (x, y) in sc.points.iter().filter(|(x, y)| x.is_finite() && y.is_finite()) {
+                    let (cx, cy) = (f.px(*x).round() as i64, f.py(*y).round() as i64);
+                    for (dx, dy) in [(0, 0), (1, 0), (0, 1), (-1, 0), (0, -1)] {
+                        img.set(cx + dx, cy + dy, sc.color);
+                    }
                 }
             }
             for l in &p.lines {

@@ -163,6 +163,7 @@ impl Trace {
                 marks: vec![],
                 equal: false,
                 lines: vec![Line { points: series(&j.commanded), color: BLUE, width: 3 }, Line { points: series(&j.measured), color: ORANGE, width: 1 }],
+                scatter: vec![],
             });
             let err: Vec<f64> = j.measured.iter().zip(&j.commanded).map(|(m, c)| m - c).collect();
             panels.push(Panel {
@@ -173,6 +174,7 @@ impl Trace {
                 marks: vec![],
                 equal: false,
                 lines: vec![Line { points: series(&err), color: GREEN, width: 1 }],
+                scatter: vec![],
             });
         }
         Figure { title: title.into(), panels, columns: 2, panel_size: (480, 200) }

@@ -4,17 +4,20 @@
 //! - [`generate`]: recordings with a hidden effect and their answers (`dvrk synth hidden-effect`),
 //!   on an exciting multi-sine ([`excitation`]);
 //! - [`joint_log`]: setpoints, encoder positions and efforts read from (written to) a recording;
+//!   [`csv_log`] the same as plain CSV;
 //! - [`signals`]: filtering, the noise floor and the nominal model's effort;
 //! - [`candidates`]: each candidate effect's signature from the model itself;
 //! - [`stats`]: bounded fits, effective sample size, chi-square tails;
 //! - [`workflow`]: fit, score, hold out, verdict ([`discrepancy`]); [`report`] its JSON;
-//! - [`tracking`]: the setpoints replayed through the simulator, before and after.
+//! - [`tracking`]: the setpoints replayed through the simulator, before and after;
+//! - [`plot`]: the residual before and after against time, velocity, load and position.
 //!
 //! Channels: torque (measured effort against inverse dynamics at the measured motion) carries
 //! the evidence; tracking is replayed for the before/after gap. The kinematic channel (a tracker
 //! on the link) is not implemented yet.
 
 pub mod candidates;
+pub mod csv_log;
 pub mod drive;
 pub mod excitation;
 pub mod fit;
@@ -23,6 +26,7 @@ pub mod joint_log;
 pub mod kinematic;
 pub mod markers;
 pub mod nuisance;
+pub mod plot;
 pub mod registration;
 pub mod repeat;
 pub mod report;
@@ -35,6 +39,7 @@ pub mod workflow;
 pub use generate::{hidden_effect, Answer, Hidden, HiddenOptions, HiddenRecording};
 pub use joint_log::JointLog;
 pub use nuisance::InertiaPrior;
+pub use plot::Residuals;
 pub use repeat::{discrepancy_repeated, Repeated};
 pub use report::Report;
 pub use workflow::{discrepancy, Options, Outcome};

@@ -4,6 +4,7 @@
 
 use super::generate::with_effect;
 use super::joint_log::JointLog;
+use super::plot::Residuals;
 use super::report::{Report, StepReport};
 use super::workflow::{discrepancy, Options};
 use crate::error::Result;
@@ -19,6 +20,8 @@ pub struct Repeated {
     pub report: Report,
     pub model: Model,
     pub named: Vec<EffectSpec>,
+    /// The first round's residual before and the last round's after, for the plot.
+    pub residuals: Residuals,
 }
 
 /// Run [`discrepancy`] up to `max_rounds` times, each round on the model with the effects named
@@ -27,6 +30,7 @@ pub fn discrepancy_repeated(model: &Model, scene: &Scene, arm: &str, log: &Joint
     let mut current = model.clone();
     let mut named: Vec<EffectSpec> = Vec::new();
     let mut report: Option<Report> = None;
+    let mut residuals: Option<Residuals> = None;
     let mut steps = Vec::new();
     let quiet = Options { tracking: false, ..o.clone() };
     for round in 1..=max_rounds.max(1) {
@@ -62,6 +66,10 @@ pub fn discrepancy_repeated(model: &Model, scene: &Scene, arm: &str, log: &Joint
             }
             None => report.insert(r.clone()),
         };
+        match residuals.as_mut() {
+            Some(res) => res.after = out.residuals.after,
+            None => residuals = Some(out.residuals),
+        }
         merged.rms_after = r.rms_after;
         merged.rms_heldout_after = r.rms_heldout_after;
         merged.raw_rms_heldout_after = r.raw_rms_heldout_after;
@@ -78,11 +86,13 @@ pub fn discrepancy_repeated(model: &Model, scene: &Scene, arm: &str, log: &Joint
         named.push(e);
         merged.verdict = "named".into();
     }
-    let mut report = report.expect("the first round is never a repeat");
+    let (Some(mut report), Some(residuals)) = (report, residuals) else {
+        return Err(crate::error::CalibError::data("discrepancy", "no round was analysed"));
+    };
     if o.tracking {
         let a = scene.arm_index(arm).map_err(|e| crate::error::CalibError::field("--arm", e.to_string()))?;
         report.tracking = Some(super::tracking::compare(scene, a, log, model, (!named.is_empty()).then_some(&current))?);
     }
     report.steps = steps;
-    Ok(Repeated { report, model: current, named })
+    Ok(Repeated { report, model: current, named, residuals })
 }

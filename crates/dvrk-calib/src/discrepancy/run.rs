@@ -9,14 +9,15 @@ use dvrk_kin::Model;
 use std::path::Path;
 
 /// The recording formats `dvrk discrepancy` reads.
-pub const FORMATS: [&str; 2] = ["mcap", "wpi-csv"];
+pub const FORMATS: [&str; 3] = ["mcap", "wpi-csv", "csv"];
 
-/// Read `path` in `format` for `model`'s arm `arm`.
-pub fn read_log(path: &Path, format: &str, model: &Model, arm: &str) -> Result<JointLog> {
+/// Read `path` in `format` for `model`'s arm `arm`; with what the reader assumed (notes for the
+/// report).
+pub fn read_log(path: &Path, format: &str, model: &Model, arm: &str) -> Result<(JointLog, Vec<String>)> {
     match format {
-        "mcap" => joint_log::read_mcap(path, arm),
-        "wpi-csv" => joint_log::read_wpi_csv(path, model),
-        "csv" => Err(CalibError::field("--format", "csv: not read by dvrk discrepancy yet (use mcap or wpi-csv)")),
+        "mcap" => Ok((joint_log::read_mcap(path, arm)?, Vec::new())),
+        "wpi-csv" => Ok((joint_log::read_wpi_csv(path, model)?, vec![format!("{}: {}", path.display(), super::csv_log::NO_SETPOINTS)])),
+        "csv" => super::csv_log::read(path, model).map(|c| (c.log, c.notes)),
         other => Err(CalibError::field("--format", format!("`{other}` is not a format; valid: {}", FORMATS.join(", ")))),
     }
 }
@@ -30,9 +31,9 @@ pub struct MarkerSource {
 }
 
 /// The repeated workflow on recording `path` of arm `arm` against `model`, with the tracked
-/// marker `marker` if given.
+/// marker `marker` if given; the reader's notes lead the report's.
 pub fn run(path: &Path, format: &str, model: &Model, arm: &str, marker: Option<&MarkerSource>, options: &Options, max_rounds: usize) -> Result<Repeated> {
-    let mut log = read_log(path, format, model, arm)?;
+    let (mut log, notes) = read_log(path, format, model, arm)?;
     if let Some(m) = marker {
         let frame = super::markers::marker_frame(model, &m.link)?;
         log.markers = Some(match format {
@@ -41,5 +42,7 @@ pub fn run(path: &Path, format: &str, model: &Model, arm: &str, marker: Option<&
         });
     }
     let scene = super::scene_for_arm(arm)?;
-    discrepancy_repeated(model, &scene, arm, &log, options, max_rounds).map_err(|e| CalibError::data(path.display().to_string(), e.to_string()))
+    let mut out = discrepancy_repeated(model, &scene, arm, &log, options, max_rounds).map_err(|e| CalibError::data(path.display().to_string(), e.to_string()))?;
+    out.report.notes.splice(0..0, notes);
+    Ok(out)
 }

@@ -8,6 +8,7 @@ use super::candidates::{self, Candidate, Table};
 use super::fit::{per_joint_ratio, Fitter, Rows};
 use super::joint_log::JointLog;
 use super::nuisance::{InertiaPrior, Nuisance};
+use super::plot::Residuals;
 use super::report::{CandidateReport, EffectReport, JointRms, Report};
 use super::signals::{prepare, Predictor, Prepared, Processing};
 use super::stats::{chi2_sf, effective_fraction};
@@ -63,6 +64,8 @@ impl Default for Options {
 pub struct Outcome {
     pub report: Report,
     pub named: Option<EffectSpec>,
+    /// The band-limited residual before and after, for the plot (not in the report).
+    pub residuals: Residuals,
 }
 
 /// Scores of one candidate.
@@ -582,6 +585,22 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
             band_rms_heldout_after: rms(&f1, k, ho.clone()),
         })
         .collect();
+    let column = |tab: &Table, k: usize| tab.iter().map(|row| row[k]).collect::<Vec<f64>>();
+    let per_joint = |tab: &Table| prep.active.iter().map(|&k| column(tab, k)).collect::<Vec<_>>();
+    let prismatic = |k: usize| arm.model.joints[k].kind == dvrk_kin::JointType::Prismatic;
+    let residuals = Residuals {
+        joints: prep.active.iter().map(|&k| arm.model.joints[k].name.clone()).collect(),
+        units: prep.active.iter().map(|&k| if prismatic(k) { "N" } else { "N·m" }).collect(),
+        position_units: prep.active.iter().map(|&k| if prismatic(k) { "m" } else { "rad" }).collect(),
+        t: prep.t.clone(),
+        q: per_joint(&prep.q),
+        qd: per_joint(&prep.qd),
+        load: per_joint(&before),
+        before: per_joint(&f0),
+        after: per_joint(&f1),
+        floor: prep.active.iter().map(|&k| prep.floor[k]).collect(),
+        heldout_from: prep.t[prep.split],
+    };
     let tracking = match o.tracking {
         true => Some(super::tracking::compare(&scene, a, log, model, named.as_ref().map(|e| super::generate::with_effect(model, e)).transpose()?.as_ref())?),
         false => None,
@@ -613,5 +632,5 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
         },
         steps: Vec::new(),
     };
-    Ok(Outcome { report, named })
+    Ok(Outcome { report, named, residuals })
 }

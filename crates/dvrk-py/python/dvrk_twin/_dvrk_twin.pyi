@@ -229,11 +229,17 @@ def discrepancy(
     model: str = "psm",
     arm: str = "PSM1",
     tracking: bool = True,
+    format: str = "mcap",
+    max_rounds: int = 4,
+    plot: Optional[Union[str, "os.PathLike[str]"]] = None,
 ) -> Dict[str, Any]:
-    """The discrepancy workflow (``dvrk discrepancy``) on an MCAP recording with
-    ``/<arm>/setpoint_js`` and ``/<arm>/measured_js`` (efforts): which physical effect the model
-    lacks; the report as a dict (``verdict`` named/none/ambiguous, ``effects`` with parameters,
-    95% intervals, delta BIC and p-values, ``candidates``, RMS before/after, ``noise_floor``)."""
+    """The discrepancy workflow (``dvrk discrepancy``) on a recording: ``format`` "mcap"
+    (``/<arm>/setpoint_js`` and ``/<arm>/measured_js`` with efforts), "wpi-csv" or "csv"
+    (``time``, ``q1..qN``, ``tau1..tauN``, optional ``setpoint1..setpointN``): which physical
+    effect the model lacks, named and added to the model up to ``max_rounds`` times; the report as
+    a dict (``verdict`` named/none/ambiguous, ``effects`` with parameters, 95% intervals, delta BIC
+    and p-values, ``candidates``, RMS before/after, ``noise_floor``, ``steps``). ``plot`` (.png or
+    .svg): the residual before and after against time, velocity, load and position."""
 
 def synth_hidden_effect(
     path: Union[str, "os.PathLike[str]"],
@@ -242,6 +248,6 @@ def synth_hidden_effect(
     scene: str = "psm",
     duration: float = 30.0,
 ) -> Dict[str, Any]:
-    """``dvrk synth hidden-effect``: write an MCAP recording (``/<arm>/setpoint_js``,
-    ``/<arm>/measured_js`` with efforts) simulated with one hidden effect (a vocabulary name,
-    ``none`` or ``random``); returns the answer (effect, parameters, effect-to-noise ratio)."""
+    """``dvrk synth hidden-effect``: write a recording (plain CSV for a .csv path, else MCAP with
+    ``/<arm>/setpoint_js``, ``/<arm>/measured_js`` with efforts) simulated with one hidden effect
+    (a vocabulary name, ``none`` or ``random``); returns the answer (effect, parameters, effect-to-noise ratio)."""
