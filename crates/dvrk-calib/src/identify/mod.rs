@@ -1,7 +1,7 @@
 //! Dynamic identification from joint recordings with efforts (`dvrk identify`): the inertial
-//! parameters of every body of a closed-loop model together with friction, effort offsets,
-//! reflected motor inertia and cable springs, fitted with physical consistency (each body's
-//! pseudo-inertia positive semidefinite) and a pull toward the CAD prior.
+//! parameters of every body of a closed-loop model together with friction (Coulomb, viscous,
+//! presliding), effort offsets, reflected motor inertia and springs, fitted with physical
+//! consistency (each body's pseudo-inertia positive semidefinite) and a pull toward the CAD prior.
 //!
 //! The regression is dvrk-kin's closed-loop regressor (exact for the affine loops) mapped to the
 //! recorded channels (`tau_channel = to_joint^T tau_joint`), plus per-channel effect columns;
