@@ -1,8 +1,9 @@
 //! Identification on the WPI recordings (scratch ablation driver; the CLI is `dvrk identify`).
 //! Env: EFFECTS (rigid|friction|all, default all), JF (joints with joint friction, `4,5,6`),
 //! CUT (per-channel cut-offs), VSC (per-channel Coulomb velocities), STRIBECK (1), G (gravity),
-//! SPRING (spring channels). Prints the fit on `one`, the two-fold cross-validation within `one`
-//! (the figure settings are chosen by) and the held-out error on `two`.
+//! SPRING (spring channels), DAHL (presliding channels), SIG (their presliding displacements).
+//! Prints the fit on `one`, the two-fold cross-validation within `one` (the figure settings are
+//! chosen by) and the held-out error on `two`.
 use dvrk_calib::identify::problem::EffectTerm;
 use dvrk_calib::identify::{identify, read_wpi_csv, IdentifyOptions, TorqueRecording};
 use std::path::Path;
@@ -34,6 +35,16 @@ fn main() {
     // WIND: channels with the position-dependent (winding) Coulomb friction.
     if let Some(w) = list("WIND") {
         o.terms.winding_channels = w.iter().map(|x| *x as usize).collect();
+    }
+    // DAHL: channels with presliding (Dahl) friction; SIG: their presliding displacements.
+    if let Some(w) = list("DAHL") {
+        o.terms.dahl_channels = w.iter().map(|x| *x as usize).collect();
+    }
+    if let Some(s) = list("SIG") {
+        o.processing.channel_dahl_displacement = s;
+    }
+    if let (Ok("psm"), Some(sp)) = (std::env::var("BASE").as_deref(), list("SPRING")) {
+        o.terms.spring_channels = sp.iter().map(|x| *x as usize).collect();
     }
     if let Some(j) = list("JF") {
         o.terms.joint_friction = j.iter().map(|x| *x as usize).collect();

@@ -41,7 +41,7 @@ pub fn steps(options: &IdentifyOptions) -> Vec<(String, IdentifyOptions)> {
     if has(EffectTerm::Spring) && !options.terms.spring_channels.is_empty() {
         o.terms.effects.push(EffectTerm::Spring);
         o.terms.spring_channels = options.terms.spring_channels.clone();
-        out.push(("+ tool cable springs".into(), o.clone()));
+        out.push(("+ springs".into(), o.clone()));
     }
     if has(EffectTerm::Stribeck) {
         o.terms.effects.push(EffectTerm::Stribeck);
@@ -66,6 +66,10 @@ pub fn steps(options: &IdentifyOptions) -> Vec<(String, IdentifyOptions)> {
     if !options.terms.winding_channels.is_empty() {
         o.terms.winding_channels = options.terms.winding_channels.clone();
         out.push(("+ winding friction (Coulomb level growing with position^2)".into(), o.clone()));
+    }
+    if !options.terms.dahl_channels.is_empty() {
+        o.terms.dahl_channels = options.terms.dahl_channels.clone();
+        out.push(("+ presliding (Dahl) friction".into(), o.clone()));
     }
     // Whatever differs still (terms in another order): the chosen options as the last row.
     if o != *options {

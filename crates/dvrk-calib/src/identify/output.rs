@@ -6,7 +6,8 @@
 //! What goes in as effects, per term of a channel that *is* a model joint (its `to_joint` row and
 //! column are the identity: yaw, pitch, insertion, roll), and per joint-space friction term:
 //! `coulomb_friction` (fc with the smoothing it was fitted with, offset), `viscous_friction`
-//! (fv), `spring` (k, rest 0). A constant effort offset of a coupled channel (the tool's
+//! (fv), `spring` (k, rest 0); the presliding (Dahl) level joins the Coulomb one (it is the
+//! velocity's sign once the joint slides) and is listed in the notes. A constant effort offset of a coupled channel (the tool's
 //! actuators) maps exactly onto the joints (`offset_joint = to_joint^-T offset_channel`) and
 //! joins their `coulomb_friction` offsets. The other terms of coupled channels act on actuator
 //! velocities and positions, which mix several joints (`q_actuator = to_joint^-1 q_joint`): a
@@ -47,8 +48,8 @@ fn channel_joint(to_joint: &DMatrix<f64>, c: usize) -> Option<usize> {
 
 fn unit(term: EffectTerm, prismatic: bool) -> &'static str {
     match (term, prismatic) {
-        (EffectTerm::Coulomb | EffectTerm::Offset | EffectTerm::Stribeck, false) => "N·m",
-        (EffectTerm::Coulomb | EffectTerm::Offset | EffectTerm::Stribeck, true) => "N",
+        (EffectTerm::Coulomb | EffectTerm::Offset | EffectTerm::Stribeck | EffectTerm::Dahl, false) => "N·m",
+        (EffectTerm::Coulomb | EffectTerm::Offset | EffectTerm::Stribeck | EffectTerm::Dahl, true) => "N",
         (EffectTerm::Viscous, false) => "N·m s/rad",
         (EffectTerm::Viscous, true) => "N s/m",
         (EffectTerm::Armature, false) => "kg m^2",
@@ -141,6 +142,15 @@ pub fn identified_model(model: &Model, id: &Identification, processing: &Process
             EffectTerm::Armature => {
                 armature[j] = Some(value);
                 not_expressed.push(format!("{} = {value:.6} {} (reflected motor inertia: a scene armature, not a model effect)", id.estimates[i].name, unit(term, prismatic(j))));
+            }
+            // No presliding in the vocabulary: once the joint slides the Dahl state is the
+            // velocity's sign, so its level adds to the Coulomb one (the simulator then feels the
+            // sliding friction the recording did, and turns it over within a velocity instead).
+            EffectTerm::Dahl => {
+                let e = by_joint.entry((j, "coulomb_friction")).or_default();
+                *e.entry("fc".into()).or_default() += value;
+                e.entry("smoothing".into()).or_insert(smoothing);
+                not_expressed.push(format!("{} = {value:.6} {} (presliding friction: added to the Coulomb level)", id.estimates[i].name, unit(term, prismatic(j))));
             }
             // No Stribeck or position-dependent friction in the vocabulary.
             EffectTerm::Stribeck | EffectTerm::Winding => not_expressed.push(format!("{} = {value:.6} {}", id.estimates[i].name, unit(term, prismatic(j)))),

@@ -31,6 +31,13 @@ pub enum EffectTerm {
     /// smoothed velocity sign (N·m/rad^2; N/m^2 for the insertion): cables that tighten as the
     /// joint winds away from its zero.
     Winding,
+    /// Presliding (Dahl) friction `fd` (N·m, N) times the Dahl state `z` in [-1, 1], which
+    /// follows the channel's position, `dz/dq = (1 - z sgn(dq)) / sigma`
+    /// ([`Processing::dahl_displacement_of`] sigma): the cables stretch over the pulleys before
+    /// they slip, so after a reversal the friction turns over within a displacement, however
+    /// slowly the channel moves, where the Coulomb term's `tanh(v / vc)` turns over within a
+    /// velocity.
+    Dahl,
 }
 
 impl EffectTerm {
@@ -47,6 +54,7 @@ impl EffectTerm {
             EffectTerm::Spring => "k",
             EffectTerm::Stribeck => "fs",
             EffectTerm::Winding => "fq",
+            EffectTerm::Dahl => "fd",
         }
     }
 
@@ -73,6 +81,8 @@ pub struct Terms {
     pub cross: Vec<(usize, usize, EffectTerm)>,
     /// Channels that get the position-dependent Coulomb term [`EffectTerm::Winding`].
     pub winding_channels: Vec<usize>,
+    /// Channels that get the presliding term [`EffectTerm::Dahl`].
+    pub dahl_channels: Vec<usize>,
 }
 
 /// One unknown of the regression.
@@ -111,6 +121,7 @@ impl Layout {
             }
         }
         params.extend(terms.winding_channels.iter().map(|&channel| Param::Effect { term: EffectTerm::Winding, channel }));
+        params.extend(terms.dahl_channels.iter().map(|&channel| Param::Effect { term: EffectTerm::Dahl, channel }));
         for &joint in &terms.joint_friction {
             params.extend([EffectTerm::Coulomb, EffectTerm::Viscous].map(|term| Param::Joint { term, joint }));
         }
@@ -154,6 +165,11 @@ pub struct Processing {
     pub channel_coulomb_velocity: Vec<f64>,
     /// Velocity below which the Stribeck term acts (rad/s, m/s).
     pub stribeck_velocity: f64,
+    /// Presliding displacement `sigma` of the Dahl term (rad, m): the travel after a reversal
+    /// over which its friction turns over (to 1 - 1/e).
+    pub dahl_displacement: f64,
+    /// Per-channel presliding displacements overriding `dahl_displacement`; empty: that everywhere.
+    pub channel_dahl_displacement: Vec<f64>,
     /// Gravity in the model's world frame (m/s^2).
     pub gravity: Vector3<f64>,
     /// Samples dropped at each end (filter edge transients).
@@ -168,6 +184,8 @@ impl Default for Processing {
             coulomb_velocity: 0.01,
             channel_coulomb_velocity: Vec::new(),
             stribeck_velocity: 0.05,
+            dahl_displacement: 0.01,
+            channel_dahl_displacement: Vec::new(),
             gravity: Vector3::new(0.0, 0.0, -9.81),
             trim: 100,
         }
@@ -184,6 +202,31 @@ impl Processing {
     pub fn coulomb_velocity_of(&self, c: usize) -> f64 {
         self.channel_coulomb_velocity.get(c).copied().unwrap_or(self.coulomb_velocity)
     }
+
+    /// The presliding displacement (rad, m) of channel `c`.
+    pub fn dahl_displacement_of(&self, c: usize) -> f64 {
+        self.channel_dahl_displacement.get(c).copied().unwrap_or(self.dahl_displacement)
+    }
+}
+
+/// The Dahl state along positions `q` (rad, m) for presliding displacement `sigma`: starts at
+/// 0, and each step `dq` moves it toward `sgn(dq)` by the exact solution of
+/// `dz/dq = (1 - z sgn(dq)) / sigma`, `z <- s + (z - s) exp(-|dq| / sigma)`, so it stays in [-1, 1].
+/// It is computed over the whole recording, before the trim, so the trimmed ends forget the start.
+pub fn dahl_state(q: &[f64], sigma: f64) -> Vec<f64> {
+    let mut z = 0.0;
+    let mut prev = q.first().copied().unwrap_or(0.0);
+    q.iter()
+        .map(|&x| {
+            let dq = x - prev;
+            prev = x;
+            if dq != 0.0 {
+                let s = dq.signum();
+                z = s + (z - s) * (-dq.abs() / sigma).exp();
+            }
+            z
+        })
+        .collect()
 }
 
 /// A recording as a regression: per channel, `y[c]` (samples x parameters) and the efforts.
@@ -219,6 +262,10 @@ pub fn regression(model: &Model, rec: &TorqueRecording, layout: &Layout, process
         if !(vc > 0.0 && vc.is_finite()) {
             return Err(CalibError::field("coulomb_velocity", format!("{vc} (channel {}) must be positive", rec.channels[c])));
         }
+        let sigma = processing.dahl_displacement_of(c);
+        if !(sigma > 0.0 && sigma.is_finite()) {
+            return Err(CalibError::field("dahl_displacement", format!("{sigma} (channel {}) must be positive", rec.channels[c])));
+        }
     }
     // Each channel through its own cut-off: the insertion's effort carries real 10..20 Hz
     // content that the wrist's noisier velocities do not.
@@ -230,6 +277,8 @@ pub fn regression(model: &Model, rec: &TorqueRecording, layout: &Layout, process
     let qd_f: Vec<Vec<f64>> = (0..nc).map(|c| filtered(&rec.qd, c)).collect();
     let qdd_f: Vec<Vec<f64>> = qd_f.iter().map(|v| derivative(v, dt)).collect();
     let tau_f: Vec<Vec<f64>> = (0..nc).map(|c| filtered(&rec.tau, c)).collect();
+    // The presliding state along the recorded (unfiltered: encoder) positions, where asked for.
+    let dahl: Vec<Vec<f64>> = (0..nc).map(|c| if layout.params.contains(&Param::Effect { term: EffectTerm::Dahl, channel: c }) { dahl_state(&column(&rec.q, c), processing.dahl_displacement_of(c)) } else { Vec::new() }).collect();
     let keep = processing.trim..n - processing.trim;
     let rows = keep.len();
     let p = layout.len();
@@ -268,6 +317,7 @@ pub fn regression(model: &Model, rec: &TorqueRecording, layout: &Layout, process
                         EffectTerm::Spring => rec.q[i][channel],
                         EffectTerm::Stribeck => (v / vc).tanh() * (-(v / processing.stribeck_velocity).powi(2)).exp(),
                         EffectTerm::Winding => (v / vc).tanh() * rec.q[i][channel].powi(2),
+                        EffectTerm::Dahl => dahl[channel][i],
                     };
                 }
                 Param::Joint { term, joint } => {

@@ -29,6 +29,7 @@ fn effect_name(term: EffectTerm) -> &'static str {
         EffectTerm::Spring => "spring",
         EffectTerm::Stribeck => "stribeck_friction",
         EffectTerm::Winding => "winding_friction",
+        EffectTerm::Dahl => "presliding_friction",
     }
 }
 

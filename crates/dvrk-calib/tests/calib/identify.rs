@@ -60,17 +60,13 @@ fn real_psm_recordings_identify_physically_and_predict_the_held_out_one() {
             id.body_inertia(b, &body.name).unwrap();
         }
     }
-    // Measured 0.070 0.138 0.195 0.170 0.239 0.217 0.267: at or below the published figures on
-    // yaw, pitch and wrist pitch (0.2390 against 0.239); insertion, roll, wrist yaw and jaw are
-    // 2%, 27%, 2% and 1% above them. The effects matter on every channel.
+    // Measured 0.054 0.108 0.184 0.171 0.107 0.144 0.166: at or below the published figures on
+    // every channel but the roll, 28% above them (the authors' own published roll parameters
+    // give 0.170 on `two` with this metric, against the recorded efforts unfiltered). The effects
+    // matter on every channel.
     for c in 0..7 {
         assert!(held_out[c] < 0.75 * rigid_held_out[c], "channel {c}: {} vs rigid {}", held_out[c], rigid_held_out[c]);
-        let bound = match c {
-            0 | 1 => PUBLISHED[c],
-            4 => PUBLISHED[c] + 0.0005,
-            3 => 1.3 * PUBLISHED[c],
-            _ => 1.03 * PUBLISHED[c],
-        };
+        let bound = if c == 3 { 1.3 * PUBLISHED[c] } else { PUBLISHED[c] };
         assert!(held_out[c] <= bound, "channel {c}: {} vs published {} (bound {bound})", held_out[c], PUBLISHED[c]);
     }
     // Friction of the first three joints agrees with the original authors' own identification
@@ -92,7 +88,7 @@ fn real_psm_recordings_identify_physically_and_predict_the_held_out_one() {
     }
     // The ablation ends at the chosen options with the same figures.
     let rows = dvrk_calib::identify::ablation::ablation(&model, &prior, &r1, Some(&r2), &options).unwrap();
-    assert_eq!(rows.len(), 9);
+    assert_eq!(rows.len(), 10);
     assert_eq!(rows.last().unwrap().validation.as_ref().unwrap(), &held_out);
     assert_eq!(rows[0].validation.as_ref().unwrap().len(), 7);
 }
@@ -117,8 +113,8 @@ fn bad_wpi_files_name_the_line_and_column() {
 /// weak feedback (0.3 x the scene's kp, kd), follows `two`'s motion better than the CAD model on
 /// every joint, whether the CAD scene runs its own 12 Gauss-Seidel sweeps or the identified
 /// scene's 30. Measured (RMS, CAD 12 sweeps / CAD 30 sweeps -> identified): yaw 0.0331 / 0.0320
-/// -> 0.0071 rad, pitch 0.086 / 0.090 -> 0.024 rad, insertion 6.5 / 6.5 -> 1.7 mm, roll 0.0261
-/// -> 0.0250, wrist pitch 0.0213 -> 0.0206, wrist yaw 0.0201 -> 0.0190, jaw 0.0205 -> 0.0121
+/// -> 0.0076 rad, pitch 0.086 / 0.090 -> 0.024 rad, insertion 6.5 / 6.5 -> 1.9 mm, roll 0.0261
+/// -> 0.0250, wrist pitch 0.0213 -> 0.0209, wrist yaw 0.0201 -> 0.0188, jaw 0.0205 -> 0.0115
 /// rad (the wrist gains come from the tool actuators' offsets, mapped onto the joints).
 ///
 /// Regression guard: at the scene's 12 sweeps the identified yaw stuck at zero velocity for
@@ -172,13 +168,14 @@ fn identify_output_is_a_model_file_the_simulator_loads() {
         let p = &id.theta.as_slice()[b * 10..b * 10 + 4];
         assert!((file.mass - p[0]).abs() <= 1e-12 * p[0] && (file.com * file.mass - nalgebra::Vector3::new(p[1], p[2], p[3])).norm() < 1e-12, "{}", body.name);
     }
-    // Yaw friction at 0.5 rad/s: the model's effort is the identified fc tanh(v / vc) + fo + fv v.
+    // Yaw friction at 0.5 rad/s: the model's effort is the identified (fc + fd) tanh(v / vc) + fo
+    // + fv v (the presliding level fd joins the Coulomb one: the vocabulary has no presliding).
     let est = |name: &str| id.estimates.iter().find(|e| e.name == name).unwrap().value;
     let mut tau = vec![0.0; 7];
     let mut qd = vec![0.0; 7];
     qd[0] = 0.5;
     dvrk_kin::effects::effort(&loaded.effects, &loaded.home(), &qd, 0.0, &mut tau);
-    let expected = est("outer_yaw.fc") * (0.5 / options.processing.coulomb_velocity_of(0)).tanh() + est("outer_yaw.fo") + est("outer_yaw.fv") * 0.5;
+    let expected = (est("outer_yaw.fc") + est("outer_yaw.fd")) * (0.5 / options.processing.coulomb_velocity_of(0)).tanh() + est("outer_yaw.fo") + est("outer_yaw.fv") * 0.5;
     assert!((-tau[0] - expected).abs() < 1e-12, "{} vs {expected}", -tau[0]);
     // The wrist actuators' offsets, mapped to joints (to_joint^-T fo), are the wrist joints' offsets.
     let offsets = nalgebra::DVector::from_fn(7, |c, _| if c >= 4 { est(&format!("{} actuator.fo", model.joints[c].name)) } else { 0.0 });
@@ -188,6 +185,7 @@ fn identify_output_is_a_model_file_the_simulator_loads() {
         assert!((e.parameters["offset"] - joint_offsets[j]).abs() < 1e-12, "joint {j}: {:?} vs {}", e.parameters, joint_offsets[j]);
     }
     assert!(loaded.spec.notes.contains("outer_wrist_yaw actuator.fv = "), "the actuator friction is listed: {}", loaded.spec.notes);
+    assert!(loaded.spec.notes.contains("outer_yaw.fd = "), "the presliding friction is listed: {}", loaded.spec.notes);
     // In the simulator, as `dvrk sim --model PSM1=FILE` puts it.
     let base = dvrk_sim::Scene::load("psm").unwrap();
     let mut from_file = base.clone();
