@@ -137,7 +137,7 @@ pub struct KinematicChannel {
 
 /// `[x, y, z, rotation vector]` of a pose (m, rad).
 fn pose6(p: &Pose) -> [f64; 6] {
-    let (t, w) = (p.translation.vector, p.rotation.scaled_axis());
+    let (t, w) = (p.translation.vector, dvrk_kin::so3::log(&p.rotation));
     [t.x, t.y, t.z, w.x, w.y, w.z]
 }
 

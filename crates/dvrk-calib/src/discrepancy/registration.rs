@@ -25,7 +25,8 @@ pub fn pose_exp(x: &Vector6<f64>) -> Pose {
 /// `[position difference (m); rotation vector of a * b^-1 (rad)]`, both in the outer frame.
 pub fn pose_difference(a: &Pose, b: &Pose) -> Vector6<f64> {
     let dp = a.translation.vector - b.translation.vector;
-    let dr = (a.rotation * b.rotation.inverse()).scaled_axis();
+    // so3::log stays accurate for the tiny rotations of finite differences.
+    let dr = dvrk_kin::so3::log(&(a.rotation * b.rotation.inverse()));
     Vector6::new(dp.x, dp.y, dp.z, dr.x, dr.y, dr.z)
 }
 
@@ -105,7 +106,7 @@ impl Registration {
         for &(i, k) in &pairs {
             let a = m[i] * m[k].inverse();
             let b = f[i] * f[k].inverse();
-            let (wa, wb) = (a.rotation.scaled_axis(), b.rotation.scaled_axis());
+            let (wa, wb) = (dvrk_kin::so3::log(&a.rotation), dvrk_kin::so3::log(&b.rotation));
             // Small or near-pi rotations carry no usable axis.
             if wb.norm() > 0.02 && wb.norm() < 3.0 {
                 h += wa * wb.transpose();
