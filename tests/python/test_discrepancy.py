@@ -37,3 +37,20 @@ def test_a_csv_log_is_analysed_and_the_residual_plotted(tmp_path):
     with pytest.raises(dvrk_twin.DvrkError, match="--plot"):
         dvrk_twin.discrepancy(rec, format="csv", plot=tmp_path / "residual.txt")
     assert not (tmp_path / "residual.txt").exists()
+
+
+def test_a_tracked_marker_adds_the_kinematic_channel(tmp_path):
+    """A hidden encoder offset with a tracker on the tool shaft: named with both channels'
+    evidence, and the tracker's held-out residual falls to its noise."""
+    rec = tmp_path / "tracked.mcap"
+    answer = dvrk_twin.synth_hidden_effect(rec, effect="joint_offset", seed=3, duration=12.0, marker_link="tool_roll")
+    report = dvrk_twin.discrepancy(rec, tracking=False, max_rounds=1, marker_topic=answer["marker_topic"], marker_link="tool_roll")
+    assert report["channel"] == "torque+kinematic"
+    assert report["verdict"] == "named"
+    assert report["effects"][0]["name"] == "joint_offset"
+    truth = answer["effects"][0]["parameters"]["offset"]
+    assert abs(report["effects"][0]["parameters"]["offset"] - truth) < 0.02 * abs(truth)
+    kin = report["kinematic"]
+    assert kin["rms_heldout_before"] > 3.0 and kin["rms_heldout_after"] < 1.3, kin
+    with pytest.raises(dvrk_twin.DvrkError, match="marker_link"):
+        dvrk_twin.discrepancy(rec, marker_topic=answer["marker_topic"])

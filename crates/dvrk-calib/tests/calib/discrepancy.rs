@@ -28,6 +28,7 @@ fn main_parameter(kind: &str) -> &'static str {
         "joint_offset" => "offset",
         "payload_mass" => "mass",
         "joint_compliance" => "stiffness",
+        "link_length" => "a",
         _ => "b",
     }
 }
@@ -125,22 +126,35 @@ fn joint_logs_round_trip_and_bad_recordings_are_refused() {
 
 /// The detection-rate table: TRIALS seeded trials per class at ENR drawn in [3, 8], and
 /// effect-free trials. `DVRK_TRIALS=60 cargo test --release -p dvrk-calib --test calib
-/// detection_rate_table -- --ignored --nocapture` (about 9 s a trial).
+/// detection_rate_table -- --ignored --nocapture` (about 9 s a trial). `DVRK_TRACKER=1` adds a
+/// tracked marker on the tool shaft (the kinematic channel; link_length joins the classes),
+/// `DVRK_KINDS=backlash,latency` picks classes.
 #[test]
 #[ignore]
 fn detection_rate_table() {
     let trials: u64 = std::env::var("DVRK_TRIALS").ok().and_then(|s| s.parse().ok()).unwrap_or(10);
-    let kinds = HIDDEN_KINDS;
-    println!("| class | trials | named correctly | named wrong | ambiguous | none | CI covers | held-out after / band floor (median) | raw held-out after / noise (median) |");
-    println!("|---|---|---|---|---|---|---|---|---|");
+    let tracker = std::env::var("DVRK_TRACKER").is_ok_and(|v| v == "1");
+    let mut kinds: Vec<EffectKind> = HIDDEN_KINDS.to_vec();
+    if tracker {
+        kinds.extend(dvrk_calib::discrepancy::generate::TRACKED_KINDS);
+    }
+    if let Ok(list) = std::env::var("DVRK_KINDS") {
+        kinds.retain(|k| list.split(',').any(|n| n.trim() == k.name()));
+    }
+    let make = |hidden: Hidden, seed: u64, enr: Option<f64>| {
+        let marker = tracker.then(dvrk_calib::discrepancy::generate::MarkerOptions::default);
+        hidden_effect("psm", &HiddenOptions { hidden, seed, enr, duration: 30.0, marker, ..Default::default() }).unwrap()
+    };
+    println!("| class | trials | named correctly | named wrong | ambiguous | none | CI covers | held-out after / band floor (median) | raw held-out after / noise (median) | tracker held-out after / noise (median) |");
+    println!("|---|---|---|---|---|---|---|---|---|---|");
     for kind in kinds {
-        let (mut right, mut wrong, mut amb, mut none, mut covered, mut ratios, mut raw) = (0, 0, 0, 0, 0, Vec::new(), Vec::new());
+        let (mut right, mut wrong, mut amb, mut none, mut covered, mut ratios, mut raw, mut kin) = (0, 0, 0, 0, 0, Vec::new(), Vec::new(), Vec::new());
         for s in 0..trials {
             let enr = 3.0 + 5.0 * ((s * 7919) % 100) as f64 / 100.0;
-            let h = trial(Hidden::Kind(kind), 1000 + s, Some(enr), 30.0);
+            let h = make(Hidden::Kind(kind), 1000 + s, Some(enr));
             let r = analyse(&h, false).report;
             let truth = &h.answer.effects[0].spec;
-            let correct = r.verdict == "named" && r.effects[0].name == truth.name && r.effects[0].joint == truth.joint;
+            let correct = r.verdict == "named" && r.effects[0].name == truth.name && r.effects[0].joint == truth.joint && r.effects[0].link == truth.link.as_ref().map(|l| l.to_string());
             // One line a trial, for the detection-rate curve against ENR.
             println!("  trial {} enr {:.2} verdict {} correct {correct}", kind.name(), h.answer.effects[0].enr, r.verdict);
             match r.verdict.as_str() {
@@ -156,6 +170,7 @@ fn detection_rate_table() {
                         }
                         ratios.push(r.rms_heldout_after);
                         raw.push(r.raw_rms_heldout_after);
+                        kin.extend(r.kinematic.as_ref().map(|k| k.rms_heldout_after));
                     } else {
                         wrong += 1;
                         println!("  {} seed {}: named {} {:?} {:?}", kind.name(), 1000 + s, e.name, e.joint, e.link);
@@ -165,15 +180,16 @@ fn detection_rate_table() {
                 _ => none += 1,
             }
         }
-        ratios.sort_by(f64::total_cmp);
-        raw.sort_by(f64::total_cmp);
-        let median = ratios.get(ratios.len() / 2).copied().unwrap_or(f64::NAN);
-        let raw_median = raw.get(raw.len() / 2).copied().unwrap_or(f64::NAN);
-        println!("| {} | {trials} | {right} | {wrong} | {amb} | {none} | {covered}/{right} | {median:.2} | {raw_median:.3} |", kind.name());
+        let median = |v: &mut Vec<f64>| {
+            v.sort_by(f64::total_cmp);
+            v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
+        };
+        let (m, rm, km) = (median(&mut ratios), median(&mut raw), median(&mut kin));
+        println!("| {} | {trials} | {right} | {wrong} | {amb} | {none} | {covered}/{right} | {m:.2} | {rm:.3} | {km:.2} |", kind.name());
     }
     let mut alarms = 0;
     for s in 0..2 * trials {
-        let r = analyse(&trial(Hidden::None, 5000 + s, None, 30.0), false).report;
+        let r = analyse(&make(Hidden::None, 5000 + s, None), false).report;
         if r.verdict != "none" {
             alarms += 1;
             println!("  effect-free seed {}: {} {:?}", 5000 + s, r.verdict, r.candidates.first().map(|c| &c.label));

@@ -232,6 +232,8 @@ def discrepancy(
     format: str = "mcap",
     max_rounds: int = 4,
     plot: Optional[Union[str, "os.PathLike[str]"]] = None,
+    marker_topic: Optional[str] = None,
+    marker_link: Optional[str] = None,
 ) -> Dict[str, Any]:
     """The discrepancy workflow (``dvrk discrepancy``) on a recording: ``format`` "mcap"
     (``/<arm>/setpoint_js`` and ``/<arm>/measured_js`` with efforts), "wpi-csv" or "csv"
@@ -239,7 +241,9 @@ def discrepancy(
     effect the model lacks, named and added to the model up to ``max_rounds`` times; the report as
     a dict (``verdict`` named/none/ambiguous, ``effects`` with parameters, 95% intervals, delta BIC
     and p-values, ``candidates``, RMS before/after, ``noise_floor``, ``steps``). ``plot`` (.png or
-    .svg): the residual before and after against time, velocity, load and position."""
+    .svg): the residual before and after against time, velocity, load and position.
+    ``marker_topic`` and ``marker_link`` (frame name or the paper's number; MCAP): a tracked marker
+    on that link adds the kinematic channel (report key ``kinematic``)."""
 
 def synth_hidden_effect(
     path: Union[str, "os.PathLike[str]"],
@@ -247,7 +251,10 @@ def synth_hidden_effect(
     seed: int = 1,
     scene: str = "psm",
     duration: float = 30.0,
+    marker_link: Optional[str] = None,
 ) -> Dict[str, Any]:
     """``dvrk synth hidden-effect``: write a recording (plain CSV for a .csv path, else MCAP with
-    ``/<arm>/setpoint_js``, ``/<arm>/measured_js`` with efforts) simulated with one hidden effect
-    (a vocabulary name, ``none`` or ``random``); returns the answer (effect, parameters, effect-to-noise ratio)."""
+    ``/<arm>/setpoint_js``, ``/<arm>/measured_js`` with efforts) simulated with hidden effects
+    (a vocabulary name, two joined by ``+``, ``none``, ``random`` or ``random-pair``); with
+    ``marker_link`` a tracker on that link too (MCAP only). Returns the answer (``effects`` with
+    parameters and effect-to-noise ratios, ``marker_topic``)."""
