@@ -1,4 +1,4 @@
-//! One hidden-effect trial, printed: `cargo run --release -p dvrk-calib --example hidden_probe -- KIND SEED [ENR]`.
+//! One hidden-effect trial, printed: `[DVRK_PERTURB=0.03] cargo run --release -p dvrk-calib --example hidden_probe -- KIND SEED [ENR]`.
 use dvrk_calib::discrepancy::*;
 fn main() {
     let args: Vec<String> = std::env::args().collect();
@@ -6,7 +6,9 @@ fn main() {
     let seed: u64 = args.get(2).map(|s| s.parse().unwrap()).unwrap_or(3);
     let enr: Option<f64> = args.get(3).map(|s| s.parse().unwrap());
     let t0 = std::time::Instant::now();
-    let o = HiddenOptions { hidden, seed, enr, ..Default::default() };
+    // DVRK_PERTURB: the truth's relative inertia perturbation (default 0.03).
+    let inertia_perturbation = std::env::var("DVRK_PERTURB").ok().and_then(|s| s.parse().ok()).unwrap_or(0.03);
+    let o = HiddenOptions { hidden, seed, enr, inertia_perturbation, ..Default::default() };
     let h = hidden_effect("psm", &o).unwrap();
     println!("generate {:.2} s; answer {}", t0.elapsed().as_secs_f64(), serde_json::to_string(&h.answer).unwrap());
     let t1 = std::time::Instant::now();

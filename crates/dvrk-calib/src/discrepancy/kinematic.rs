@@ -142,8 +142,10 @@ fn pose6(p: &Pose) -> [f64; 6] {
 }
 
 impl KinematicChannel {
-    /// The channel's report, its "after" with the named effect where the tracker sees it.
-    pub fn report(&self, model: &Model, named: Option<&EffectSpec>, source: &str) -> KinematicReport {
+    /// The channel's report, its "after" with the named effect where the tracker sees it; a
+    /// candidate is `supported` by this channel alone when `strong(delta BIC, p-value, held-out
+    /// p-value, effect-to-noise)`.
+    pub fn report(&self, model: &Model, named: Option<&EffectSpec>, source: &str, strong: &dyn Fn(f64, f64, f64, f64) -> bool) -> KinematicReport {
         let after = named.and_then(|e| {
             let joint = e.joint.as_ref().and_then(|n| model.joints.iter().position(|j| &j.name == n));
             let link = e.link.as_ref().map(|l| l.to_string());
@@ -174,7 +176,7 @@ impl KinematicChannel {
                         effect: EffectReport { name: spec.name, joint: spec.joint, link: spec.link.map(|l| l.to_string()), parameters: spec.parameters, ci95, delta_bic: k.delta_bic, p_value: k.p_value },
                         heldout_p_value: k.heldout_p,
                         effect_to_noise: k.effect_to_noise,
-                        supported: k.delta_bic > 10.0 && k.p_value < 1e-3 && k.heldout_p < 0.01 && k.effect_to_noise >= 1.0,
+                        supported: strong(k.delta_bic, k.p_value, k.heldout_p, k.effect_to_noise),
                     }
                 })
                 .collect(),

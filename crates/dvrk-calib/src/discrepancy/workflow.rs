@@ -475,7 +475,10 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
         with_kinematic(&mut scored, kc, &arm.model, prep.t.len(), nq);
     }
     scored.sort_by(|x, y| y.score.delta_bic.total_cmp(&x.score.delta_bic));
-    let supported = |s: &Score| !s.at_edge && s.delta_bic > o.min_delta_bic && s.p_value < o.max_p_value && s.heldout_p < 0.01 && s.effect_to_noise >= o.min_effect_to_noise;
+    // Strong evidence, confirmed on held-out data, large enough to matter (delta BIC, p-value,
+    // held-out p-value, effect-to-noise ratio).
+    let strong = |delta_bic: f64, p: f64, heldout_p: f64, size: f64| delta_bic > o.min_delta_bic && p < o.max_p_value && heldout_p < 0.01 && size >= o.min_effect_to_noise;
+    let supported = |s: &Score| !s.at_edge && strong(s.delta_bic, s.p_value, s.heldout_p, s.effect_to_noise);
     // The profiled effects' one parameter, by kind.
     let profiled_name = |kind: EffectKind| match kind {
         EffectKind::Latency => "seconds",
@@ -623,7 +626,7 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
         rms_units: "each joint's effort residual in the analysis band over its noise floor there, RMS over the moving joints".into(),
         joints,
         tracking,
-        kinematic: kin.as_ref().map(|kc| kc.report(&arm.model, named.as_ref(), "dvrk discrepancy")),
+        kinematic: kin.as_ref().map(|kc| kc.report(&arm.model, named.as_ref(), "dvrk discrepancy", &strong)),
         samples: prep.t.len(),
         heldout_from: prep.t[prep.split],
         notes: match kin {
