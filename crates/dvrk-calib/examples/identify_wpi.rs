@@ -72,13 +72,13 @@ fn main() {
     }
     let t = std::time::Instant::now();
     let (id, _) = identify(&model, &ine, &one, &o).unwrap();
-    let v = id.validate(&model, &two, &o).unwrap();
+    let (v, _) = id.validate(&model, &two, &o).unwrap();
     let h = one.len() / 2;
     let halves: [(TorqueRecording, TorqueRecording); 2] = [(one.slice(0..h), one.slice(h..one.len())), (one.slice(h..one.len()), one.slice(0..h))];
     let mut cv = [0.0; 7];
     for (a, b) in &halves {
         let (ida, _) = identify(&model, &ine, a, &o).unwrap();
-        for (c, e) in ida.validate(&model, b, &o).unwrap().iter().enumerate() {
+        for (c, e) in ida.validate(&model, b, &o).unwrap().0.iter().enumerate() {
             cv[c] += 0.5 * e;
         }
     }

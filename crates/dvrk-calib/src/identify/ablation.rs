@@ -84,7 +84,7 @@ pub fn ablation(model: &Model, prior: &[BodyInertia], rec: &TorqueRecording, hel
         .into_iter()
         .map(|(effects, o)| {
             let (id, _) = identify(model, prior, rec, &o)?;
-            let validation = held_out.map(|h| id.validate(model, h, &o)).transpose()?;
+            let validation = held_out.map(|h| id.validate(model, h, &o).map(|(raw, _)| raw)).transpose()?;
             Ok(AblationRow { effects, relative_error: id.relative_error, validation })
         })
         .collect()

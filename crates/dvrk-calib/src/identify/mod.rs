@@ -184,9 +184,19 @@ pub fn prior_scale(layout: &Layout, theta0: &DVector<f64>, fraction: f64) -> DVe
 
 /// Per channel: `|tau - Y theta| / |tau|` against the efforts as recorded.
 pub fn relative_errors(reg: &Regression, theta: &DVector<f64>) -> Vec<f64> {
+    relative_errors_against(reg, theta, &reg.tau)
+}
+
+/// [`relative_errors`] against the efforts low-passed like the motion (the band the model is
+/// fitted in): what is left once the sensor noise above the band is not counted.
+pub fn relative_errors_in_band(reg: &Regression, theta: &DVector<f64>) -> Vec<f64> {
+    relative_errors_against(reg, theta, &reg.tau_filtered)
+}
+
+fn relative_errors_against(reg: &Regression, theta: &DVector<f64>, measured: &[Vec<f64>]) -> Vec<f64> {
     reg.y
         .iter()
-        .zip(&reg.tau)
+        .zip(measured)
         .map(|(y, tau)| {
             let pred = y * theta;
             let num: f64 = pred.iter().zip(tau).map(|(p, t)| (t - p) * (t - p)).sum();
@@ -356,8 +366,9 @@ impl Identification {
 
     /// Relative errors of this identification's parameters on another recording of the same
     /// arm (validation), built with the same processing.
-    pub fn validate(&self, model: &Model, rec: &TorqueRecording, options: &IdentifyOptions) -> Result<Vec<f64>> {
+    /// Also the same against the efforts in the analysis band ([`relative_errors_in_band`]).
+    pub fn validate(&self, model: &Model, rec: &TorqueRecording, options: &IdentifyOptions) -> Result<(Vec<f64>, Vec<f64>)> {
         let reg = problem::regression(model, rec, &self.layout, &options.processing)?;
-        Ok(relative_errors(&reg, &self.theta))
+        Ok((relative_errors(&reg, &self.theta), relative_errors_in_band(&reg, &self.theta)))
     }
 }

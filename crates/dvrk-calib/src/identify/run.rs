@@ -27,9 +27,9 @@ pub fn run(model: &Model, prior: &[BodyInertia], rec: &TorqueRecording, held_out
     let (rigid, _) = identify(model, prior, rec, &rigid_options)?;
     let mut summary = report::summary(model, &id, recording, format, &rigid.relative_error);
     if let Some(r2) = held_out {
-        let errors = id.validate(model, r2, options)?;
-        let rigid_errors = rigid.validate(model, r2, &rigid_options)?;
-        summary["validation"] = json!({"recording": r2.source, "relative_error": errors, "rigid_body_only": rigid_errors});
+        let (errors, in_band) = id.validate(model, r2, options)?;
+        let (rigid_errors, _) = rigid.validate(model, r2, &rigid_options)?;
+        summary["validation"] = json!({"recording": r2.source, "relative_error": errors, "relative_error_in_band": in_band, "rigid_body_only": rigid_errors});
     }
     let rows = ablation::ablation(model, prior, rec, held_out, options)?;
     summary["ablation"] = serde_json::to_value(&rows).unwrap_or(Value::Null);
