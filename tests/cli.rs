@@ -305,6 +305,7 @@ fn discrepancy_reads_a_tracked_marker() {
     assert!(e.contains("--marker-link") && e.contains("99"), "{e}");
     let e = crate::util::dvrk_err(&["discrepancy", "--model", "psm", "--recording", &p(&rec), "--marker-topic", "/nope", "--marker-link", "12", "--report", &p(&report)]);
     assert!(e.contains("/nope") && e.contains("rec.mcap"), "{e}");
+}
 
 /// `dvrk synth hidden-effect` (viscous friction, 12 s) to `rec.<ext>`; its path.
 fn hidden_viscous_friction(dir: &std::path::Path, ext: &str) -> String {
