@@ -311,7 +311,7 @@ fn a_tracker_on_the_shaft_confirms_drive_effects_down_to_its_noise() {
         let r = analyse(&h, false).report;
         let k = r.kinematic.as_ref().unwrap();
         let truth = &h.answer.effects[0].spec;
-        eprintln!("{}: {:?}; tracker {:.2} -> {:.2} held out {:.2} -> {:.2}", kind.name(), r.effects.first().map(|e| (&e.name, &e.joint, &e.parameters)), k.rms_before, k.rms_after, k.rms_heldout_before, k.rms_heldout_after);
+        eprintln!("{}: {:?}; tracker {:.2} -> {:.2} held out {:.2} -> {:.2}", kind.name(), r.effects.first().map(|e| (&e.name, &e.joint, &e.parameters, &e.ci95)), k.rms_before, k.rms_after, k.rms_heldout_before, k.rms_heldout_after);
         assert_eq!((r.verdict.as_str(), r.channel.as_str()), ("named", "torque+kinematic"));
         let e = &r.effects[0];
         assert_eq!((&e.name, &e.joint), (&truth.name, &truth.joint));
