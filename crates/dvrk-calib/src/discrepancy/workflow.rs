@@ -178,6 +178,9 @@ fn score_linear(c: &Candidate, fit: &Fitter, r: &Table, o: &Options, rng: &mut C
     let s2 = rss1 / (n - p as f64).max(1.0);
     let (g, _) = fit.normal_equations(&a, &y);
     let cov = g.try_inverse().unwrap_or_else(|| DMatrix::from_element(p, p, f64::INFINITY)) * (s2 / frac);
+    // A model error that changes along the recording moves the estimate between its parts more
+    // than the noise would: widen by the blocks' disagreement.
+    let cov = cov * block_scale(&train, &a, &(fit.whitened(&e1) + &a * &x), &x, &c.lower, frac)?;
     let ci = (0..p).map(|i| {
         let h = 1.96 * cov[(i, i)].max(0.0).sqrt();
         [x[i] - h, x[i] + h]
@@ -192,6 +195,33 @@ fn score_linear(c: &Candidate, fit: &Fitter, r: &Table, o: &Options, rng: &mut C
     let size = (effect[..prep.split].iter().map(|e| e[c.focus].powi(2)).sum::<f64>() / prep.split as f64).sqrt() / prep.noise[c.focus];
     add(&mut effect, &fit.nuisance_effort(&e1));
     Ok(Score { x: x.iter().copied().collect(), ci, delta_bic, stat, p_value, heldout_p, effect_to_noise: size, effect, profiled, at_edge: false })
+}
+
+/// Training blocks used to check an estimate's consistency over time.
+const BLOCKS: usize = 4;
+
+/// The Particle Data Group's scale factor of a linear candidate's first parameter over
+/// [`BLOCKS`] consecutive blocks of the training rows: each block fitted alone (`y`: the rows
+/// with the nuisance's fit taken out), `max(1, chi2 / (K - 1))` of the block estimates about the
+/// whole one `x`, each with its own noise variance (inflated by `1 / frac` for correlation).
+fn block_scale(train: &Rows, a: &DMatrix<f64>, y: &DVector<f64>, x: &DVector<f64>, lower: &[Option<f64>], frac: f64) -> Result<f64> {
+    let na = train.prep.active.len();
+    let samples = train.range.len();
+    let p = a.ncols();
+    let mut chi2 = 0.0;
+    for b in 0..BLOCKS {
+        let (s0, s1) = (b * samples / BLOCKS, (b + 1) * samples / BLOCKS);
+        let (r0, len) = (s0 * na, (s1 - s0) * na);
+        let (ab, yb) = (a.rows(r0, len).into_owned(), y.rows(r0, len).into_owned());
+        let xb = super::stats::bounded_least_squares(&ab, &yb, lower)?;
+        let rss = (&yb - &ab * &xb).norm_squared();
+        let Some(inv) = ab.tr_mul(&ab).try_inverse() else { return Ok(1.0) };
+        let var = inv[(0, 0)] * rss / (len as f64 - p as f64).max(1.0) / frac;
+        if var > 0.0 && var.is_finite() {
+            chi2 += (xb[0] - x[0]).powi(2) / var;
+        }
+    }
+    Ok((chi2 / (BLOCKS - 1) as f64).max(1.0))
 }
 
 /// `a += b`, element by element.
