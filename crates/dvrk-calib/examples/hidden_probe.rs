@@ -27,5 +27,8 @@ fn main() {
     for j in &r.joints {
         println!("  {:18} noise {:.2e} band {:.2e} -> {:.2e} floor {:.2e}", j.joint, j.noise, j.band_rms_heldout_before, j.band_rms_heldout_after, j.band_floor);
     }
+    for l in &r.location {
+        println!("  located {:18} rms {:.2} reversals {:.2} speed {:.2} load {:.2} deep {:?} worst {:?}", l.joint, l.rms, l.reversals, l.high_speed, l.high_load, l.deep_insertion.map(|d| (d * 100.0).round() / 100.0), l.worst);
+    }
     if let Some(t) = &r.tracking { println!("  tracking {:?} -> {:?}", t.rms_before, t.rms_after); }
 }

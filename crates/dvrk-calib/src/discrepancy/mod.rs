@@ -24,6 +24,7 @@ pub mod fit;
 pub mod generate;
 pub mod joint_log;
 pub mod kinematic;
+pub mod locate;
 pub mod markers;
 pub mod nuisance;
 pub mod plot;

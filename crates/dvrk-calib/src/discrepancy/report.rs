@@ -120,6 +120,8 @@ pub struct Report {
     pub noise_floor: f64,
     pub rms_units: String,
     pub joints: Vec<JointRms>,
+    /// Where along the motion each joint's residual (before) is large.
+    pub location: Vec<super::locate::Location>,
     pub tracking: Option<TrackingReport>,
     /// With `--marker-topic`: the kinematic channel.
     pub kinematic: Option<KinematicReport>,

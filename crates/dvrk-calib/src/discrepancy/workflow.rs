@@ -604,6 +604,8 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
         .collect();
     let (f0, f1) = (residual(&prep, &before, true), residual(&prep, &after, true));
     let (tr, ho) = (0..prep.split, prep.split..prep.t.len());
+    let insertion = arm.model.joints.iter().position(|j| j.kind == dvrk_kin::JointType::Prismatic);
+    let location = super::locate::locate(&prep, &f0, &before, insertion, &names);
     let joints = prep
         .active
         .iter()
@@ -655,6 +657,7 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
         noise_floor: 1.0,
         rms_units: "each joint's effort residual in the analysis band over its noise floor there, RMS over the moving joints".into(),
         joints,
+        location,
         tracking,
         kinematic: kin.as_ref().map(|kc| kc.report(&arm.model, named.as_ref(), "dvrk discrepancy", &strong)),
         samples: prep.t.len(),
