@@ -413,10 +413,21 @@ pub fn observable_lengths(model: &Model, frame: usize) -> Vec<usize> {
         .copied()
         .filter(|&k| model.frames[k].a != 0.0)
         .filter(|&k| moving.iter().any(|&c| c != k && is_ancestor(model, c, k)) && moving.iter().any(|&c| is_ancestor(model, k, c)))
-        // A length that would make one declared body two (a link shared by a loop) is not a
-        // length of the vocabulary's kind.
-        .filter(|&k| super::generate::with_effect(model, &length_effect(model, k, 1e-5)).is_ok())
+        // A length that would make one declared body two, or open a closed loop, is not one the
+        // mechanism can have on its own (a loop's links change together).
+        .filter(|&k| super::generate::with_effect(model, &length_effect(model, k, 1e-4)).is_ok_and(|m| keeps_loops_closed(&m)))
         .collect()
+}
+
+/// True when `model`'s closures stay shut (below 1 um) at home and at two other poses.
+fn keeps_loops_closed(model: &Model) -> bool {
+    let mut data = Data::new(model);
+    let home = model.home();
+    [0.0, 0.3, -0.3].iter().all(|s| {
+        let q: Vec<f64> = home.iter().zip(&model.joints).map(|(h, j)| (h + s * (j.upper - j.lower) * 0.5).clamp(j.lower, j.upper)).collect();
+        compute_frame_placements(model, &mut data, &q);
+        dvrk_kin::max_closure_residual(model, &data) < 1e-6
+    })
 }
 
 /// `link_length` on frame `k`: its DH `a` changed by `da` (m).

@@ -329,22 +329,22 @@ fn a_tracker_on_the_shaft_confirms_drive_effects_down_to_its_noise() {
     }
 }
 
-/// A DH length hidden on the link between the parallelogram and the tool: the torque channel
-/// cannot see it, the tracker can. On a shaft marker the parallelogram's lower link
-/// (pitch_bottom) changes the pose exactly as the insertion stage's (main_insertion) does, so
-/// the honest verdict is `ambiguous` between the two lengths, the true one fitted within 2%.
-/// Effect-free, the tracker's residual is at its noise and nothing is named.
+/// A DH length hidden on the insertion stage (the one length between moving joints that a shaft
+/// marker sees without opening a loop: the parallelogram's links change together or not at
+/// all): the torque channel cannot see it, the tracker can, and names it within 2% of the truth
+/// (measured -1.8259 against -1.8162 mm). Effect-free, the tracker's residual is at its noise
+/// and nothing is named.
 #[test]
 fn a_length_only_the_tracker_sees_is_found() {
     let h = tracked(Hidden::Kind(EffectKind::LinkLength), 11, None);
     let r = analyse(&h, false).report;
     let truth = &h.answer.effects[0].spec;
     let link = truth.link.as_ref().map(|l| l.to_string());
-    let c = r.candidates.iter().find(|c| c.effect.name == "link_length" && c.effect.link == link).unwrap();
-    eprintln!("{} {:?}: {:?} {:?} truth {:?}", r.verdict, r.experiment, c.label, c.effect.parameters, truth.parameters);
-    assert!(c.supported && r.candidates.iter().take(2).any(|x| x.label == c.label));
-    assert!(r.verdict == "ambiguous" || (r.verdict == "named" && r.effects[0].link == link), "{}", r.verdict);
-    assert!(((c.effect.parameters["a"] - truth.parameters["a"]) / truth.parameters["a"]).abs() < 0.02);
+    eprintln!("{} {:?} truth {:?} {:?}", r.verdict, r.effects.first().map(|e| (&e.link, &e.parameters, &e.ci95)), link, truth.parameters);
+    assert_eq!(r.verdict, "named");
+    let e = &r.effects[0];
+    assert_eq!((e.name.as_str(), &e.link), ("link_length", &link));
+    assert!(((e.parameters["a"] - truth.parameters["a"]) / truth.parameters["a"]).abs() < 0.02);
     let free = analyse(&tracked(Hidden::None, 3, None), false).report;
     let k = free.kinematic.as_ref().unwrap();
     assert_eq!(free.verdict, "none", "{:?}", free.candidates.first().map(|c| &c.label));
