@@ -7,12 +7,12 @@
 //! the load pushes). Scored as the torque channel is: likelihood ratio on an effective sample
 //! size, change in BIC, held-out check.
 
+use super::joint_log::JointLog;
 use super::markers::MarkerLog;
 use super::registration::{pose_difference, Registration};
+use super::report::{CandidateReport, EffectReport, KinematicReport};
 use super::signals::Prepared;
 use super::stats::{chi2_sf, effective_fraction};
-use super::joint_log::JointLog;
-use super::report::{CandidateReport, EffectReport, KinematicReport};
 use crate::error::{CalibError, Result};
 use dvrk_kin::effects::{EffectKind, EffectSpec};
 use dvrk_kin::{compute_frame_placements, Data, FrameRef, Model, Pose};
@@ -177,7 +177,15 @@ impl KinematicChannel {
                     let (spec, ci95) = k.spec(model, source);
                     CandidateReport {
                         label: k.label(model),
-                        effect: EffectReport { name: spec.name, joint: spec.joint, link: spec.link.map(|l| l.to_string()), parameters: spec.parameters, ci95, delta_bic: k.delta_bic, p_value: k.p_value },
+                        effect: EffectReport {
+                            name: spec.name,
+                            joint: spec.joint,
+                            link: spec.link.map(|l| l.to_string()),
+                            parameters: spec.parameters,
+                            ci95,
+                            delta_bic: k.delta_bic,
+                            p_value: k.p_value,
+                        },
                         heldout_p_value: k.heldout_p,
                         effect_to_noise: k.effect_to_noise,
                         supported: strong(k.delta_bic, k.p_value, k.heldout_p, k.effect_to_noise),
@@ -239,7 +247,10 @@ pub fn analyse(i: &Inputs) -> Result<KinematicChannel> {
     let keep: Vec<usize> = (0..mk.t.len()).filter(|&s| mk.t[s] >= t0 && mk.t[s] <= t1).collect();
     let split = keep.iter().position(|&s| mk.t[s] >= ts).unwrap_or(keep.len());
     if split < 50 || keep.len() - split < 20 {
-        return Err(CalibError::data(format!("--marker-topic {}", mk.topic), format!("{} tracked poses inside the analysed span {t0:.2}..{t1:.2} s (need 50 fitted and 20 held out)", keep.len())));
+        return Err(CalibError::data(
+            format!("--marker-topic {}", mk.topic),
+            format!("{} tracked poses inside the analysed span {t0:.2}..{t1:.2} s (need 50 fitted and 20 held out)", keep.len()),
+        ));
     }
     // The model's own stream and drive effects (a model from an earlier round has them).
     let latency: f64 = model.effects.iter().filter(|e| e.kind == EffectKind::Latency).map(|e| e.get("seconds")).sum();
@@ -432,7 +443,13 @@ fn keeps_loops_closed(model: &Model) -> bool {
 
 /// `link_length` on frame `k`: its DH `a` changed by `da` (m).
 pub fn length_effect(model: &Model, k: usize, da: f64) -> EffectSpec {
-    EffectSpec { name: "link_length".into(), joint: None, link: Some(FrameRef::Name(model.frames[k].name.clone())), parameters: BTreeMap::from([("a".into(), da), ("d".into(), 0.0)]), source: String::new() }
+    EffectSpec {
+        name: "link_length".into(),
+        joint: None,
+        link: Some(FrameRef::Name(model.frames[k].name.clone())),
+        parameters: BTreeMap::from([("a".into(), da), ("d".into(), 0.0)]),
+        source: String::new(),
+    }
 }
 
 /// True when frame `a` is `k` or one of its ancestors.

@@ -113,7 +113,9 @@ impl Registration {
                 used.push((a, b));
             }
         }
-        let rx = project_rotation(&h).filter(|_| used.len() >= 3).ok_or_else(|| CalibError::data("--marker-topic", "the link barely rotates: the tracker's registration cannot be found"))?;
+        let rx = project_rotation(&h)
+            .filter(|_| used.len() >= 3)
+            .ok_or_else(|| CalibError::data("--marker-topic", "the link barely rotates: the tracker's registration cannot be found"))?;
         let svd = h.svd(false, false);
         if svd.singular_values.min() < 1e-6 * svd.singular_values.max() {
             return Err(CalibError::data("--marker-topic", "the link rotates about one axis only: the tracker's registration is not determined"));
@@ -147,7 +149,10 @@ mod tests {
     fn hand_eye_and_refinement_recover_known_transforms() {
         let x = pose_exp(&Vector6::new(0.3, -0.2, 1.1, 0.4, -0.3, 2.0));
         let y = pose_exp(&Vector6::new(0.01, 0.02, -0.03, -1.0, 0.2, 0.1));
-        let f: Vec<Pose> = (0..200).map(|i| i as f64 * 0.05).map(|s| pose_exp(&Vector6::new(0.1 * s.sin(), 0.05 * (2.0 * s).cos(), 0.2 + 0.03 * s.sin(), 0.5 * s.sin(), 0.4 * (1.3 * s).cos(), 0.3 * (0.7 * s).sin()))).collect();
+        let f: Vec<Pose> = (0..200)
+            .map(|i| i as f64 * 0.05)
+            .map(|s| pose_exp(&Vector6::new(0.1 * s.sin(), 0.05 * (2.0 * s).cos(), 0.2 + 0.03 * s.sin(), 0.5 * s.sin(), 0.4 * (1.3 * s).cos(), 0.3 * (0.7 * s).sin())))
+            .collect();
         let m: Vec<Pose> = f.iter().map(|fi| x * fi * y).collect();
         let reg = Registration::fit(&f, &m, [1e-4, 1e-3]).unwrap();
         let ex = pose_difference(&reg.tracker_from_base, &x);
