@@ -305,6 +305,15 @@ fn discrepancy_reads_a_tracked_marker() {
     assert!(e.contains("--marker-link") && e.contains("99"), "{e}");
     let e = crate::util::dvrk_err(&["discrepancy", "--model", "psm", "--recording", &p(&rec), "--marker-topic", "/nope", "--marker-link", "12", "--report", &p(&report)]);
     assert!(e.contains("/nope") && e.contains("rec.mcap"), "{e}");
+    // The same recording as a CSV with the marker's pose columns: the same named effect.
+    let (csv, report2) = (dir.path().join("rec.csv"), dir.path().join("r2.json"));
+    dvrk_ok(&["synth", "hidden-effect", "--effect", "backlash", "--seed", "11", "--enr", "5", "--duration", "20", "--marker-link", "tool_roll", "-o", &p(&csv), "--answer", &p(&answer)]);
+    assert!(std::fs::read_to_string(&csv).unwrap().lines().nth(2).unwrap().ends_with("marker_tool_roll.qw"));
+    dvrk_ok(&["discrepancy", "--model", "psm", "--recording", &p(&csv), "--format", "csv", "--marker-topic", "marker_tool_roll", "--marker-link", "tool_roll", "--report", &p(&report2), "--no-tracking", "--max-rounds", "1"]);
+    let r2: Value = serde_json::from_slice(&std::fs::read(&report2).unwrap()).unwrap();
+    assert_eq!((&r2["verdict"], &r2["effects"][0]["name"], &r2["effects"][0]["joint"]), (&r["verdict"], &r["effects"][0]["name"], &r["effects"][0]["joint"]));
+    let (b1, b2) = (r["effects"][0]["parameters"]["b"].as_f64().unwrap(), r2["effects"][0]["parameters"]["b"].as_f64().unwrap());
+    assert!((b1 - b2).abs() < 1e-6 * b1, "{b1} {b2}");
 }
 
 /// `dvrk synth hidden-effect` (viscous friction, 12 s) to `rec.<ext>`; its path.

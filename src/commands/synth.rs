@@ -46,7 +46,7 @@ pub struct HiddenEffectArgs {
     pub duration: f64,
     /// Add a tracker (100 Hz, 0.1 mm, 1 mrad; placed at random) following a marker on this link
     /// (frame name or the paper's number): the kinematic channel, on the pose topic the answer
-    /// names (MCAP only).
+    /// names (in a CSV: pose columns NAME.x .. NAME.qw, NAME the topic's body name).
     #[arg(long)]
     pub marker_link: Option<String>,
     /// Output recording: .mcap or .csv (`dvrk discrepancy --format csv`), written whole or not at
@@ -118,9 +118,6 @@ fn hidden_effect(a: &HiddenEffectArgs) -> Result<()> {
     let ext = a.output.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
     if ext != "mcap" && ext != "csv" {
         bail!("-o {}: the recording is written as MCAP (.mcap) or plain CSV (.csv)", a.output.display());
-    }
-    if ext == "csv" && a.marker_link.is_some() {
-        bail!("--marker-link: the tracked poses are written to MCAP recordings only (-o {})", a.output.display());
     }
     let marker = a.marker_link.clone().map(|link| dvrk_calib::discrepancy::generate::MarkerOptions { link, ..Default::default() });
     let o = HiddenOptions { hidden, seed: a.seed, duration: a.duration, effort_noise, position_noise: a.position_noise, enr: a.enr, marker, ..Default::default() };

@@ -207,7 +207,7 @@ pub fn discrepancy<'py>(
 /// with hidden physical effects (`effect`: a vocabulary name, two joined by `+`, `none`, `random`
 /// or `random-pair`) and write it to `path` (plain CSV when it ends in .csv, MCAP otherwise);
 /// returns the answer (`effects`: each with its parameters and effect-to-noise ratio;
-/// `marker_topic` when `marker_link` adds a tracker on that link, MCAP only).
+/// `marker_topic` when `marker_link` adds a tracker on that link).
 #[pyfunction]
 #[pyo3(signature = (path, effect="random", seed=1, scene="psm", duration=30.0, marker_link=None))]
 pub fn synth_hidden_effect<'py>(py: Python<'py>, path: PathBuf, effect: &str, seed: u64, scene: &str, duration: f64, marker_link: Option<String>) -> Result<Bound<'py, PyAny>> {
@@ -218,7 +218,6 @@ pub fn synth_hidden_effect<'py>(py: Python<'py>, path: PathBuf, effect: &str, se
     let answer = py.detach(|| -> Result<serde_json::Value> {
         let h = hidden_effect(scene, &HiddenOptions { hidden, seed, duration, marker, ..Default::default() })?;
         let bytes = match path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
-            Some("csv") if h.log.markers.is_some() => return Err(Error::Input("marker_link: the tracked poses are written to MCAP recordings only".into())),
             Some("csv") => dvrk_calib::discrepancy::csv_log::write(&h.log).into_bytes(),
             _ => joint_log::write_mcap(&h.log, &dvrk_sim::Scene::load(scene)?.arms[0].name)?,
         };

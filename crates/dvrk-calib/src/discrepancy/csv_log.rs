@@ -13,6 +13,10 @@
 //!   the encoders stand in for the setpoints, as for wpi-csv).
 //!
 //! N is the model's joint count, joint k its k-th joint. Every cell must be a finite number.
+//!
+//! A tracked marker body NAME (the kinematic channel, `--marker-topic NAME`) adds the pose
+//! columns of the plain CSV: `NAME.x,NAME.y,NAME.z` (m, tracker frame) and
+//! `NAME.qx,NAME.qy,NAME.qz,NAME.qw` (unit quaternion), empty on rows without a tracker sample.
 
 use super::joint_log::JointLog;
 use crate::error::{CalibError, Result};
@@ -62,7 +66,8 @@ pub fn parse(text: &str, path: &Path, model: &dvrk_kin::Model) -> Result<CsvLog>
     let (time, q, tau) = (col("time").unwrap_or(0), index(&required[1..=n]), index(&required[n + 1..]));
     let sp = has_setpoints.then(|| index(&setpoints));
     let mut notes = Vec::new();
-    let ignored: Vec<&str> = header.iter().filter(|h| !required.contains(h) && !setpoints.contains(h)).map(String::as_str).collect();
+    // Pose columns (NAME.x, ...) are the tracker's, read by [`read_markers`].
+    let ignored: Vec<&str> = header.iter().filter(|h| !required.contains(h) && !setpoints.contains(h) && !h.contains('.')).map(String::as_str).collect();
     if !ignored.is_empty() {
         notes.push(format!("{}: ignored column(s) {}", path.display(), ignored.join(", ")));
     }
@@ -106,8 +111,22 @@ pub fn parse(text: &str, path: &Path, model: &dvrk_kin::Model) -> Result<CsvLog>
     Ok(CsvLog { log, notes })
 }
 
+/// The pose columns' suffixes, in order.
+const POSE: [&str; 7] = ["x", "y", "z", "qx", "qy", "qz", "qw"];
+
+/// The body name a marker's pose columns carry: its topic's one segment that is not `mocap` or
+/// `pose` (`/mocap/marker_tool_roll/pose` -> `marker_tool_roll`), else the topic itself.
+pub fn marker_name(topic: &str) -> String {
+    let parts: Vec<&str> = topic.split('/').filter(|s| !s.is_empty() && *s != "mocap" && *s != "pose").collect();
+    match parts.as_slice() {
+        [one] => one.to_string(),
+        _ => topic.trim_start_matches('/').replace('/', "_"),
+    }
+}
+
 /// `log` as CSV text (every number in its shortest exact form, so it reads back equal), with the
-/// setpoint columns.
+/// setpoint columns and, if the log has a tracked marker, its pose columns (empty on rows without
+/// a tracker sample at that time).
 pub fn write(log: &JointLog) -> String {
     let n = log.names.len();
     let mut out = format!("# dvrk discrepancy joint log: time (s); qK: measured position, tauK: measured effort, setpointK: commanded position of joint K (rad or m, N·m or N)\n# joints: {}\ntime", log.names.join(", "));
@@ -116,15 +135,71 @@ pub fn write(log: &JointLog) -> String {
             let _ = write!(out, ",{prefix}{k}");
         }
     }
+    if let Some(m) = &log.markers {
+        let name = marker_name(&m.topic);
+        for c in POSE {
+            let _ = write!(out, ",{name}.{c}");
+        }
+    }
     out.push('\n');
+    let mut next = 0;
     for i in 0..log.len() {
         let _ = write!(out, "{}", log.t[i]);
         for x in log.position[i].iter().chain(&log.effort[i]).chain(&log.setpoint[i]) {
             let _ = write!(out, ",{x}");
         }
+        if let Some(m) = &log.markers {
+            while next < m.t.len() && m.t[next] < log.t[i] - 1e-9 {
+                next += 1;
+            }
+            if next < m.t.len() && (m.t[next] - log.t[i]).abs() <= 1e-9 {
+                let p = &m.poses[next];
+                let q = nalgebra::UnitQuaternion::from_rotation_matrix(&p.rotation);
+                let v = p.translation.vector;
+                for x in [v.x, v.y, v.z, q.i, q.j, q.k, q.w] {
+                    let _ = write!(out, ",{x}");
+                }
+            } else {
+                out.push_str(",,,,,,,");
+            }
+        }
         out.push('\n');
     }
     out
+}
+
+/// The tracked marker body `name` of the CSV joint log at `path`, on model frame `frame`: its
+/// pose columns on the rows that have them. A row with some but not all of them is an error.
+pub fn read_markers(path: &Path, name: &str, frame: usize) -> Result<super::markers::MarkerLog> {
+    let text = std::fs::read_to_string(path).map_err(|e| CalibError::file(path, format!("cannot read: {e}")))?;
+    let name = marker_name(name);
+    let mut reader = csv::ReaderBuilder::new().comment(Some(b'#')).flexible(false).trim(csv::Trim::All).from_reader(text.as_bytes());
+    let header: Vec<String> = reader.headers().map_err(|e| CalibError::file(path, format!("cannot read the header: {e}")))?.iter().map(String::from).collect();
+    let col = |c: &str| header.iter().position(|h| h == c);
+    let cols: Vec<Option<usize>> = POSE.iter().map(|c| col(&format!("{name}.{c}"))).collect();
+    let (Some(time), true) = (col("time"), cols.iter().all(Option::is_some)) else {
+        let have: Vec<&str> = header.iter().filter(|h| h.contains('.')).map(|h| h.split('.').next().unwrap_or("")).collect();
+        return Err(CalibError::file(path, format!("--marker-topic {name}: no columns time, {name}.x .. {name}.qw (pose columns of: {})", if have.is_empty() { "none".to_string() } else { have.join(", ") })));
+    };
+    let cols: Vec<usize> = cols.into_iter().flatten().collect();
+    let mut out = super::markers::MarkerLog { topic: name.clone(), frame, t: Vec::new(), poses: Vec::new() };
+    for rec in reader.records() {
+        let rec = rec.map_err(|e| CalibError::file(path, format!("line {}: {e}", e.position().map_or(0, |p| p.line()))))?;
+        let line = rec.position().map_or(0, |p| p.line());
+        let cells: Vec<&str> = cols.iter().map(|&i| rec.get(i).unwrap_or("")).collect();
+        if cells.iter().all(|c| c.is_empty()) {
+            continue;
+        }
+        let v: Vec<f64> = cells.iter().map(|c| c.parse::<f64>().ok().filter(|x| x.is_finite())).collect::<Option<_>>().ok_or_else(|| CalibError::file(path, format!("line {line}: {name}'s pose columns hold {cells:?}: all seven finite numbers, or all empty")))?;
+        let t: f64 = rec.get(time).unwrap_or("").parse().map_err(|_| CalibError::file(path, format!("line {line}: column `time` is not a number")))?;
+        let q = crate::plain_csv::unit_quaternion(v[3], v[4], v[5], v[6]).map_err(|e| CalibError::file(path, format!("line {line}: {name}: {e}")))?;
+        out.t.push(t);
+        out.poses.push(dvrk_kin::Pose::from_parts(nalgebra::Translation3::new(v[0], v[1], v[2]), q.to_rotation_matrix()));
+    }
+    if out.t.len() < 50 {
+        return Err(CalibError::file(path, format!("--marker-topic {name}: {} poses (need at least 50)", out.t.len())));
+    }
+    Ok(out)
 }
 
 #[cfg(test)]
@@ -161,6 +236,39 @@ mod tests {
         let back = parse(&text, Path::new("w.csv"), &m).unwrap();
         assert_eq!(back.log.setpoint, l.position);
         assert!(back.notes[0].contains("w.csv") && back.notes[0].contains("encoder positions stand in"), "{:?}", back.notes);
+    }
+
+    /// A tracked marker on every other row: its pose columns read back (to 1e-12), empty cells
+    /// skipped; a row with only some of them, or too few poses, is refused naming them.
+    #[test]
+    fn marker_pose_columns_read_back() {
+        use nalgebra::{Rotation3, Translation3, Vector3};
+        let m = psm();
+        let mut l = log(&m);
+        let n = 120;
+        l.t = (0..n).map(|i| i as f64 * 1e-3).collect();
+        for v in [&mut l.setpoint, &mut l.position, &mut l.effort] {
+            *v = (0..n).map(|i| vec![i as f64 * 1e-4; m.nq()]).collect();
+        }
+        let poses: Vec<dvrk_kin::Pose> = (0..n / 2).map(|i| dvrk_kin::Pose::from_parts(Translation3::new(0.1, -0.2, i as f64 * 1e-3), Rotation3::new(Vector3::new(0.3, i as f64 * 0.01, -0.2)))).collect();
+        l.markers = Some(crate::discrepancy::markers::MarkerLog { topic: "/mocap/marker_tool_roll/pose".into(), frame: 9, t: (0..n / 2).map(|i| 2.0 * i as f64 * 1e-3).collect(), poses: poses.clone() });
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("m.csv");
+        let text = write(&l);
+        std::fs::write(&path, &text).unwrap();
+        let back = read_markers(&path, "marker_tool_roll", 9).unwrap();
+        assert_eq!(back.t.len(), n / 2);
+        for (a, b) in back.poses.iter().zip(&poses) {
+            assert!(crate::discrepancy::registration::pose_difference(a, b).norm() < 1e-12);
+        }
+        // The joints read as before, the pose columns not listed as ignored.
+        assert!(parse(&text, &path, &m).unwrap().notes.is_empty());
+        let cut: String = text.lines().map(|line| if line.starts_with("0.002,") { line.rsplitn(2, ',').nth(1).unwrap().to_string() + ",\n" } else { line.to_string() + "\n" }).collect();
+        std::fs::write(&path, cut).unwrap();
+        let e = read_markers(&path, "marker_tool_roll", 9).unwrap_err().to_string();
+        assert!(e.contains("all seven finite numbers"), "{e}");
+        let e = read_markers(&path, "other", 9).unwrap_err().to_string();
+        assert!(e.contains("other.x") && e.contains("marker_tool_roll"), "{e}");
     }
 
     #[test]

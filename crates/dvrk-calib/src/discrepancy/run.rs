@@ -38,7 +38,8 @@ pub fn run(path: &Path, format: &str, model: &Model, arm: &str, marker: Option<&
         let frame = super::markers::marker_frame(model, &m.link)?;
         log.markers = Some(match format {
             "mcap" => super::markers::read_mcap(path, &m.topic, frame)?,
-            other => return Err(CalibError::field("--marker-topic", format!("tracked poses are read from MCAP recordings; --format {other} has none"))),
+            "csv" => super::csv_log::read_markers(path, &m.topic, frame)?,
+            other => return Err(CalibError::field("--marker-topic", format!("tracked poses are read from MCAP or CSV recordings; --format {other} has none"))),
         });
     }
     let scene = super::scene_for_arm(arm)?;

@@ -242,8 +242,9 @@ def discrepancy(
     a dict (``verdict`` named/none/ambiguous, ``effects`` with parameters, 95% intervals, delta BIC
     and p-values, ``candidates``, RMS before/after, ``noise_floor``, ``steps``). ``plot`` (.png or
     .svg): the residual before and after against time, velocity, load and position.
-    ``marker_topic`` and ``marker_link`` (frame name or the paper's number; MCAP): a tracked marker
-    on that link adds the kinematic channel (report key ``kinematic``)."""
+    ``marker_topic`` (an MCAP pose topic, or a CSV's pose-column name) and ``marker_link`` (frame
+    name or the paper's number): a tracked marker on that link adds the kinematic channel (report
+    key ``kinematic``)."""
 
 def synth_hidden_effect(
     path: Union[str, "os.PathLike[str]"],
@@ -256,5 +257,5 @@ def synth_hidden_effect(
     """``dvrk synth hidden-effect``: write a recording (plain CSV for a .csv path, else MCAP with
     ``/<arm>/setpoint_js``, ``/<arm>/measured_js`` with efforts) simulated with hidden effects
     (a vocabulary name, two joined by ``+``, ``none``, ``random`` or ``random-pair``); with
-    ``marker_link`` a tracker on that link too (MCAP only). Returns the answer (``effects`` with
+    ``marker_link`` a tracker on that link too. Returns the answer (``effects`` with
     parameters and effect-to-noise ratios, ``marker_topic``)."""
