@@ -153,16 +153,23 @@ fn detection_rate_table() {
     };
     println!("| class | trials | named correctly | named wrong | ambiguous | none | CI covers | held-out after / band floor (median) | raw held-out after / noise (median) | tracker held-out after / noise (median) |");
     println!("|---|---|---|---|---|---|---|---|---|---|");
+    // Trials in parallel (one per core), counted in seed order.
+    use rayon::prelude::*;
+    let run = |hidden: Hidden, seeds: std::ops::Range<u64>, enr: &(dyn Fn(u64) -> Option<f64> + Sync)| -> Vec<(u64, dvrk_calib::discrepancy::generate::Answer, dvrk_calib::discrepancy::Report)> {
+        seeds.into_par_iter().map(|s| {
+            let h = make(hidden, s, enr(s));
+            let r = analyse(&h, false).report;
+            (s, h.answer, r)
+        }).collect()
+    };
     for kind in kinds {
         let (mut right, mut wrong, mut amb, mut none, mut covered, mut ratios, mut raw, mut kin) = (0, 0, 0, 0, 0, Vec::new(), Vec::new(), Vec::new());
-        for s in 0..trials {
-            let enr = 3.0 + 5.0 * ((s * 7919) % 100) as f64 / 100.0;
-            let h = make(Hidden::Kind(kind), 1000 + s, Some(enr));
-            let r = analyse(&h, false).report;
-            let truth = &h.answer.effects[0].spec;
+        for (seed, answer, r) in run(Hidden::Kind(kind), 1000..1000 + trials, &|s| Some(3.0 + 5.0 * (((s - 1000) * 7919) % 100) as f64 / 100.0)) {
+            let s = seed - 1000;
+            let truth = &answer.effects[0].spec;
             let correct = r.verdict == "named" && r.effects[0].name == truth.name && r.effects[0].joint == truth.joint && r.effects[0].link == truth.link.as_ref().map(|l| l.to_string());
             // One line a trial, for the detection-rate curve against ENR.
-            println!("  trial {} enr {:.2} verdict {} correct {correct}", kind.name(), h.answer.effects[0].enr, r.verdict);
+            println!("  trial {} enr {:.2} verdict {} correct {correct}", kind.name(), answer.effects[0].enr, r.verdict);
             match r.verdict.as_str() {
                 "named" => {
                     let e = &r.effects[0];
@@ -194,11 +201,10 @@ fn detection_rate_table() {
         println!("| {} | {trials} | {right} | {wrong} | {amb} | {none} | {covered}/{right} | {m:.2} | {rm:.3} | {km:.2} |", kind.name());
     }
     let mut alarms = 0;
-    for s in 0..2 * trials {
-        let r = analyse(&make(Hidden::None, 5000 + s, None), false).report;
+    for (seed, _, r) in run(Hidden::None, 5000..5000 + 2 * trials, &|_| None) {
         if r.verdict != "none" {
             alarms += 1;
-            println!("  effect-free seed {}: {} {:?}", 5000 + s, r.verdict, r.candidates.first().map(|c| &c.label));
+            println!("  effect-free seed {seed}: {} {:?}", r.verdict, r.candidates.first().map(|c| &c.label));
         }
     }
     println!("effect-free: {alarms} false alarms in {} trials", 2 * trials);
@@ -281,10 +287,18 @@ fn two_effect_table() {
     let first: u64 = std::env::var("DVRK_FIRST_SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(7000);
     let (mut both, mut one, mut wrong) = (0, 0, 0);
     let start = first.saturating_sub(7000);
-    for s in start..start + trials {
-        let enr = 3.0 + 5.0 * ((s * 7919) % 100) as f64 / 100.0;
-        let h = trial(Hidden::RandomPair, 7000 + s, Some(enr), 30.0);
-        let out = discrepancy_repeated(&model, &scene, "PSM1", &h.log, &Options { tracking: false, ..Default::default() }, 4).unwrap();
+    // Trials in parallel (one per core), counted in seed order.
+    use rayon::prelude::*;
+    let done: Vec<_> = (start..start + trials)
+        .into_par_iter()
+        .map(|s| {
+            let enr = 3.0 + 5.0 * ((s * 7919) % 100) as f64 / 100.0;
+            let h = trial(Hidden::RandomPair, 7000 + s, Some(enr), 30.0);
+            let out = discrepancy_repeated(&model, &scene, "PSM1", &h.log, &Options { tracking: false, ..Default::default() }, 4).unwrap();
+            (s, h, out)
+        })
+        .collect();
+    for (s, h, out) in done {
         let (got, want) = (named_set(&out.report), hidden_set(&h));
         let right = got.iter().filter(|g| want.contains(g)).count();
         let extra = got.len() - right;
