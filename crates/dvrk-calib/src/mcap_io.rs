@@ -211,12 +211,11 @@ pub fn write(rec: &Recording, layout: McapLayout, joint_topic: &str) -> Result<V
                 let ch = w.add_channel(sid, &pose_topic(&b.name), enc, &meta).map_err(io)?;
                 let frame = if b.frame_id.is_empty() { "tracker" } else { &b.frame_id };
                 for (t, p) in b.t.iter().zip(&b.poses) {
-                    let q = UnitQuaternion::from_rotation_matrix(&p.rotation);
-                    let v = p.translation.vector;
+                    let ps = PoseStamped::from_pose(*t, frame, p);
                     let bytes = if layout == McapLayout::PoseStamped {
-                        PoseStamped { header: Header::at(*t, frame), position: [v.x, v.y, v.z], orientation: [q.i, q.j, q.k, q.w] }.encode()
+                        ps.encode()
                     } else {
-                        foxglove::encode_pose_in_frame(&FoxglovePose { time: *t, frame_id: frame.into(), child_frame_id: String::new(), position: [v.x, v.y, v.z], orientation: [q.i, q.j, q.k, q.w] })
+                        foxglove::encode_pose_in_frame(&FoxglovePose { time: *t, frame_id: frame.into(), child_frame_id: String::new(), position: ps.position, orientation: ps.orientation })
                     };
                     events.push((*t, ch, bytes));
                 }

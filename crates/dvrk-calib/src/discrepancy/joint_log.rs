@@ -91,10 +91,8 @@ pub fn write_mcap(log: &JointLog, arm: &str) -> Result<Vec<u8>> {
     let mut next_pose = 0;
     for (i, t) in log.t.iter().enumerate() {
         while let Some((m, ch)) = marker.filter(|(m, _)| next_pose < m.t.len() && m.t[next_pose] <= *t) {
-            let (tp, p) = (m.t[next_pose], &m.poses[next_pose]);
-            let q = nalgebra::UnitQuaternion::from_rotation_matrix(&p.rotation);
-            let v = p.translation.vector;
-            let msg = ros_msgs::PoseStamped { header: Header::at(tp, "tracker"), position: [v.x, v.y, v.z], orientation: [q.i, q.j, q.k, q.w] };
+            let tp = m.t[next_pose];
+            let msg = ros_msgs::PoseStamped::from_pose(tp, "tracker", &m.poses[next_pose]);
             let ns = (tp.max(0.0) * 1e9).round() as u64;
             w.write_to_known_channel(&mcap::records::MessageHeader { channel_id: ch, sequence: next_pose as u32 + 1, log_time: ns, publish_time: ns }, &msg.encode()).map_err(io)?;
             next_pose += 1;

@@ -74,6 +74,13 @@ fn read4(r: &mut CdrReader, field: &str) -> Result<[f64; 4], String> {
 }
 
 impl PoseStamped {
+    /// The message of pose `p` (m) in frame `frame` at time `t` (s).
+    pub fn from_pose(t: f64, frame: &str, p: &dvrk_kin::Pose) -> PoseStamped {
+        let q = nalgebra::UnitQuaternion::from_rotation_matrix(&p.rotation);
+        let v = p.translation.vector;
+        PoseStamped { header: Header::at(t, frame), position: [v.x, v.y, v.z], orientation: [q.i, q.j, q.k, q.w] }
+    }
+
     /// CDR bytes.
     pub fn encode(&self) -> Vec<u8> {
         let mut w = CdrWriter::new();

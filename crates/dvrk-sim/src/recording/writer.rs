@@ -215,10 +215,7 @@ impl Recorder {
                 velocity: arm.actuators.iter().map(|x| x.target_velocity).collect(),
                 effort,
             };
-            let tip = self.tip_in_base(sim, a);
-            let q = UnitQuaternion::from_rotation_matrix(&tip.rotation);
-            let v = tip.translation.vector;
-            let cp = PoseStamped { header: Header::at(t, &c.base_frame_id), position: [v.x, v.y, v.z], orientation: [q.i, q.j, q.k, q.w] };
+            let cp = PoseStamped::from_pose(t, &c.base_frame_id, &self.tip_in_base(sim, a));
             let (mj, sj, mc) = (c.measured_js, c.setpoint_js, c.measured_cp);
             self.write(mj, t, &measured.encode())?;
             self.write(sj, t, &setpoint.encode())?;
