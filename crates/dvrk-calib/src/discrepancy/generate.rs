@@ -192,7 +192,7 @@ fn joints_for(kind: EffectKind) -> &'static [usize] {
 /// frame `marker` can see.
 fn draw(kind: EffectKind, model: &Model, rng: &mut ChaCha8Rng, scale: f64, marker: Option<usize>) -> Result<EffectSpec> {
     if kind == EffectKind::LinkLength {
-        let frames = marker.map(|f| super::kinematic::observable_lengths(model, f)).unwrap_or_default();
+        let frames: Vec<usize> = marker.map(|f| super::kinematic::observable_lengths(model, f)).unwrap_or_default().into_iter().map(|(k, _)| k).collect();
         if frames.is_empty() {
             return Err(CalibError::field("effect", "link_length is hidden only with a tracker on a link beyond a moving joint (--marker-link)"));
         }

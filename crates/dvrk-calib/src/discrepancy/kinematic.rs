@@ -9,7 +9,7 @@
 
 use super::joint_log::JointLog;
 use super::markers::MarkerLog;
-use super::registration::{pose_difference, Registration};
+use super::registration::{pose_difference, whiten, Registration};
 use super::report::{CandidateReport, EffectReport, KinematicReport};
 use super::signals::Prepared;
 use super::stats::{chi2_sf, effective_fraction};
@@ -293,8 +293,12 @@ pub fn analyse(i: &Inputs) -> Result<KinematicChannel> {
     let sigma = tracker_noise(&meas);
     let reg = Registration::fit(&f[..split], &meas[..split], sigma)?;
     let (nuis, r) = reg.linearised(&f, &meas, sigma);
-    let white = |v: Vector6<f64>| Vector6::new(v[0] / sigma[0], v[1] / sigma[0], v[2] / sigma[0], v[3] / sigma[1], v[4] / sigma[1], v[5] / sigma[1]);
-    // The whitened change of the predicted pose per unit of a link-side joint displacement.
+    let pred: Vec<Pose> = f.iter().map(|p| reg.predict(p)).collect();
+    // The whitened change of the predicted pose, per unit, when sample s's link pose moves to `moved`.
+    let change = |col: &mut DVector<f64>, s: usize, moved: &Pose, unit: f64| {
+        col.fixed_rows_mut::<6>(6 * s).copy_from(&(whiten(pose_difference(&reg.predict(moved), &pred[s]), sigma) / unit));
+    };
+    // Per unit of a link-side joint displacement.
     let mut dq: Vec<DVector<f64>> = Vec::new();
     let h = 1e-6;
     let mut qs = vec![0.0; nq];
@@ -304,7 +308,7 @@ pub fn analyse(i: &Inputs) -> Result<KinematicChannel> {
             qs.copy_from_slice(&q[s]);
             qs[j] += h;
             let moved = fk(model, &mut data, &qs);
-            col.fixed_rows_mut::<6>(6 * s).copy_from(&(white(pose_difference(&reg.predict(&moved), &reg.predict(&f[s]))) / h));
+            change(&mut col, s, &moved, h);
         }
         dq.push(col);
     }
@@ -323,15 +327,14 @@ pub fn analyse(i: &Inputs) -> Result<KinematicChannel> {
         cands.push((EffectKind::Backlash, Some(j), None, "b", per_sample(j, &|s| -(load[s][j] / load_scale[j]).tanh()), Some(0.0)));
     }
     cands.push((EffectKind::Latency, None, None, "seconds", lat, Some(0.0)));
-    // DH lengths `a` of the moving links between the base and the marker.
-    let mut fd = Data::new(model);
-    for k in observable_lengths(model, frame) {
+    // DH lengths `a` of the moving links between the base and the marker (the pose is linear in
+    // a length: the step's size does not matter).
+    for (k, lengthened) in observable_lengths(model, frame) {
         let name = model.frames[k].name.clone();
-        let m2 = super::generate::with_effect(model, &length_effect(model, k, 1e-5))?;
         let mut col = DVector::zeros(6 * n);
         for s in 0..n {
-            let moved = fk(&m2, &mut fd, &q[s]);
-            col.fixed_rows_mut::<6>(6 * s).copy_from(&(white(pose_difference(&reg.predict(&moved), &reg.predict(&f[s]))) / 1e-5));
+            let moved = fk(&lengthened, &mut data, &q[s]);
+            change(&mut col, s, &moved, LENGTH_STEP);
         }
         if seen(&col) {
             cands.push((EffectKind::LinkLength, None, Some(name), "a", col, None));
@@ -406,11 +409,15 @@ pub fn analyse(i: &Inputs) -> Result<KinematicChannel> {
     })
 }
 
-/// The frames between the base and `frame` whose DH length `a` the tracker can see, base first:
-/// a moving joint before the length turns it, and one at or after it (modified DH: the frame's
-/// own joint acts after its `a`) turns what follows; a length outside both is absorbed by the
-/// tracker's or the marker's placement.
-pub fn observable_lengths(model: &Model, frame: usize) -> Vec<usize> {
+/// The step (m) of a DH length's finite difference.
+const LENGTH_STEP: f64 = 1e-4;
+
+/// The frames between the base and `frame` whose DH length `a` the tracker can see, base first,
+/// each with `model` compiled with that `a` longer by [`LENGTH_STEP`]: a moving joint before the
+/// length turns it, and one at or after it (modified DH: the frame's own joint acts after its
+/// `a`) turns what follows; a length outside both is absorbed by the tracker's or the marker's
+/// placement.
+pub fn observable_lengths(model: &Model, frame: usize) -> Vec<(usize, Model)> {
     let mut chain = vec![frame];
     let mut at = model.frames[frame].parent;
     while let Some(k) = at {
@@ -426,7 +433,7 @@ pub fn observable_lengths(model: &Model, frame: usize) -> Vec<usize> {
         .filter(|&k| moving.iter().any(|&c| c != k && is_ancestor(model, c, k)) && moving.iter().any(|&c| is_ancestor(model, k, c)))
         // A length that would make one declared body two, or open a closed loop, is not one the
         // mechanism can have on its own (a loop's links change together).
-        .filter(|&k| super::generate::with_effect(model, &length_effect(model, k, 1e-4)).is_ok_and(|m| keeps_loops_closed(&m)))
+        .filter_map(|k| super::generate::with_effect(model, &length_effect(model, k, LENGTH_STEP)).ok().filter(keeps_loops_closed).map(|m| (k, m)))
         .collect()
 }
 

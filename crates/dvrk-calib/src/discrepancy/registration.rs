@@ -30,6 +30,12 @@ pub fn pose_difference(a: &Pose, b: &Pose) -> Vector6<f64> {
     Vector6::new(dp.x, dp.y, dp.z, dr.x, dr.y, dr.z)
 }
 
+/// A pose difference over the tracker's noise per axis: position over `sigma[0]` (m), rotation
+/// over `sigma[1]` (rad).
+pub fn whiten(v: Vector6<f64>, sigma: [f64; 2]) -> Vector6<f64> {
+    Vector6::new(v[0] / sigma[0], v[1] / sigma[0], v[2] / sigma[0], v[3] / sigma[1], v[4] / sigma[1], v[5] / sigma[1])
+}
+
 /// The closest rotation to `m` (Frobenius), through its SVD.
 fn project_rotation(m: &Matrix3<f64>) -> Option<Rotation3<f64>> {
     let svd = m.svd(true, true);
@@ -79,7 +85,7 @@ impl Registration {
     /// (so that `residual ≈ J dp` is the change a step `dp` explains).
     pub fn linearised(&self, f: &[Pose], m: &[Pose], sigma: [f64; 2]) -> (DMatrix<f64>, DVector<f64>) {
         let n = f.len();
-        let w = |v: Vector6<f64>| Vector6::new(v[0] / sigma[0], v[1] / sigma[0], v[2] / sigma[0], v[3] / sigma[1], v[4] / sigma[1], v[5] / sigma[1]);
+        let w = |v: Vector6<f64>| whiten(v, sigma);
         let mut r = DVector::zeros(6 * n);
         let mut j = DMatrix::zeros(6 * n, 12);
         let h = 1e-7;
