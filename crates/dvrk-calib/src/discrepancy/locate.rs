@@ -43,17 +43,17 @@ fn quantile_mask(value: &[f64], q: f64, above: bool) -> Vec<bool> {
 /// Each active joint's residual `r` (`[sample][joint]`) by regime, with the prediction `load`;
 /// `insertion`: the prismatic joint, if the arm has one; `names`: the joints' names.
 pub fn locate(prep: &Prepared, r: &Table, load: &Table, insertion: Option<usize>, names: &[String]) -> Vec<Location> {
-    let column = |t: &Table, k: usize| -> Vec<f64> { t.iter().map(|row| row[k].abs()).collect() };
-    let deep = insertion.map(|j| quantile_mask(&prep.q.iter().map(|row| row[j]).collect::<Vec<_>>(), 0.8, true));
+    let magnitude = |t: &Table, k: usize| -> Vec<f64> { super::signals::column(t, k).iter().map(|v| v.abs()).collect() };
+    let deep = insertion.map(|j| quantile_mask(&super::signals::column(&prep.q, j), 0.8, true));
     prep.active
         .iter()
         .map(|&k| {
             let all = vec![true; r.len()];
             let total = rms_where(r, k, &all).max(1e-300);
             let ratio = |mask: &[bool]| rms_where(r, k, mask) / total;
-            let speed = column(&prep.qd, k);
+            let speed = magnitude(&prep.qd, k);
             let (reversals, high_speed) = (ratio(&quantile_mask(&speed, 0.1, false)), ratio(&quantile_mask(&speed, 0.8, true)));
-            let high_load = ratio(&quantile_mask(&column(load, k), 0.8, true));
+            let high_load = ratio(&quantile_mask(&magnitude(load, k), 0.8, true));
             let deep_insertion = deep.as_ref().map(|m| ratio(m));
             let mut regimes = vec![("reversals", reversals), ("high_speed", high_speed), ("high_load", high_load)];
             regimes.extend(deep_insertion.map(|d| ("deep_insertion", d)));

@@ -78,7 +78,7 @@ impl Prepared {
 }
 
 /// Column `k` of a `[sample][joint]` table.
-fn column(rows: &[Vec<f64>], k: usize) -> Vec<f64> {
+pub(crate) fn column(rows: &[Vec<f64>], k: usize) -> Vec<f64> {
     rows.iter().map(|r| r[k]).collect()
 }
 

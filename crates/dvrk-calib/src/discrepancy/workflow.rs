@@ -606,7 +606,7 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
     let (tr, ho) = (0..prep.split, prep.split..prep.t.len());
     let insertion = arm.model.joints.iter().position(|j| j.kind == dvrk_kin::JointType::Prismatic);
     let location = super::locate::locate(&prep, &f0, &before, insertion, &names);
-    let joints = prep
+    let joints: Vec<JointRms> = prep
         .active
         .iter()
         .map(|&k| JointRms {
@@ -620,12 +620,11 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
             band_rms_heldout_after: rms(&f1, k, ho.clone()),
         })
         .collect();
-    let column = |tab: &Table, k: usize| tab.iter().map(|row| row[k]).collect::<Vec<f64>>();
-    let per_joint = |tab: &Table| prep.active.iter().map(|&k| column(tab, k)).collect::<Vec<_>>();
+    let per_joint = |tab: &Table| prep.active.iter().map(|&k| super::signals::column(tab, k)).collect::<Vec<_>>();
     let prismatic = |k: usize| arm.model.joints[k].kind == dvrk_kin::JointType::Prismatic;
     let residuals = Residuals {
-        joints: prep.active.iter().map(|&k| arm.model.joints[k].name.clone()).collect(),
-        units: prep.active.iter().map(|&k| if prismatic(k) { "N" } else { "N·m" }).collect(),
+        joints: joints.iter().map(|j| j.joint.clone()).collect(),
+        units: joints.iter().map(|j| j.unit).collect(),
         position_units: prep.active.iter().map(|&k| if prismatic(k) { "m" } else { "rad" }).collect(),
         t: prep.t.clone(),
         q: per_joint(&prep.q),
