@@ -24,8 +24,9 @@ pub struct DiscrepancyArgs {
     pub format: String,
     #[arg(long, default_value = "PSM1")]
     pub arm: String,
-    /// Pose topic of a tracked marker body (geometry_msgs/PoseStamped, TF child frame or Foxglove
-    /// pose, MCAP only): the kinematic channel, its evidence joined to the torque channel's.
+    /// A tracked marker body: its MCAP pose topic (geometry_msgs/PoseStamped, TF child frame or
+    /// Foxglove pose), or with --format csv the NAME of its pose columns NAME.x .. NAME.qw. The
+    /// kinematic channel, its evidence joined to the torque channel's.
     #[arg(long, requires = "marker_link")]
     pub marker_topic: Option<String>,
     /// The link the marker is fixed on: frame name, or the paper's frame number (PSM, ECM).
