@@ -178,12 +178,16 @@ pub struct HiddenRecording {
 
 /// The joints (positions in the arm) on which `kind` is drawn: where the encoder-and-effort
 /// channels can see it (an offset only where gravity loads the joint; compliance and play on the
-/// loaded outer drives).
+/// loaded outer drives; springs on the tool).
 fn joints_for(kind: EffectKind) -> &'static [usize] {
     match kind {
         EffectKind::JointOffset => &[1],
         EffectKind::JointCompliance => &[1],
         EffectKind::Backlash => &[0, 1],
+        // Where a PSM has springs: the tool's cables (roll, wrist). On an outer joint a spring is
+        // not what a robot has, and over its motion it reads as a centre-of-mass error the
+        // refitted inertias take.
+        EffectKind::Spring => &[3, 4, 5],
         _ => &[0, 1, 2, 3, 4, 5],
     }
 }
@@ -330,19 +334,25 @@ pub fn simulate(scene: &Scene, excitation: &MultiSine, duration: f64, rate: f64)
     let names = scene.arms[0].model.joints.iter().map(|j| j.name.clone()).collect();
     let mut log = JointLog { names, ..Default::default() };
     let mut link = Vec::new();
+    // A sample pairs the state at t with the effort the drives apply from t on (computed from
+    // that state): simultaneous samples. The state after the step would lag its effort by one
+    // step, a latency of -dt the workflow would rightly see in an effect-free recording.
     for s in 1..=steps {
         let t = s as f64 * dt;
         excitation.sample(t, &mut q, &mut qd);
         for i in 0..nq {
             sim.set_target(i, q[i], qd[i]).map_err(sim_error)?;
         }
-        sim.step();
-        if s % stride == 0 {
+        let sampled = s % stride == 0;
+        if sampled {
             log.t.push(t);
             log.setpoint.push(q.clone());
             log.position.push(sim.q()[..nq].to_vec());
-            log.effort.push((0..nq).map(|i| sim.effort(i).unwrap_or(f64::NAN)).collect());
             link.push(sim.q_link()[..nq].to_vec());
+        }
+        sim.step();
+        if sampled {
+            log.effort.push((0..nq).map(|i| sim.effort(i).unwrap_or(f64::NAN)).collect());
         }
     }
     if log.position.iter().flatten().chain(log.effort.iter().flatten()).any(|x| !x.is_finite()) {
