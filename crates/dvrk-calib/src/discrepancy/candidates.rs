@@ -131,6 +131,21 @@ pub fn offset_sensitivities(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, g
     Ok(out)
 }
 
+/// For each joint in `joints`, the change of every joint's effort per unit velocity of that joint
+/// (N·m s/rad, N s/m; Coriolis, centrifugal and damping coupling), by finite difference on the
+/// model's prediction `base`: a drive's lag rate changes the other joints' load through it.
+pub fn rate_sensitivities(predictor: &mut Predictor, prep: &Prepared, base: &Table, joints: &[usize]) -> Result<Vec<(usize, Table)>> {
+    let h = 1e-4;
+    let mut moved = prep.clone();
+    let mut out = Vec::with_capacity(joints.len());
+    for &j in joints {
+        moved.qd.iter_mut().zip(&prep.qd).for_each(|(m, q)| m[j] = q[j] + h);
+        out.push((j, diff(&predictor.series(&moved)?, base, h)));
+        moved.qd.iter_mut().zip(&prep.qd).for_each(|(m, q)| m[j] = q[j]);
+    }
+    Ok(out)
+}
+
 /// The linear candidates (friction, springs, offsets, payloads) for the joints `prep.active`,
 /// with `base` the nominal prediction and `offsets` from [`offset_sensitivities`]. The drives'
 /// compliance and play are profiles ([`super::drive`]), latency too.

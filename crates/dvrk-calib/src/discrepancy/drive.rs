@@ -15,8 +15,13 @@ use nalgebra::DMatrix;
 /// Transmission damping ratio on the motor's mode (dvrk-sim's drive convention).
 const DAMPING_RATIO: f64 = 0.1;
 
-/// Bandwidth of the stiff contact behind a play without compliance (rad/s on the motor inertia).
-const CONTACT_BANDWIDTH: f64 = 2.0 * std::f64::consts::PI * 300.0;
+/// Bandwidth of the stiff contact behind a play without compliance (rad/s on the motor inertia),
+/// where nothing says otherwise.
+pub const CONTACT_BANDWIDTH: f64 = 2.0 * std::f64::consts::PI * 300.0;
+
+/// The contact bandwidths a play is also profiled over (rad/s): how stiff the teeth are once
+/// engaged is as unknown as the play, and a contact too stiff or too soft biases the play's width.
+pub const CONTACT_BANDWIDTHS: [f64; 5] = [250.0, 500.0, 1000.0, 2000.0, 4000.0];
 
 /// Integration sub-steps per recorded sample.
 const SUBSTEPS: usize = 4;
@@ -26,8 +31,9 @@ const SUBSTEPS: usize = 4;
 pub enum Law {
     /// Spring of this stiffness (N·m/rad, N/m).
     Compliance(f64),
-    /// Play of half-width `b` (rad, m), a stiff contact beyond it.
-    Backlash(f64),
+    /// Play of half-width `half` (rad, m), a stiff contact beyond it with natural frequency
+    /// `contact` on the motor inertia (rad/s).
+    Backlash { half: f64, contact: f64 },
 }
 
 /// What one joint's drive simulation needs, along the analysed samples.
@@ -40,6 +46,9 @@ pub struct JointLoad {
     /// d(effort_k)/dq_j of every joint k, from gravity and the rest of the arm, `[sample][joint]`
     /// (N·m/rad, N/m).
     pub stiffness: Table,
+    /// d(effort_k)/d(qd_j) of every joint k, `[sample][joint]` (N·m s/rad, N s/m): the other
+    /// joints' Coriolis and centrifugal share of the link's lag rate.
+    pub rate: Table,
     /// Motor inertia (kg m^2, kg).
     pub motor: f64,
     /// The link side's own damping on its joint (N·m s/rad, N s/m): acts on the link's lag rate.
@@ -82,7 +91,7 @@ pub fn signature(prep: &Prepared, jl: &JointLoad, law: Law, nq: usize) -> Table 
     let h = dt / SUBSTEPS as f64;
     let (k, half) = match law {
         Law::Compliance(k) => (k, 0.0),
-        Law::Backlash(b) => (jl.motor * CONTACT_BANDWIDTH * CONTACT_BANDWIDTH, b),
+        Law::Backlash { half, contact } => (jl.motor * contact * contact, half),
     };
     let c = 2.0 * DAMPING_RATIO * (k * jl.motor).sqrt();
     let (first, last) = (prep.keep[0], prep.keep[prep.keep.len() - 1]);
@@ -91,8 +100,9 @@ pub fn signature(prep: &Prepared, jl: &JointLoad, law: Law, nq: usize) -> Table 
     let mut e = -(l0 / k) - half * l0.signum();
     let mut de = 0.0;
     let mut out = vec![0.0; n];
-    // The link's lag e and its acceleration, for the other joints' share (M_kj e'' + dtau_k/dq_j e).
-    let (mut lag, mut lag_acc) = (vec![0.0; n], vec![0.0; n]);
+    // The link's lag e, its rate and acceleration, for the other joints' share
+    // (M_kj e'' + dtau_k/dqd_j e' + dtau_k/dq_j e).
+    let (mut lag, mut lag_rate, mut lag_acc) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
     let own = |t: &Table| -> Vec<f64> { t.iter().map(|r| r[j]).collect() };
     let (inertia_j, stiffness_j) = (own(&jl.inertia), own(&jl.stiffness));
     for s in first..=last {
@@ -116,6 +126,7 @@ pub fn signature(prep: &Prepared, jl: &JointLoad, law: Law, nq: usize) -> Table 
         }
         out[s] = force - load;
         lag[s] = e;
+        lag_rate[s] = de;
         lag_acc[s] = (de - de0) / dt;
     }
     // Held flat outside the simulated span (no step for the filter to ring on).
@@ -127,8 +138,9 @@ pub fn signature(prep: &Prepared, jl: &JointLoad, law: Law, nq: usize) -> Table 
         let col: Vec<f64> = if k == j {
             prep.band(&out)
         } else {
-            let (mk, gk): (Vec<f64>, Vec<f64>) = (jl.inertia.iter().map(|r| r[k]).collect(), jl.stiffness.iter().map(|r| r[k]).collect());
-            let raw: Vec<f64> = (0..n).map(|s| at_raw(prep, &mk, s) * lag_acc[s] + at_raw(prep, &gk, s) * lag[s]).collect();
+            let column = |t: &Table| -> Vec<f64> { t.iter().map(|r| r[k]).collect() };
+            let (mk, gk, ck) = (column(&jl.inertia), column(&jl.stiffness), column(&jl.rate));
+            let raw: Vec<f64> = (0..n).map(|s| at_raw(prep, &mk, s) * lag_acc[s] + at_raw(prep, &gk, s) * lag[s] + at_raw(prep, &ck, s) * lag_rate[s]).collect();
             prep.band(&raw)
         };
         for (row, v) in table.iter_mut().zip(col) {

@@ -17,6 +17,7 @@
 //! on the link) is not implemented yet.
 
 pub mod candidates;
+pub mod consistency;
 pub mod csv_log;
 pub mod drive;
 pub mod excitation;

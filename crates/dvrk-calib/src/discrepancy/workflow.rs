@@ -5,6 +5,7 @@
 //! the held-out part, and a verdict.
 
 use super::candidates::{self, Candidate, Table};
+use super::consistency;
 use super::fit::{per_joint_ratio, Fitter, Rows};
 use super::joint_log::JointLog;
 use super::nuisance::{InertiaPrior, Nuisance};
@@ -178,9 +179,9 @@ fn score_linear(c: &Candidate, fit: &Fitter, r: &Table, o: &Options, rng: &mut C
     let s2 = rss1 / (n - p as f64).max(1.0);
     let (g, _) = fit.normal_equations(&a, &y);
     let cov = g.try_inverse().unwrap_or_else(|| DMatrix::from_element(p, p, f64::INFINITY)) * (s2 / frac);
-    // A model error that changes along the recording moves the estimate between its parts more
-    // than the noise would: widen by the blocks' disagreement.
-    let cov = cov * block_scale(&train, &a, &(fit.whitened(&e1) + &a * &x), &x, &c.lower, frac)?;
+    // A model error that changes along the recording, or a law that is not the truth's, moves
+    // the estimate between parts of the motion more than the noise would: widen by that.
+    let cov = cov * block_scale(&train, &a, &(fit.whitened(&e1) + &a * &x), &x, &c.lower, frac, c.focus)?;
     let ci = (0..p).map(|i| {
         let h = 1.96 * cov[(i, i)].max(0.0).sqrt();
         [x[i] - h, x[i] + h]
@@ -197,31 +198,27 @@ fn score_linear(c: &Candidate, fit: &Fitter, r: &Table, o: &Options, rng: &mut C
     Ok(Score { x: x.iter().copied().collect(), ci, delta_bic, stat, p_value, heldout_p, effect_to_noise: size, effect, profiled, at_edge: false })
 }
 
-/// Training blocks used to check an estimate's consistency over time.
-const BLOCKS: usize = 4;
-
-/// The Particle Data Group's scale factor of a linear candidate's first parameter over
-/// [`BLOCKS`] consecutive blocks of the training rows: each block fitted alone (`y`: the rows
-/// with the nuisance's fit taken out), `max(1, chi2 / (K - 1))` of the block estimates about the
-/// whole one `x`, each with its own noise variance (inflated by `1 / frac` for correlation).
-fn block_scale(train: &Rows, a: &DMatrix<f64>, y: &DVector<f64>, x: &DVector<f64>, lower: &[Option<f64>], frac: f64) -> Result<f64> {
+/// The Particle Data Group's scale factor of a linear candidate's first parameter over the
+/// groups of [`consistency::partitions`] (the largest over the partitions): each group of
+/// training rows fitted alone (`y`: the rows with the nuisance's fit taken out), each estimate
+/// with its own noise variance (inflated by `1 / frac` for correlation), against the whole fit `x`.
+fn block_scale(train: &Rows, a: &DMatrix<f64>, y: &DVector<f64>, x: &DVector<f64>, lower: &[Option<f64>], frac: f64, focus: usize) -> Result<f64> {
     let na = train.prep.active.len();
-    let samples = train.range.len();
     let p = a.ncols();
-    let mut chi2 = 0.0;
-    for b in 0..BLOCKS {
-        let (s0, s1) = (b * samples / BLOCKS, (b + 1) * samples / BLOCKS);
-        let (r0, len) = (s0 * na, (s1 - s0) * na);
-        let (ab, yb) = (a.rows(r0, len).into_owned(), y.rows(r0, len).into_owned());
-        let xb = super::stats::bounded_least_squares(&ab, &yb, lower)?;
-        let rss = (&yb - &ab * &xb).norm_squared();
-        let Some(inv) = ab.tr_mul(&ab).try_inverse() else { return Ok(1.0) };
-        let var = inv[(0, 0)] * rss / (len as f64 - p as f64).max(1.0) / frac;
-        if var > 0.0 && var.is_finite() {
-            chi2 += (xb[0] - x[0]).powi(2) / var;
+    let mut worst: f64 = 1.0;
+    for partition in consistency::partitions(train.prep, Some(focus)) {
+        let mut estimates = Vec::with_capacity(partition.len());
+        for group in &partition {
+            let rows: Vec<usize> = group.iter().flat_map(|s| s * na..(s + 1) * na).collect();
+            let (ab, yb) = (a.select_rows(&rows), y.select_rows(&rows));
+            let xb = super::stats::bounded_least_squares(&ab, &yb, lower)?;
+            let rss = (&yb - &ab * &xb).norm_squared();
+            let Some(inv) = ab.tr_mul(&ab).try_inverse() else { continue };
+            estimates.push((xb[0], inv[(0, 0)] * rss / (rows.len() as f64 - p as f64).max(1.0) / frac));
         }
+        worst = worst.max(consistency::scale(&estimates, x[0]));
     }
-    Ok((chi2 / (BLOCKS - 1) as f64).max(1.0))
+    Ok(worst)
 }
 
 /// `a += b`, element by element.
@@ -233,23 +230,32 @@ fn add(a: &mut Table, b: &Table) {
     }
 }
 
-/// `base` shifted by `tau` seconds later (the measured stream lags the link by `tau`), cubic
-/// (Catmull-Rom) between samples, held at the ends.
+/// Lobes of the Lanczos kernel [`shifted`] interpolates with.
+const LANCZOS_LOBES: isize = 6;
+
+/// `base` shifted by `tau` seconds later (the measured stream lags the link by `tau`), held at the
+/// ends. Between samples by Lanczos (windowed-sinc) interpolation: the prediction is band-limited
+/// well below the analysis rate's Nyquist, where a cubic's error (a fraction of a percent of the
+/// whole effort at 100 Hz) would be larger than the noise floor.
 fn shifted(base: &Table, dt: f64, tau: f64) -> Table {
-    let n = base.len();
-    let at = |i: isize| &base[i.clamp(0, n as isize - 1) as usize];
+    let n = base.len() as isize;
+    let x = tau / dt;
+    let i0 = x.floor() as isize;
+    let s = x - i0 as f64;
+    let sinc = |v: f64| if v.abs() < 1e-12 { 1.0 } else { (std::f64::consts::PI * v).sin() / (std::f64::consts::PI * v) };
+    // Weights of samples i + i0 + m, m in (-a, a]; normalised so a constant stays constant.
+    let taps: Vec<(isize, f64)> = (1 - LANCZOS_LOBES..=LANCZOS_LOBES).map(|m| (m, sinc(s - m as f64) * sinc((s - m as f64) / LANCZOS_LOBES as f64))).collect();
+    let total: f64 = taps.iter().map(|t| t.1).sum();
     (0..n)
         .map(|i| {
-            let x = i as f64 + tau / dt;
-            let i0 = x.floor() as isize;
-            let s = x - i0 as f64;
-            let (p0, p1, p2, p3) = (at(i0 - 1), at(i0), at(i0 + 1), at(i0 + 2));
-            (0..p1.len())
-                .map(|k| {
-                    let (a, b, c, d) = (p0[k], p1[k], p2[k], p3[k]);
-                    b + 0.5 * s * (c - a + s * (2.0 * a - 5.0 * b + 4.0 * c - d + s * (3.0 * (b - c) + d - a)))
-                })
-                .collect()
+            let mut row = vec![0.0; base[0].len()];
+            for &(m, w) in &taps {
+                let src = &base[(i + i0 + m).clamp(0, n - 1) as usize];
+                for (r, v) in row.iter_mut().zip(src) {
+                    *r += w / total * v;
+                }
+            }
+            row
         })
         .collect()
 }
@@ -260,47 +266,89 @@ fn shifted(base: &Table, dt: f64, tau: f64) -> Table {
 fn score_profile(fit: &Fitter, r: &Table, grid: &[f64], make: &dyn Fn(f64) -> Table, focus: Option<usize>) -> Score {
     let prep = fit.prep;
     let (train, hold) = (Rows::train(prep), Rows::held_out(prep));
-    let eval = |v: f64| fit.rss(&train.vector(&sub(r, &make(v))));
-    let mut points: Vec<(f64, f64)> = grid.iter().map(|&v| (v, eval(v))).collect();
+    // The groups the estimate's consistency is checked on (latency: on the joint it shows most).
+    let focus_or_worst =
+        focus.or_else(|| prep.active.iter().copied().max_by(|a, b| (rms(r, *a, 0..prep.split) / prep.floor[*a]).total_cmp(&(rms(r, *b, 0..prep.split) / prep.floor[*b]))));
+    let partitions = consistency::partitions(prep, focus_or_worst);
+    let na = prep.active.len();
+    // rss of the training rows, then of each group's rows (the nuisance fitted on all of them).
+    let eval = |v: f64| -> (f64, Vec<f64>) {
+        let e = train.vector(&sub(r, &make(v)));
+        let w = fit.whitened(&e);
+        let groups = partitions.iter().flatten().map(|g| g.iter().flat_map(|s| s * na..(s + 1) * na).map(|i| w[i] * w[i]).sum()).collect();
+        (fit.rss(&e), groups)
+    };
+    let mut points: Vec<(f64, f64, Vec<f64>)> = grid
+        .iter()
+        .map(|&v| {
+            let (rss, groups) = eval(v);
+            (v, rss, groups)
+        })
+        .collect();
     let geometric = grid[0] > 0.0;
-    // Twice: the best point's neighbourhood filled in, each time 8 times finer.
-    for _ in 0..2 {
+    // The best point's neighbourhood filled in, each time 4 times finer: twice, then until its
+    // neighbours are close enough in likelihood (ratio 15, with the noise's effective sample size)
+    // for the parabola through them to give the interval, at most 6 times.
+    let n_eff_noise = train.len() as f64 * prep.noise_fraction;
+    for pass in 0..6 {
         points.sort_by(|a, b| a.0.total_cmp(&b.0));
         let best = (0..points.len()).min_by(|a, b| points[*a].1.total_cmp(&points[*b].1)).unwrap_or(0);
         let (lo, hi) = (points[best.saturating_sub(1)].0, points[(best + 1).min(points.len() - 1)].0);
+        let apart = |i: usize| lr(n_eff_noise, points[i].1, points[best].1);
+        if pass >= 2 && apart(best.saturating_sub(1)) < 15.0 && apart((best + 1).min(points.len() - 1)) < 15.0 {
+            break;
+        }
         for i in 1..8 {
             let w = i as f64 / 8.0;
             let v = if geometric { lo * (hi / lo).powf(w) } else { lo + (hi - lo) * w };
-            if !points.iter().any(|p| p.0 == v) {
-                points.push((v, eval(v)));
+            // The ends of a refinement land on existing points up to rounding.
+            if !points.iter().any(|p| (p.0 - v).abs() <= 1e-9 * v.abs().max(1e-12)) {
+                let (rss, groups) = eval(v);
+                points.push((v, rss, groups));
             }
         }
     }
     points.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let (value, rss1) = points.iter().copied().min_by(|a, b| a.1.total_cmp(&b.1)).unwrap_or((grid[0], f64::INFINITY));
+    let (value, rss1) = points.iter().map(|p| (p.0, p.1)).min_by(|a, b| a.1.total_cmp(&b.1)).unwrap_or((grid[0], f64::INFINITY));
     let sig = make(value);
     let rr = sub(r, &sig);
     let (y, e1, h0, h1) = (train.vector(r), train.vector(&rr), hold.vector(r), hold.vector(&rr));
     let white = fit.whitened(&e1);
     let n_eff_pooled = train.len() as f64 * effective_fraction(&train.series(&white));
     let (stat, n_eff) = per_joint_ratio(&train, &fit.whitened(&y), &white);
-    let inside: Vec<f64> = points.iter().filter(|(_, r)| lr(n_eff_pooled, *r, rss1) <= 3.841).map(|(v, _)| *v).collect();
+    let inside: Vec<f64> = points.iter().filter(|p| lr(n_eff_pooled, p.1, rss1) <= 3.841).map(|p| p.0).collect();
     let mut ci = [inside.first().copied().unwrap_or(value), inside.last().copied().unwrap_or(value)];
     // Between grid points: the profile's parabola through the best point and its neighbours (in
     // ln v on a geometric grid) where the likelihood ratio reaches 3.84.
-    if let Some(i) = points.iter().position(|p| p.0 == value).filter(|&i| i > 0 && i + 1 < points.len()) {
-        let x = |v: f64| if geometric { v.ln() } else { v };
-        let (x0, x1, x2) = (x(points[i - 1].0), x(points[i].0), x(points[i + 1].0));
-        let (l0, l1, l2) = (lr(n_eff_pooled, points[i - 1].1, rss1), 0.0, lr(n_eff_pooled, points[i + 1].1, rss1));
-        // Second divided difference: the curvature a of l(x) = a (x - xm)^2 + c.
-        let a = ((l2 - l1) / (x2 - x1) - (l1 - l0) / (x1 - x0)) / (x2 - x0);
-        if a > 0.0 {
-            let xm = 0.5 * (x0 + x1) - (l1 - l0) / (2.0 * a * (x1 - x0));
-            let half = (3.841 / a).sqrt();
-            let back = |x: f64| if geometric { x.exp() } else { x };
-            ci = [ci[0].min(back(xm - half)), ci[1].max(back(xm + half))];
-        }
+    let x = |v: f64| if geometric { v.ln() } else { v };
+    let back = |x: f64| if geometric { x.exp() } else { x };
+    let profile: Vec<(f64, f64)> = points.iter().map(|p| (x(p.0), lr(n_eff_pooled, p.1, rss1))).collect();
+    // The interval's centre: the parabola's vertex between grid points, else the best point.
+    let mut centre = x(value);
+    if let Some((xm, var)) = consistency::parabola_minimum(&profile) {
+        let half = (3.841 * var).sqrt();
+        ci = [ci[0].min(back(xm - half)), ci[1].max(back(xm + half))];
+        centre = xm;
     }
+    // Widened by the estimate's disagreement between the groups of the training samples.
+    let frac = n_eff_pooled / train.len() as f64;
+    let mut offset = 0;
+    let mut widen: f64 = 1.0;
+    for partition in &partitions {
+        let estimates: Vec<(f64, f64)> = (offset..offset + partition.len())
+            .zip(partition)
+            .filter_map(|(g, rows)| {
+                let least = points.iter().map(|p| p.2[g]).fold(f64::INFINITY, f64::min);
+                let n_eff = (rows.len() * na) as f64 * frac;
+                consistency::parabola_minimum(&points.iter().map(|p| (x(p.0), lr(n_eff, p.2[g], least))).collect::<Vec<_>>())
+            })
+            .collect();
+        offset += partition.len();
+        widen = widen.max(consistency::scale(&estimates, centre));
+    }
+    let stretch = |end: f64| back(centre + (x(end) - centre) * widen.sqrt());
+    // Not below the grid's start: a physical bound (no negative latency, stiffness or play).
+    let ci = [stretch(ci[0]).max(grid[0]), stretch(ci[1])];
     let (eh0, eh1) = (fit.held_out(&y, &h0), fit.held_out(&e1, &h1));
     let size_at = |k: usize| (sig[..prep.split].iter().map(|e| e[k] * e[k]).sum::<f64>() / prep.split as f64).sqrt() / prep.noise[k];
     let size = match focus {
@@ -438,15 +486,19 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
     let rigid = predictor.series(&prep)?;
     let offsets = candidates::offset_sensitivities(&predictor, arm, scene.gravity, &prep, &rigid)?;
     let link_m = super::drive::link_inertias(&arm.model, predictor.dynamics(), &prep)?;
+    let driven: Vec<usize> = prep.active.iter().copied().filter(|&j| arm.armature[j] > 0.0).collect();
+    let rates = candidates::rate_sensitivities(&mut predictor, &prep, &rigid, &driven)?;
     let nq = arm.model.nq();
     // Joint j's drive load along the recorded motion, for a prediction `base`.
     let joint_load = |j: usize, base: &Table| -> Option<super::drive::JointLoad> {
         let d = offsets.iter().find(|(k, _)| *k == j).map(|(_, d)| d)?;
+        let rate = rates.iter().find(|(k, _)| *k == j).map(|(_, c)| c)?;
         (arm.armature[j] > 0.0).then(|| super::drive::JointLoad {
             joint: j,
             load: (0..prep.t.len()).map(|i| base[i][j] - arm.armature[j] * prep.qdd[i][j]).collect(),
             inertia: link_m.iter().map(|m| m.column(j).iter().copied().collect()).collect(),
             stiffness: d.clone(),
+            rate: rate.clone(),
             motor: arm.armature[j],
             damping: predictor.joint_damping(j),
         })
@@ -457,7 +509,7 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
     for e in &arm.model.effects {
         let law = match (e.kind, e.joint) {
             (EffectKind::JointCompliance, Some(j)) => Some((j, super::drive::Law::Compliance(e.get("stiffness")))),
-            (EffectKind::Backlash, Some(j)) => Some((j, super::drive::Law::Backlash(e.get("b")))),
+            (EffectKind::Backlash, Some(j)) => Some((j, super::drive::Law::Backlash { half: e.get("b"), contact: super::drive::CONTACT_BANDWIDTH })),
             _ => None,
         };
         if let Some((j, law)) = law {
@@ -483,7 +535,14 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
     // Latency: the prediction shifted later, 0-60 ms.
     let shift = |tau: f64| sub(&shifted(&base, prep.dt, tau), &base);
     let lat_grid: Vec<f64> = (0..=60).map(|i| i as f64 * 1e-3).collect();
-    scored.push(Scored { candidate: None, kind: EffectKind::Latency, label: "latency".into(), score: score_profile(&fit, &r, &lat_grid, &shift, None), joint: None, kinematic: None });
+    scored.push(Scored {
+        candidate: None,
+        kind: EffectKind::Latency,
+        label: "latency".into(),
+        score: score_profile(&fit, &r, &lat_grid, &shift, None),
+        joint: None,
+        kinematic: None,
+    });
     // The drives: compliance and play per moving joint, each a profile of its own simulation.
     for &j in &prep.active {
         let Some(jl) = joint_load(j, &base) else {
@@ -493,8 +552,20 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
         let comp = |k: f64| super::drive::signature(&prep, &jl, super::drive::Law::Compliance(k), nq);
         let s = score_profile(&fit, &r, &geometric(1.0, 1e5, 26), &comp, Some(j));
         scored.push(Scored { candidate: None, kind: EffectKind::JointCompliance, label: format!("joint_compliance on {name}"), score: s, joint: Some(j), kinematic: None });
-        let play = |b: f64| super::drive::signature(&prep, &jl, super::drive::Law::Backlash(b), nq);
-        let s = score_profile(&fit, &r, &geometric(2.5e-4, 0.04, 21), &play, Some(j));
+        let play_at = |contact: f64| {
+            let play = |half: f64| super::drive::signature(&prep, &jl, super::drive::Law::Backlash { half, contact }, nq);
+            score_profile(&fit, &r, &geometric(2.5e-4, 0.04, 21), &play, Some(j))
+        };
+        let mut s = play_at(super::drive::CONTACT_BANDWIDTH);
+        if s.delta_bic > o.min_delta_bic {
+            // A play that shows: its contact's stiffness profiled too (one more parameter).
+            let penalty = (Rows::train(&prep).len() as f64 * prep.noise_fraction).ln();
+            let best = super::drive::CONTACT_BANDWIDTHS.iter().map(|&w| play_at(w)).max_by(|a, b| a.stat.total_cmp(&b.stat));
+            if let Some(mut best) = best.filter(|b| b.stat - penalty > s.stat) {
+                best.delta_bic -= penalty;
+                s = best;
+            }
+        }
         scored.push(Scored { candidate: None, kind: EffectKind::Backlash, label: format!("backlash on {name}"), score: s, joint: Some(j), kinematic: None });
     }
     let kin = match &log.markers {

@@ -1,0 +1,93 @@
+//! Whether a fitted parameter holds across the recording: the Particle Data Group's scale factor
+//! of its estimates over groups of training samples. Interval widths from the noise alone miss a
+//! candidate whose law is not the truth's (a Stribeck hump fitted as Coulomb friction, a play
+//! element fitted as a smooth one): the estimate is then biased, and more data only narrows the
+//! interval around the wrong value. Such an estimate moves with the motion's regime, so the
+//! training samples are grouped four ways: consecutive time blocks (a model error that drifts),
+//! and quartiles of the focus joint's |speed|, position and |effort| (a law that differs from the
+//! truth's reads differently at low and high speed, load or pose).
+
+use super::signals::{column, Prepared};
+
+/// Groups per partition.
+pub const GROUPS: usize = 4;
+
+/// Partitions of the training samples `0..prep.split`, each into [`GROUPS`] groups of sample
+/// indices: time blocks, then (with a focus joint) quartiles of its |speed|, position and |effort|.
+pub fn partitions(prep: &Prepared, focus: Option<usize>) -> Vec<Vec<Vec<usize>>> {
+    let n = prep.split;
+    let mut out = vec![(0..GROUPS).map(|b| (b * n / GROUPS..(b + 1) * n / GROUPS).collect()).collect()];
+    if let Some(k) = focus {
+        let abs = |v: Vec<f64>| v.into_iter().map(f64::abs).collect::<Vec<_>>();
+        for value in [abs(column(&prep.qd, k)), column(&prep.q, k), abs(column(&prep.effort, k))] {
+            out.push(quartiles(&value[..n]));
+        }
+    }
+    out
+}
+
+/// Indices of `value` in [`GROUPS`] groups of equal count by value, each in time order.
+fn quartiles(value: &[f64]) -> Vec<Vec<usize>> {
+    let mut order: Vec<usize> = (0..value.len()).collect();
+    order.sort_by(|a, b| value[*a].total_cmp(&value[*b]));
+    let n = order.len();
+    (0..GROUPS)
+        .map(|g| {
+            let mut group = order[g * n / GROUPS..(g + 1) * n / GROUPS].to_vec();
+            group.sort_unstable();
+            group
+        })
+        .collect()
+}
+
+/// `max(1, chi2 / (K - 1))` of the groups' `(estimate, variance)` about the whole fit's `x`;
+/// groups without a finite positive variance are left out (1 when fewer than two are left).
+pub fn scale(groups: &[(f64, f64)], x: f64) -> f64 {
+    let used: Vec<f64> = groups.iter().filter(|(e, v)| *v > 0.0 && v.is_finite() && e.is_finite()).map(|(e, v)| (e - x).powi(2) / v).collect();
+    if used.len() < 2 {
+        return 1.0;
+    }
+    (used.iter().sum::<f64>() / (used.len() - 1) as f64).max(1.0)
+}
+
+/// The minimum of a likelihood-ratio profile `points` (`(x, lr)`, ascending in `x`, lr 0 at the
+/// best point of the whole fit but not necessarily at this group's): the parabola through the
+/// lowest point and its neighbours, as `(x at its vertex, variance = 1 / curvature)`; `None` at
+/// the grid's ends or without curvature.
+pub fn parabola_minimum(points: &[(f64, f64)]) -> Option<(f64, f64)> {
+    let i = (0..points.len()).min_by(|a, b| points[*a].1.total_cmp(&points[*b].1))?;
+    if i == 0 || i + 1 >= points.len() {
+        return None;
+    }
+    let ((x0, l0), (x1, l1), (x2, l2)) = (points[i - 1], points[i], points[i + 1]);
+    let a = ((l2 - l1) / (x2 - x1) - (l1 - l0) / (x1 - x0)) / (x2 - x0);
+    (a > 0.0).then(|| (0.5 * (x0 + x1) - (l1 - l0) / (2.0 * a * (x1 - x0)), 1.0 / a))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn agreeing_groups_keep_the_interval_and_disagreeing_ones_widen_it() {
+        // Four estimates one standard deviation apart around 0: chi2 = 1 + 1 + 1 + 1 = 4, / 3.
+        assert_eq!(scale(&[(1.0, 1.0), (-1.0, 1.0), (0.5, 0.25), (-0.5, 0.25)], 0.0), 4.0 / 3.0);
+        assert_eq!(scale(&[(0.1, 1.0), (-0.1, 1.0)], 0.0), 1.0);
+        assert_eq!(scale(&[(3.0, 1.0), (f64::NAN, 1.0), (1.0, 0.0)], 0.0), 1.0);
+    }
+
+    #[test]
+    fn a_parabola_profile_gives_its_vertex_and_curvature() {
+        // lr = 4 (x - 0.3)^2 sampled at 0, 0.25, 0.5, 0.75.
+        let pts: Vec<(f64, f64)> = [0.0, 0.25, 0.5, 0.75].iter().map(|&x| (x, 4.0 * (x - 0.3f64).powi(2))).collect();
+        let (xm, var) = parabola_minimum(&pts).unwrap();
+        assert!((xm - 0.3).abs() < 1e-12 && (var - 0.25).abs() < 1e-12, "{xm} {var}");
+        assert!(parabola_minimum(&pts[1..3]).is_none());
+    }
+
+    #[test]
+    fn quartiles_split_by_value_and_keep_time_order() {
+        let g = quartiles(&[5.0, 1.0, 7.0, 3.0, 2.0, 8.0, 6.0, 4.0]);
+        assert_eq!(g, vec![vec![1, 4], vec![3, 7], vec![0, 6], vec![2, 5]]);
+    }
+}
