@@ -3,7 +3,7 @@
 //! and, when given, on a held-out one.
 
 use super::problem::{EffectTerm, Processing};
-use super::{identify, IdentifyOptions, TorqueRecording};
+use super::{identify, Identification, IdentifyOptions, TorqueRecording};
 use crate::error::Result;
 use dvrk_kin::{BodyInertia, Model};
 use serde::Serialize;
@@ -78,14 +78,22 @@ pub fn steps(options: &IdentifyOptions) -> Vec<(String, IdentifyOptions)> {
     out
 }
 
-/// Run every step of [`steps`] on `rec` (and `held_out`).
-pub fn ablation(model: &Model, prior: &[BodyInertia], rec: &TorqueRecording, held_out: Option<&TorqueRecording>, options: &IdentifyOptions) -> Result<Vec<AblationRow>> {
+/// Run every step of [`steps`] on `rec` (and `held_out`); `chosen`: the identification with
+/// `options` itself, when the caller has it (the last step then reuses it).
+pub fn ablation(model: &Model, prior: &[BodyInertia], rec: &TorqueRecording, held_out: Option<&TorqueRecording>, options: &IdentifyOptions, chosen: Option<&Identification>) -> Result<Vec<AblationRow>> {
     steps(options)
         .into_iter()
         .map(|(effects, o)| {
-            let (id, _) = identify(model, prior, rec, &o)?;
+            let fitted;
+            let id = match chosen.filter(|_| o == *options) {
+                Some(id) => id,
+                None => {
+                    fitted = identify(model, prior, rec, &o)?.0;
+                    &fitted
+                }
+            };
             let validation = held_out.map(|h| id.validate(model, h, &o).map(|(raw, _)| raw)).transpose()?;
-            Ok(AblationRow { effects, relative_error: id.relative_error, validation })
+            Ok(AblationRow { effects, relative_error: id.relative_error.clone(), validation })
         })
         .collect()
 }

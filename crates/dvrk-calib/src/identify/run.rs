@@ -31,7 +31,7 @@ pub fn run(model: &Model, prior: &[BodyInertia], rec: &TorqueRecording, held_out
         let (rigid_errors, _) = rigid.validate(model, r2, &rigid_options)?;
         summary["validation"] = json!({"recording": r2.source, "relative_error": errors, "relative_error_in_band": in_band, "rigid_body_only": rigid_errors});
     }
-    let rows = ablation::ablation(model, prior, rec, held_out, options)?;
+    let rows = ablation::ablation(model, prior, rec, held_out, options, Some(&id))?;
     summary["ablation"] = serde_json::to_value(&rows).unwrap_or(Value::Null);
     Ok(IdentifyRun { summary, identification: id, rigid, ablation: rows })
 }

@@ -89,7 +89,7 @@ fn real_psm_recordings_identify_physically_and_predict_the_held_out_one() {
         }
     }
     // The ablation ends at the chosen options with the same figures.
-    let rows = dvrk_calib::identify::ablation::ablation(&model, &prior, &r1, Some(&r2), &options).unwrap();
+    let rows = dvrk_calib::identify::ablation::ablation(&model, &prior, &r1, Some(&r2), &options, None).unwrap();
     assert_eq!(rows.len(), 10);
     assert_eq!(rows.last().unwrap().validation.as_ref().unwrap(), &held_out);
     assert_eq!(rows[0].validation.as_ref().unwrap().len(), 7);
