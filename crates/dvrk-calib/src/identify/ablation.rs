@@ -80,7 +80,14 @@ pub fn steps(options: &IdentifyOptions) -> Vec<(String, IdentifyOptions)> {
 
 /// Run every step of [`steps`] on `rec` (and `held_out`); `chosen`: the identification with
 /// `options` itself, when the caller has it (the last step then reuses it).
-pub fn ablation(model: &Model, prior: &[BodyInertia], rec: &TorqueRecording, held_out: Option<&TorqueRecording>, options: &IdentifyOptions, chosen: Option<&Identification>) -> Result<Vec<AblationRow>> {
+pub fn ablation(
+    model: &Model,
+    prior: &[BodyInertia],
+    rec: &TorqueRecording,
+    held_out: Option<&TorqueRecording>,
+    options: &IdentifyOptions,
+    chosen: Option<&Identification>,
+) -> Result<Vec<AblationRow>> {
     steps(options)
         .into_iter()
         .map(|(effects, o)| {
