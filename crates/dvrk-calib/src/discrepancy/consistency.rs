@@ -40,6 +40,11 @@ fn quartiles(value: &[f64]) -> Vec<Vec<usize>> {
         .collect()
 }
 
+/// The row indices of sample group `group` in a row vector with `per_sample` rows per sample.
+pub fn rows(group: &[usize], per_sample: usize) -> impl Iterator<Item = usize> + '_ {
+    group.iter().flat_map(move |s| s * per_sample..(s + 1) * per_sample)
+}
+
 /// `max(1, chi2 / (K - 1))` of the groups' `(estimate, variance)` about the whole fit's `x`;
 /// groups without a finite positive variance are left out (1 when fewer than two are left).
 pub fn scale(groups: &[(f64, f64)], x: f64) -> f64 {

@@ -7,7 +7,7 @@
 //! implementation from dvrk-sim's (a full multibody with a second body per drive), on purpose.
 
 use super::candidates::Table;
-use super::signals::Prepared;
+use super::signals::{column, Prepared};
 use crate::error::Result;
 use dvrk_kin::{DynamicsData, DynamicsModel};
 use nalgebra::DMatrix;
@@ -103,8 +103,7 @@ pub fn signature(prep: &Prepared, jl: &JointLoad, law: Law, nq: usize) -> Table 
     // The link's lag e, its rate and acceleration, for the other joints' share
     // (M_kj e'' + dtau_k/dqd_j e' + dtau_k/dq_j e).
     let (mut lag, mut lag_rate, mut lag_acc) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
-    let own = |t: &Table| -> Vec<f64> { t.iter().map(|r| r[j]).collect() };
-    let (inertia_j, stiffness_j) = (own(&jl.inertia), own(&jl.stiffness));
+    let (inertia_j, stiffness_j) = (column(&jl.inertia, j), column(&jl.stiffness, j));
     for s in first..=last {
         let (load, m, g) = (at_raw(prep, &jl.load, s), at_raw(prep, &inertia_j, s).max(1e-9), at_raw(prep, &stiffness_j, s));
         let de0 = de;
@@ -138,8 +137,7 @@ pub fn signature(prep: &Prepared, jl: &JointLoad, law: Law, nq: usize) -> Table 
         let col: Vec<f64> = if k == j {
             prep.band(&out)
         } else {
-            let column = |t: &Table| -> Vec<f64> { t.iter().map(|r| r[k]).collect() };
-            let (mk, gk, ck) = (column(&jl.inertia), column(&jl.stiffness), column(&jl.rate));
+            let (mk, gk, ck) = (column(&jl.inertia, k), column(&jl.stiffness, k), column(&jl.rate, k));
             let raw: Vec<f64> = (0..n).map(|s| at_raw(prep, &mk, s) * lag_acc[s] + at_raw(prep, &gk, s) * lag[s] + at_raw(prep, &ck, s) * lag_rate[s]).collect();
             prep.band(&raw)
         };
