@@ -136,12 +136,12 @@ pub fn offset_sensitivities(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, g
 /// model's prediction `base`: a drive's lag rate changes the other joints' load through it.
 pub fn rate_sensitivities(predictor: &mut Predictor, prep: &Prepared, base: &Table, joints: &[usize]) -> Result<Vec<(usize, Table)>> {
     let h = 1e-4;
-    let mut moved = prep.clone();
+    let mut moved = prep.qd.clone();
     let mut out = Vec::with_capacity(joints.len());
     for &j in joints {
-        moved.qd.iter_mut().zip(&prep.qd).for_each(|(m, q)| m[j] = q[j] + h);
-        out.push((j, diff(&predictor.series(&moved)?, base, h)));
-        moved.qd.iter_mut().zip(&prep.qd).for_each(|(m, q)| m[j] = q[j]);
+        moved.iter_mut().zip(&prep.qd).for_each(|(m, q)| m[j] = q[j] + h);
+        out.push((j, diff(&predictor.series_at(&prep.q, &moved, &prep.qdd)?, base, h)));
+        moved.iter_mut().zip(&prep.qd).for_each(|(m, q)| m[j] = q[j]);
     }
     Ok(out)
 }

@@ -208,14 +208,18 @@ impl Predictor {
 
     /// The predicted effort at every sample of `prep`, `[sample][joint]`.
     pub fn series(&mut self, prep: &Prepared) -> Result<Vec<Vec<f64>>> {
+        self.series_at(&prep.q, &prep.qd, &prep.qdd)
+    }
+
+    /// The predicted effort at states `q`, `qd`, `qdd` (`[sample][joint]`), `[sample][joint]`.
+    pub fn series_at(&mut self, q: &[Vec<f64>], qd: &[Vec<f64>], qdd: &[Vec<f64>]) -> Result<Vec<Vec<f64>>> {
         let nq = self.model.nq();
-        let mut out = Vec::with_capacity(prep.t.len());
+        let mut out = Vec::with_capacity(q.len());
         let mut tau = vec![0.0; nq];
-        for i in 0..prep.t.len() {
-            dvrk_kin::dynamics::actuator_effort(&self.model, &self.dm, &mut self.data, &prep.q[i], &prep.qd[i], &prep.qdd[i], &self.gravity, self.velocity_scale, &mut tau)?;
-            let qd = nalgebra::DVector::from_column_slice(&prep.qd[i]);
-            let d = &self.damping * qd;
-            out.push((0..nq).map(|k| tau[k] + self.armature[k] * prep.qdd[i][k] + d[k]).collect());
+        for i in 0..q.len() {
+            dvrk_kin::dynamics::actuator_effort(&self.model, &self.dm, &mut self.data, &q[i], &qd[i], &qdd[i], &self.gravity, self.velocity_scale, &mut tau)?;
+            let d = &self.damping * nalgebra::DVector::from_column_slice(&qd[i]);
+            out.push((0..nq).map(|k| tau[k] + self.armature[k] * qdd[i][k] + d[k]).collect());
         }
         Ok(out)
     }
