@@ -1,7 +1,8 @@
 //! The exciting setpoint of a hidden-effect recording: per joint a sum of sines on distinct
 //! harmonics of one base period (so the joints' motions are uncorrelated over a period and every
 //! joint reverses often and moves at many speeds), phases drawn from the seed, faded in over the
-//! first second so the PID starts without a jump.
+//! first second so the PID starts without a jump; each joint's swing shrunk until following it
+//! needs well under the drive's effort limit.
 
 use dvrk_kin::{JointType, Model};
 use rand::{Rng, SeedableRng};
@@ -14,6 +15,12 @@ const BASE_HZ: f64 = 0.05;
 const FADE: f64 = 1.0;
 /// Room kept from each joint limit (rad, m).
 const MARGIN: f64 = 0.05;
+/// Largest share of a joint's effort limit the nominal model may need to follow the setpoint;
+/// the rest is the PID's corrections' and the hidden effect's.
+pub const EFFORT_SHARE: f64 = 0.85;
+/// Passes of [`MultiSine::within_effort_limits`]: the effort is not proportional to the swing
+/// (gravity stays), so a pass may leave a joint slightly over.
+const EFFORT_PASSES: usize = 6;
 
 /// The multi-sine of every joint (the last joint, the jaw, holds home).
 #[derive(Debug, Clone)]
@@ -57,6 +64,48 @@ impl MultiSine {
             }
         }
         MultiSine { center, terms }
+    }
+
+    /// The period over which every joint's motion repeats (s).
+    pub fn period(&self) -> f64 {
+        1.0 / BASE_HZ
+    }
+
+    /// Shrink each joint's swing until `peaks` (the largest |effort| per joint, N·m or N, that
+    /// following the setpoint over one period needs) stays within [`EFFORT_SHARE`] of its
+    /// `limits` (a limit <= 0: none). A drive at its limit cannot track, and the bang-bang
+    /// transients of a saturated drive belong in no identification recording (the paper's 0.1
+    /// N·m s/rad joint damping alone needs the wrist yaw's whole 0.2 N·m at 2 rad/s).
+    pub fn within_effort_limits<E>(&mut self, limits: &[f64], mut peaks: impl FnMut(&MultiSine) -> Result<Vec<f64>, E>) -> Result<(), E> {
+        for _ in 0..EFFORT_PASSES {
+            let peak = peaks(self)?;
+            let mut changed = false;
+            for (k, terms) in self.terms.iter_mut().enumerate() {
+                let allowed = EFFORT_SHARE * limits.get(k).copied().unwrap_or(0.0);
+                if allowed > 0.0 && peak[k] > allowed * 1.01 {
+                    let s = allowed / peak[k];
+                    terms.iter_mut().for_each(|t| t.0 *= s);
+                    changed = true;
+                }
+            }
+            if !changed {
+                break;
+            }
+        }
+        Ok(())
+    }
+
+    /// Position, velocity and acceleration at `t` (s) past the fade-in into `q`, `qd`, `qdd`.
+    pub fn steady(&self, t: f64, q: &mut [f64], qd: &mut [f64], qdd: &mut [f64]) {
+        for k in 0..q.len() {
+            (q[k], qd[k], qdd[k]) = (self.center[k], 0.0, 0.0);
+            for (a, f, p) in &self.terms[k] {
+                let w = 2.0 * PI * f;
+                q[k] += a * (w * t + p).sin();
+                qd[k] += a * w * (w * t + p).cos();
+                qdd[k] -= a * w * w * (w * t + p).sin();
+            }
+        }
     }
 
     /// Position and velocity at `t` (s) into `q`, `qd`.

@@ -1,6 +1,6 @@
 //! `dvrk synth hidden-effect`: a recording from a "truth" arm that has one or two physical
 //! effects the nominal model lacks (or none), and a separate answer. The truth avoids the inverse crime where
-//! it is cheap: it is integrated at a finer step (0.25 ms against the analysis' 1 ms samples),
+//! it is cheap: it is integrated at a finer step (0.125 ms against the analysis' 1 ms samples),
 //! the bodies' rotational inertias are perturbed by a few percent, the effects are dvrk-sim's
 //! physics (a two-mass drive with play, a delayed measurement stream) while the workflow's
 //! candidates are dvrk-kin's inverse dynamics with linearised signatures, and noise is added to
@@ -93,7 +93,10 @@ pub struct HiddenOptions {
     pub seed: u64,
     /// Recorded time (s).
     pub duration: f64,
-    /// The truth's integration step (s).
+    /// The truth's integration step (s); 1/8 of the sim's 1 ms by default. The loops' impulse
+    /// joints carry the gravity load along a constraint direction one step old, which the yaw
+    /// feels as a negative damping of its gravity stiffness times dt (measured: -1.1e-3 N·m s/rad
+    /// at 0.25 ms, 0.4 of its effort noise floor, halving with the step).
     pub truth_dt: f64,
     /// Recording rate (Hz).
     pub rate: f64,
@@ -134,7 +137,7 @@ impl Default for MarkerOptions {
 
 impl Default for HiddenOptions {
     fn default() -> Self {
-        HiddenOptions { hidden: Hidden::Random, seed: 1, duration: 30.0, truth_dt: 2.5e-4, rate: 1000.0, effort_noise: None, position_noise: POSITION_NOISE, enr: None, inertia_perturbation: 0.03, magnitude: 1.0, marker: None }
+        HiddenOptions { hidden: Hidden::Random, seed: 1, duration: 30.0, truth_dt: 1.25e-4, rate: 1000.0, effort_noise: None, position_noise: POSITION_NOISE, enr: None, inertia_perturbation: 0.03, magnitude: 1.0, marker: None }
     }
 }
 
@@ -319,6 +322,19 @@ fn sim_error(e: dvrk_sim::SimError) -> CalibError {
     CalibError::data("simulation", e.to_string())
 }
 
+/// The largest |effort| per joint (N·m, N) the predictor needs to follow `x` over one period,
+/// sampled at 100 Hz.
+fn peak_efforts(x: &MultiSine, predictor: &mut super::signals::Predictor) -> Result<Vec<f64>> {
+    let nq = x.center.len();
+    let n = (x.period() * 100.0) as usize;
+    let (mut q, mut qd, mut qdd) = (vec![vec![0.0; nq]; n], vec![vec![0.0; nq]; n], vec![vec![0.0; nq]; n]);
+    for i in 0..n {
+        x.steady(i as f64 * 0.01, &mut q[i], &mut qd[i], &mut qdd[i]);
+    }
+    let effort = predictor.series_at(&q, &qd, &qdd)?;
+    Ok((0..nq).map(|k| effort.iter().map(|e| e[k].abs()).fold(0.0, f64::max)).collect())
+}
+
 /// Simulate `scene` (arm 0) tracking `excitation` for `duration`, sampling setpoints, encoder
 /// positions and efforts at `rate`; and the links' own joint positions at the same samples.
 pub fn simulate(scene: &Scene, excitation: &MultiSine, duration: f64, rate: f64) -> Result<(JointLog, Vec<Vec<f64>>)> {
@@ -416,7 +432,10 @@ pub fn hidden_effect(scene_name: &str, o: &HiddenOptions) -> Result<HiddenRecord
     };
     let marker_frame = o.marker.as_ref().map(|m| super::markers::marker_frame(&nominal, &m.link)).transpose()?;
     let specs: Vec<EffectSpec> = kinds.iter().map(|&k| draw(k, &nominal, &mut rng, o.magnitude, marker_frame)).collect::<Result<_>>()?;
-    let excitation = MultiSine::new(&nominal, o.seed);
+    let mut excitation = MultiSine::new(&nominal, o.seed);
+    let limits: Vec<f64> = nominal.joints.iter().map(|j| j.effort_limit).collect();
+    let mut predictor = super::signals::Predictor::new(&scene.arms[0].model, &scene.arms[0], scene.gravity)?;
+    excitation.within_effort_limits(&limits, |x| peak_efforts(x, &mut predictor))?;
     // The truth with the effects in `keep` (indices into `specs`).
     let truth_model = |keep: &[usize]| -> Result<Model> {
         let mut m = nominal.clone();

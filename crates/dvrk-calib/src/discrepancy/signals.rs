@@ -1,7 +1,8 @@
 //! From a joint log to the torque channel's inputs: positions low-passed without lag and
 //! differentiated twice, efforts low-passed the same way (so measurement and prediction share one
 //! bandwidth), both decimated; each joint's effort noise estimated from the raw samples and
-//! carried through the same filter to the noise floor of the residual.
+//! carried through the same filter to the noise floor of the residual, with what the encoder
+//! noise, differentiated twice, makes of the predicted effort.
 
 use super::joint_log::JointLog;
 use crate::error::{CalibError, Result};
@@ -48,8 +49,14 @@ pub struct Prepared {
     pub raw_effort: Vec<Vec<f64>>,
     /// Raw effort noise per joint (N·m, N): second differences of the raw samples.
     pub noise: Vec<f64>,
-    /// Noise of the filtered, decimated effort per joint (N·m, N): the residual's noise floor.
+    /// Noise of the filtered, decimated effort per joint (N·m, N): the residual's noise floor
+    /// (with the encoder noise's share once [`Prepared::include_encoder_noise`] has run).
     pub floor: Vec<f64>,
+    /// Encoder noise per joint (rad, m): fourth differences of the raw positions.
+    pub position_noise: Vec<f64>,
+    /// RMS of unit white noise at the recording's rate after the analysis' filter and one or two
+    /// derivatives (1/s, 1/s^2): how much of the encoder noise reaches `qd` and `qdd`.
+    pub derivative_gains: [f64; 2],
     /// Joints that move (the setpoint spans more than 1 mrad or 1 mm): the analysed ones.
     pub active: Vec<usize>,
     /// First held-out sample.
@@ -110,6 +117,7 @@ pub fn prepare(log: &JointLog, p: &Processing) -> Result<Prepared> {
     let mut q = vec![vec![0.0; nq]; keep.len()];
     let (mut qd, mut qdd, mut effort, mut raw_effort) = (q.clone(), q.clone(), q.clone(), q.clone());
     let mut noise = vec![0.0; nq];
+    let mut position_noise = vec![0.0; nq];
     // Wide enough to keep a friction reversal's sharpness, narrow enough that encoder noise
     // differentiated does not flip the sign at rest.
     let wide = Butterworth2::new((4.0 * p.cutoff).min(0.4 * rate), rate);
@@ -133,6 +141,7 @@ pub fn prepare(log: &JointLog, p: &Processing) -> Result<Prepared> {
         // changes by ~1e-5 of their size between 1 kHz samples): var(d2) = 6 sigma^2.
         let d2: f64 = raw[first..=last].windows(3).map(|w| (w[2] - 2.0 * w[1] + w[0]).powi(2)).sum();
         noise[k] = (d2 / (6.0 * (last - first - 1) as f64)).sqrt();
+        position_noise[k] = fourth_difference_noise(&raw_q[first..=last]);
     }
     // The filter's noise gain, measured on seeded white noise of the same length.
     let mut rng = ChaCha8Rng::seed_from_u64(0);
@@ -141,6 +150,10 @@ pub fn prepare(log: &JointLog, p: &Processing) -> Result<Prepared> {
     let wf = f.filtfilt(&white, pad);
     let gain = (keep.iter().map(|&s| wf[s] * wf[s]).sum::<f64>() / keep.len() as f64).sqrt();
     let floor: Vec<f64> = noise.iter().map(|s| s * gain).collect();
+    let wd = derivative(&wf, dt);
+    let wdd = derivative(&wd, dt);
+    let kept_rms = |x: &[f64]| (keep.iter().map(|&s| x[s] * x[s]).sum::<f64>() / keep.len() as f64).sqrt();
+    let derivative_gains = [kept_rms(&wd), kept_rms(&wdd)];
     let noise_fraction = super::stats::effective_fraction(&[keep.iter().map(|&s| wf[s]).collect()]);
     let active: Vec<usize> = (0..nq)
         .filter(|&k| {
@@ -153,7 +166,76 @@ pub fn prepare(log: &JointLog, p: &Processing) -> Result<Prepared> {
     }
     let split = ((1.0 - p.heldout) * keep.len() as f64).round() as usize;
     let t = keep.iter().map(|&s| log.t[s]).collect();
-    Ok(Prepared { t, q, qd, qdd, effort, raw_effort, noise, floor, active, split, noise_fraction, dt: stride as f64 * dt, fast_qd, keep, band: f, pad })
+    Ok(Prepared {
+        t,
+        q,
+        qd,
+        qdd,
+        effort,
+        raw_effort,
+        noise,
+        floor,
+        position_noise,
+        derivative_gains,
+        active,
+        split,
+        noise_fraction,
+        dt: stride as f64 * dt,
+        fast_qd,
+        keep,
+        band: f,
+        pad,
+    })
+}
+
+/// Encoder noise (rad, m) of raw positions `q`: the motion's fourth difference between 1 kHz
+/// samples is far below the noise's (var = 70 sigma^2); the median keeps a play's rare kinks and
+/// an encoder's quantisation steps from inflating it.
+fn fourth_difference_noise(q: &[f64]) -> f64 {
+    let mut d4: Vec<f64> = q.windows(5).map(|w| (w[4] - 4.0 * w[3] + 6.0 * w[2] - 4.0 * w[1] + w[0]).abs()).collect();
+    if d4.is_empty() {
+        return 0.0;
+    }
+    let mid = d4.len() / 2;
+    let (_, m, _) = d4.select_nth_unstable_by(mid, f64::total_cmp);
+    // Median of |N(0, 70 sigma^2)| = 0.6745 sqrt(70) sigma.
+    *m / (0.6745 * 70f64.sqrt())
+}
+
+/// Samples [`Prepared::include_encoder_noise`] linearises the prediction at.
+const NOISE_SAMPLES: usize = 200;
+
+impl Prepared {
+    /// Add to each joint's floor what the encoder noise does to the predicted effort: the noise
+    /// differentiated twice, through the arm's inertia (and once, through its damping), is a
+    /// residual a perfect model leaves too. It matters where a heavy joint's effort sensor is
+    /// good (the insertion: 2 µm of encoder noise is about a third of its floor).
+    pub fn include_encoder_noise(&mut self, predictor: &mut Predictor) -> Result<()> {
+        let nq = self.floor.len();
+        let stride = (self.t.len() / NOISE_SAMPLES).max(1);
+        let rows: Vec<usize> = (0..self.t.len()).step_by(stride).collect();
+        let pick = |x: &[Vec<f64>]| -> Vec<Vec<f64>> { rows.iter().map(|&i| x[i].clone()).collect() };
+        let (q, qd, qdd) = (pick(&self.q), pick(&self.qd), pick(&self.qdd));
+        let base = predictor.series_at(&q, &qd, &qdd)?;
+        let [gd, gdd] = self.derivative_gains;
+        // Per joint k: sum over the noisy joints j of sigma_j^2 times (d tau_k / d qdd_j * gdd)^2
+        // and (damping_kj * gd)^2 (the velocity path through the drive's damping only: a Coulomb
+        // law's slope at rest is no noise gain).
+        let mut added = vec![0.0; nq];
+        for j in (0..nq).filter(|&j| self.position_noise[j] > 0.0) {
+            let h = 1e-3;
+            let bumped: Vec<Vec<f64>> = qdd.iter().map(|r| r.iter().enumerate().map(|(i, v)| if i == j { v + h } else { *v }).collect()).collect();
+            let by_acc = predictor.series_at(&q, &qd, &bumped)?;
+            for k in 0..nq {
+                let inertia_sq = by_acc.iter().zip(&base).map(|(a, b)| ((a[k] - b[k]) / h).powi(2)).sum::<f64>() / rows.len() as f64;
+                added[k] += self.position_noise[j].powi(2) * (inertia_sq * gdd * gdd + (predictor.damping[(k, j)] * gd).powi(2));
+            }
+        }
+        for (f, a) in self.floor.iter_mut().zip(added) {
+            *f = (*f * *f + a).sqrt();
+        }
+        Ok(())
+    }
 }
 
 /// The nominal effort of an arm (N·m, N): dvrk-kin's inverse dynamics with the model's effects,

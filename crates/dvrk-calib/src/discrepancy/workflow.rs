@@ -33,6 +33,10 @@ pub struct Options {
     /// ... and the fitted effect at least this many times its joint's effort noise (RMS): below,
     /// the residual left by the rigid model's own small errors would be named as an effect.
     pub min_effect_to_noise: f64,
+    /// ... the same for an effect only the tracker sees, over the tracker's noise: the kinematic
+    /// chain leaves no residual of its own (effect-free, the tracker's held-out RMS is at its
+    /// noise), so a smaller effect seen over thousands of samples is no model error.
+    pub min_kinematic_effect_to_noise: f64,
     /// Two candidates whose changes in BIC differ by less than this are not told apart.
     pub ambiguity_bic: f64,
     /// Bootstrap replicates for p-values on a bound.
@@ -51,6 +55,7 @@ impl Default for Options {
             min_delta_bic: 10.0,
             max_p_value: 1e-3,
             min_effect_to_noise: 1.0,
+            min_kinematic_effect_to_noise: 0.5,
             ambiguity_bic: 10.0,
             bootstrap: 199,
             tracking: true,
@@ -371,6 +376,56 @@ fn score_profile(fit: &Fitter, r: &Table, grid: &[f64], make: &dyn Fn(f64) -> Ta
     }
 }
 
+/// Supported linear candidates [`pair_choice`] fits two at a time.
+const PAIR_POOL: usize = 6;
+
+/// Pairs of effects (step 2): the supported linear candidates fitted two at a time. When the
+/// best pair beats the best single candidate by strong evidence, two effects are present, and the
+/// round names the pair's stronger member: greedily, a candidate that clears some joints of a
+/// second effect's residual (a payload on the insertion link standing in for one on the tool,
+/// next to friction on the wrist) outscores one that clears most of its own joint and leaves the
+/// other effect's share there. `None`: keep the best single candidate.
+fn pair_choice(scored: &[Scored], winners: &[usize], fit: &Fitter, r: &Table, o: &Options) -> Result<Option<usize>> {
+    let pool: Vec<(usize, &Candidate, &[Table])> = winners
+        .iter()
+        .filter_map(|&i| {
+            let c = scored[i].candidate?;
+            let cols: &[Table] = match (&c.profile, scored[i].score.profiled) {
+                (Some((_, grid)), Some(v)) => &grid.iter().find(|g| g.0 == v)?.1,
+                _ => &c.columns,
+            };
+            Some((i, c, cols))
+        })
+        .take(PAIR_POOL)
+        .collect();
+    let Some(&first) = winners.first() else { return Ok(None) };
+    let train = Rows::train(fit.prep);
+    let y = train.vector(r);
+    let y_white = fit.whitened(&y);
+    let mut best: Option<(f64, usize, usize)> = None;
+    for (a, (i, ci, cols_i)) in pool.iter().enumerate() {
+        for (j, cj, cols_j) in &pool[a + 1..] {
+            // Two candidates of one kind on one joint or link are one effect.
+            if ci.kind == cj.kind && ci.joint == cj.joint && ci.link == cj.link {
+                continue;
+            }
+            let cols: Vec<Table> = cols_i.iter().chain(cols_j.iter()).cloned().collect();
+            let lower: Vec<Option<f64>> = ci.lower.iter().chain(&cj.lower).copied().collect();
+            let m = train.matrix(&cols);
+            let x = fit.solve(&m, &y, &lower)?;
+            let (stat, n_eff) = per_joint_ratio(&train, &y_white, &fit.whitened(&(&y - &m * &x)));
+            let dbic = stat - cols.len() as f64 * n_eff.ln();
+            if best.is_none_or(|b| dbic > b.0) {
+                best = Some((dbic, *i, *j));
+            }
+        }
+    }
+    Ok(best.and_then(|(dbic, i, j)| {
+        let stronger = if scored[i].score.delta_bic >= scored[j].score.delta_bic { i } else { j };
+        (dbic > scored[first].score.delta_bic + o.min_delta_bic && stronger != first).then_some(stronger)
+    }))
+}
+
 /// The kinematic channel's evidence joined to the torque channel's: a candidate both channels
 /// fit (an offset, latency, a drive's compliance or play) gets their combined likelihood ratio at
 /// the precision-weighted value (so a torque fit the tracker contradicts loses its support); a
@@ -480,8 +535,9 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
     let mut scene = scene.clone();
     scene.set_model(a, model.clone()).map_err(|e| CalibError::data("model", e.to_string()))?;
     let arm = &scene.arms[a];
-    let prep = prepare(log, &o.processing)?;
+    let mut prep = prepare(log, &o.processing)?;
     let mut predictor = Predictor::new(&arm.model, arm, scene.gravity)?;
+    prep.include_encoder_noise(&mut predictor)?;
     let rigid = predictor.series(&prep)?;
     let offsets = candidates::offset_sensitivities(&predictor, arm, scene.gravity, &prep, &rigid)?;
     let link_m = super::drive::link_inertias(&arm.model, predictor.dynamics(), &prep)?;
@@ -577,8 +633,13 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
     scored.sort_by(|x, y| y.score.delta_bic.total_cmp(&x.score.delta_bic));
     // Strong evidence, confirmed on held-out data, large enough to matter (delta BIC, p-value,
     // held-out p-value, effect-to-noise ratio).
-    let strong = |delta_bic: f64, p: f64, heldout_p: f64, size: f64| delta_bic > o.min_delta_bic && p < o.max_p_value && heldout_p < 0.01 && size >= o.min_effect_to_noise;
-    let supported = |s: &Score| !s.at_edge && strong(s.delta_bic, s.p_value, s.heldout_p, s.effect_to_noise);
+    let strong_at = |gate: f64| move |delta_bic: f64, p: f64, heldout_p: f64, size: f64| delta_bic > o.min_delta_bic && p < o.max_p_value && heldout_p < 0.01 && size >= gate;
+    let (strong, strong_kinematic) = (strong_at(o.min_effect_to_noise), strong_at(o.min_kinematic_effect_to_noise));
+    let supported = |e: &Scored| {
+        let s = &e.score;
+        let strong: &dyn Fn(f64, f64, f64, f64) -> bool = if e.kinematic.is_some() { &strong_kinematic } else { &strong };
+        !s.at_edge && strong(s.delta_bic, s.p_value, s.heldout_p, s.effect_to_noise)
+    };
     // The profiled effects' one parameter, by kind.
     let profiled_name = |kind: EffectKind| match kind {
         EffectKind::Latency => "seconds",
@@ -635,7 +696,11 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
         };
         (spec, report)
     };
-    let winners: Vec<usize> = (0..scored.len()).filter(|&i| supported(&scored[i].score)).collect();
+    let mut winners: Vec<usize> = (0..scored.len()).filter(|&i| supported(&scored[i])).collect();
+    if let Some(k) = pair_choice(&scored, &winners, &fit, &r, o)? {
+        winners.retain(|&i| i != k);
+        winners.insert(0, k);
+    }
     let mut verdict = "none";
     let mut experiment = None;
     let mut effects = Vec::new();
@@ -648,7 +713,7 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
     if let Some(&b) = winners.first() {
         let best = &scored[b];
         // Another effect, or the same kind elsewhere (two links' lengths a tracker sees alike).
-        let rival = winners.iter().skip(1).map(|&i| &scored[i]).find(|s| s.label != best.label && best.score.delta_bic - s.score.delta_bic < o.ambiguity_bic);
+        let rival = winners.iter().skip(1).map(|&i| &scored[i]).find(|s| s.label != best.label && (best.score.delta_bic - s.score.delta_bic).abs() < o.ambiguity_bic);
         if let Some(rv) = rival {
             verdict = "ambiguous";
             experiment = Some(separating_experiment(best.kind, rv.kind));
@@ -669,7 +734,7 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
             effect: report_of(entry).1,
             heldout_p_value: entry.score.heldout_p,
             effect_to_noise: entry.score.effect_to_noise,
-            supported: supported(&entry.score),
+            supported: supported(entry),
         })
         .collect();
     let (f0, f1) = (residual(&prep, &before, true), residual(&prep, &after, true));
@@ -728,7 +793,7 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
         joints,
         location,
         tracking,
-        kinematic: kin.as_ref().map(|kc| kc.report(&arm.model, named.as_ref(), "dvrk discrepancy", &strong)),
+        kinematic: kin.as_ref().map(|kc| kc.report(&arm.model, named.as_ref(), "dvrk discrepancy", &strong_kinematic)),
         samples: prep.t.len(),
         heldout_from: prep.t[prep.split],
         notes: match kin {
