@@ -98,14 +98,21 @@ impl MultiSine {
     /// Position, velocity and acceleration at `t` (s) past the fade-in into `q`, `qd`, `qdd`.
     pub fn steady(&self, t: f64, q: &mut [f64], qd: &mut [f64], qdd: &mut [f64]) {
         for k in 0..q.len() {
-            (q[k], qd[k], qdd[k]) = (self.center[k], 0.0, 0.0);
-            for (a, f, p) in &self.terms[k] {
-                let w = 2.0 * PI * f;
-                q[k] += a * (w * t + p).sin();
-                qd[k] += a * w * (w * t + p).cos();
-                qdd[k] -= a * w * w * (w * t + p).sin();
-            }
+            let (x, v, a) = self.swing(k, t);
+            (q[k], qd[k], qdd[k]) = (self.center[k] + x, v, a);
         }
+    }
+
+    /// Joint `k`'s sum of sines about its centre at `t` (s): position, velocity, acceleration.
+    fn swing(&self, k: usize, t: f64) -> (f64, f64, f64) {
+        let (mut x, mut v, mut acc) = (0.0, 0.0, 0.0);
+        for (a, f, p) in &self.terms[k] {
+            let w = 2.0 * PI * f;
+            x += a * (w * t + p).sin();
+            v += a * w * (w * t + p).cos();
+            acc -= a * w * w * (w * t + p).sin();
+        }
+        (x, v, acc)
     }
 
     /// Position and velocity at `t` (s) into `q`, `qd`.
@@ -118,12 +125,7 @@ impl MultiSine {
             (1.0, 0.0)
         };
         for k in 0..q.len() {
-            let (mut x, mut v) = (0.0, 0.0);
-            for (a, f, p) in &self.terms[k] {
-                let w = 2.0 * PI * f;
-                x += a * (w * t + p).sin();
-                v += a * w * (w * t + p).cos();
-            }
+            let (x, v, _) = self.swing(k, t);
             q[k] = self.center[k] + s * x;
             qd[k] = s * v + sd * x;
         }

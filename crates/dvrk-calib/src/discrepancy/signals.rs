@@ -148,12 +148,11 @@ pub fn prepare(log: &JointLog, p: &Processing) -> Result<Prepared> {
     let unit = Normal::new(0.0, 1.0).expect("unit normal");
     let white: Vec<f64> = (0..n).map(|_| unit.sample(&mut rng)).collect();
     let wf = f.filtfilt(&white, pad);
-    let gain = (keep.iter().map(|&s| wf[s] * wf[s]).sum::<f64>() / keep.len() as f64).sqrt();
+    let kept_rms = |x: &[f64]| (keep.iter().map(|&s| x[s] * x[s]).sum::<f64>() / keep.len() as f64).sqrt();
+    let gain = kept_rms(&wf);
     let floor: Vec<f64> = noise.iter().map(|s| s * gain).collect();
     let wd = derivative(&wf, dt);
-    let wdd = derivative(&wd, dt);
-    let kept_rms = |x: &[f64]| (keep.iter().map(|&s| x[s] * x[s]).sum::<f64>() / keep.len() as f64).sqrt();
-    let derivative_gains = [kept_rms(&wd), kept_rms(&wdd)];
+    let derivative_gains = [kept_rms(&wd), kept_rms(&derivative(&wd, dt))];
     let noise_fraction = super::stats::effective_fraction(&[keep.iter().map(|&s| wf[s]).collect()]);
     let active: Vec<usize> = (0..nq)
         .filter(|&k| {

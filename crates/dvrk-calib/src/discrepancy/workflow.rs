@@ -397,7 +397,9 @@ const PAIR_POOL: usize = 6;
 /// next to friction on the wrist) outscores one that clears most of its own joint and leaves the
 /// other effect's share there. `None`: keep the best single candidate.
 fn pair_choice(scored: &[Scored], winners: &[usize], fit: &Fitter, r: &Table, o: &Options) -> Result<Option<usize>> {
-    let pool: Vec<(usize, &Candidate, &[Table])> = winners
+    let train = Rows::train(fit.prep);
+    // Each candidate's training rows (at its profiled value), built once for all its pairs.
+    let pool: Vec<(usize, &Candidate, DMatrix<f64>)> = winners
         .iter()
         .filter_map(|&i| {
             let c = scored[i].candidate?;
@@ -405,27 +407,25 @@ fn pair_choice(scored: &[Scored], winners: &[usize], fit: &Fitter, r: &Table, o:
                 (Some((_, grid)), Some(v)) => &grid.iter().find(|g| g.0 == v)?.1,
                 _ => &c.columns,
             };
-            Some((i, c, cols))
+            Some((i, c, train.matrix(cols)))
         })
         .take(PAIR_POOL)
         .collect();
     let Some(&first) = winners.first() else { return Ok(None) };
-    let train = Rows::train(fit.prep);
     let y = train.vector(r);
     let y_white = fit.whitened(&y);
     let mut best: Option<(f64, usize, usize)> = None;
-    for (a, (i, ci, cols_i)) in pool.iter().enumerate() {
-        for (j, cj, cols_j) in &pool[a + 1..] {
+    for (a, (i, ci, mi)) in pool.iter().enumerate() {
+        for (j, cj, mj) in &pool[a + 1..] {
             // Two candidates of one kind on one joint or link are one effect.
             if ci.kind == cj.kind && ci.joint == cj.joint && ci.link == cj.link {
                 continue;
             }
-            let cols: Vec<Table> = cols_i.iter().chain(cols_j.iter()).cloned().collect();
+            let m = DMatrix::from_columns(&mi.column_iter().chain(mj.column_iter()).collect::<Vec<_>>());
             let lower: Vec<Option<f64>> = ci.lower.iter().chain(&cj.lower).copied().collect();
-            let m = train.matrix(&cols);
             let x = fit.solve(&m, &y, &lower)?;
             let (stat, n_eff) = per_joint_ratio(&train, &y_white, &fit.whitened(&(&y - &m * &x)));
-            let dbic = stat - cols.len() as f64 * n_eff.ln();
+            let dbic = stat - m.ncols() as f64 * n_eff.ln();
             if best.is_none_or(|b| dbic > b.0) {
                 best = Some((dbic, *i, *j));
             }
