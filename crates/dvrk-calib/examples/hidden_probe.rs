@@ -1,4 +1,6 @@
-//! One hidden-effect trial, printed: `[DVRK_PERTURB=0.03] cargo run --release -p dvrk-calib --example hidden_probe -- KIND SEED [ENR]`.
+//! One hidden-effect trial, printed: `[DVRK_PERTURB=0.03] [DVRK_DUMP=residual.csv] cargo run --release -p dvrk-calib --example hidden_probe -- KIND SEED [ENR]`.
+//! DVRK_DUMP writes the band-limited residual before and after, with each joint's position,
+//! velocity and load, one row per analysed sample.
 use dvrk_calib::discrepancy::*;
 fn main() {
     let args: Vec<String> = std::env::args().collect();
@@ -31,4 +33,20 @@ fn main() {
         println!("  located {:18} rms {:.2} reversals {:.2} speed {:.2} load {:.2} deep {:?} worst {:?}", l.joint, l.rms, l.reversals, l.high_speed, l.high_load, l.deep_insertion.map(|d| (d * 100.0).round() / 100.0), l.worst);
     }
     if let Some(t) = &r.tracking { println!("  tracking {:?} -> {:?}", t.rms_before, t.rms_after); }
+    if let Ok(path) = std::env::var("DVRK_DUMP") {
+        let r = &out.residuals;
+        let mut csv = String::from("t");
+        for j in &r.joints {
+            csv += &format!(",q_{j},qd_{j},load_{j},before_{j},after_{j}");
+        }
+        csv += "\n";
+        for i in 0..r.t.len() {
+            csv += &format!("{}", r.t[i]);
+            for k in 0..r.joints.len() {
+                csv += &format!(",{},{},{},{},{}", r.q[k][i], r.qd[k][i], r.load[k][i], r.before[k][i], r.after[k][i]);
+            }
+            csv += "\n";
+        }
+        std::fs::write(&path, csv).unwrap();
+    }
 }
