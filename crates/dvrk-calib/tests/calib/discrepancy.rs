@@ -137,8 +137,8 @@ fn joint_logs_round_trip_and_bad_recordings_are_refused() {
 /// effect-free trials. `DVRK_TRIALS=60 cargo test --release -p dvrk-calib --test calib
 /// detection_rate_table -- --ignored --nocapture` (about 9 s a trial). `DVRK_TRACKER=1` adds a
 /// tracked marker on the tool shaft (the kinematic channel; link_length joins the classes),
-/// `DVRK_KINDS=backlash,latency` picks classes, `DVRK_FREE=N` the number of effect-free trials, `DVRK_ENR=1,3` draws the ENR in [1, 3] instead
-/// (for the detection-rate curve's low end). The curve, by ENR bins of 1, closes the table.
+/// `DVRK_KINDS=backlash,latency` picks classes, `DVRK_FREE=N` the number of effect-free trials,
+/// `DVRK_ENR=1,3` draws the ENR in [1, 3] instead (for the detection-rate curve's low end). The curve, by ENR bins of 1, closes the table.
 #[test]
 #[ignore]
 fn detection_rate_table() {
@@ -171,6 +171,10 @@ fn detection_rate_table() {
             let r = analyse(&h, false).report;
             (s, h.answer, r)
         }).collect()
+    };
+    let median = |v: &mut Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
     };
     for kind in kinds {
         let (mut right, mut wrong, mut amb, mut none, mut covered, mut ratios, mut raw, mut kin) = (0, 0, 0, 0, 0, Vec::new(), Vec::new(), Vec::new());
@@ -205,10 +209,6 @@ fn detection_rate_table() {
                 _ => none += 1,
             }
         }
-        let median = |v: &mut Vec<f64>| {
-            v.sort_by(f64::total_cmp);
-            v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
-        };
         let (m, rm, km) = (median(&mut ratios), median(&mut raw), median(&mut kin));
         println!("| {} | {trials} | {right} | {wrong} | {amb} | {none} | {covered}/{right} | {m:.2} | {rm:.3} | {km:.2} |", kind.name());
     }
@@ -227,9 +227,7 @@ fn detection_rate_table() {
             println!("  effect-free seed {seed}: {} {:?}", r.verdict, r.candidates.first().map(|c| &c.label));
         }
     }
-    floor_ratios.sort_by(f64::total_cmp);
-    let median = floor_ratios.get(floor_ratios.len() / 2).copied().unwrap_or(f64::NAN);
-    println!("effect-free: {alarms} false alarms in {free} trials; held-out / band floor median {median:.3}");
+    println!("effect-free: {alarms} false alarms in {free} trials; held-out / band floor median {:.3}", median(&mut floor_ratios));
 }
 
 /// The repeated workflow: a hidden latency is named in round one, the model with it (whose
