@@ -1,28 +1,36 @@
 //! Signatures of a joint's two-mass drive (compliance, backlash): nonlinear in their parameter,
 //! so each is a 1-D profile, and each grid point is a small simulation of its own. The encoder
-//! sits on the motor, whose recorded motion holds it in the band and leaves it free above
-//! ([`MOTOR_TIE`]); the link, reduced to its own joint (inertia `M_jj` and gravity stiffness from
-//! the model, the model's load along the recorded motion), is integrated behind the transmission
-//! at 4 times the recording's rate; the drive's torque then goes through the analysis' filter
-//! like the measured effort. This is a different implementation from dvrk-sim's (a full
-//! multibody with a second body per drive), on purpose.
+//! sits on the motor, whose recorded motion (with the detail the band leaves out, up to
+//! [`MOTOR_DETAIL_CUTOFF`]) holds it below [`MOTOR_TIE`] and leaves it free above; the link,
+//! reduced to its own joint (inertia `M_jj` and gravity stiffness from the model, the model's
+//! load along the recorded motion), is integrated behind the transmission at 4 times the
+//! recording's rate; the drive's torque then goes through the analysis' filter like the
+//! measured effort. This is a different implementation from dvrk-sim's (a full multibody with a
+//! second body per drive), on purpose.
 
 use super::candidates::Table;
 use super::signals::{column, Prepared};
 use crate::error::Result;
+use crate::identify::filter::derivative;
 use dvrk_kin::{DynamicsData, DynamicsModel};
 use nalgebra::{DMatrix, Matrix4, Vector4};
 
 /// Transmission damping ratio on the motor's mode (dvrk-sim's drive convention).
 const DAMPING_RATIO: f64 = 0.1;
 
-/// Bandwidth of the stiff contact behind a play without compliance (rad/s on the motor inertia),
-/// where nothing says otherwise.
+/// Bandwidth of the stiff contact behind a play without compliance (rad/s on the motor inertia).
+/// Not profiled: once the motor's recorded detail drives the play, the contact's stiffness
+/// (tried 500-4000 rad/s) no longer shows in the band, and profiling it overfitted (seed 1:
+/// 500 rad/s chosen against the truth's 1600, held-out 1.26 -> 1.81 of the floor).
 pub const CONTACT_BANDWIDTH: f64 = 2.0 * std::f64::consts::PI * 300.0;
 
-/// The contact bandwidths a play is also profiled over (rad/s): how stiff the teeth are once
-/// engaged is as unknown as the play, and a contact too stiff or too soft biases the play's width.
-pub const CONTACT_BANDWIDTHS: [f64; 5] = [250.0, 500.0, 1000.0, 2000.0, 4000.0];
+/// Low-pass (Hz) on the encoder's detail (its raw motion less the band's) the motor is tied to.
+/// A play's impacts kink the motor's motion, which the band smears over +-50 ms: tied to the
+/// band's motion alone, the motor reached each impact 1-2 mrad off and recoiled back too soon.
+/// Below it the recorded kinks; above it the tie leaves the recoil to the simulated motor.
+/// Measured (seed 1 play, no noise, the pitch's band mismatch at the true b, N·m): without the
+/// detail 2.3e-2; 50 Hz 5.3e-3, 100 Hz 5.9e-3, 150 Hz 7.0e-3 (2 µrad of encoder noise: +2%).
+pub const MOTOR_DETAIL_CUTOFF: f64 = 100.0;
 
 /// Bandwidth (rad/s) below which the motor follows the recorded motion, through a critically
 /// damped tie on its inertia; above it the motor is free. The encoder records the motor, so its
@@ -48,6 +56,7 @@ pub enum Law {
 }
 
 /// What one joint's drive simulation needs, along the analysed samples.
+#[derive(Debug, Clone)]
 pub struct JointLoad {
     pub joint: usize,
     /// Link-side effort the model predicts along the recorded (motor) motion (N·m, N).
@@ -64,6 +73,33 @@ pub struct JointLoad {
     pub motor: f64,
     /// The link side's own damping on its joint (N·m s/rad, N s/m): acts on the link's lag rate.
     pub damping: f64,
+    /// Added to `load` where it drives the link (N·m, N; analysed samples): the refitted
+    /// inertias' share at this joint ([`JointLoad::corrected`]). The signature is still taken
+    /// against `load`, the nominal prediction the residual is measured from.
+    pub correction: Vec<f64>,
+    /// The motor's recorded detail ([`motor_detail`]; rad, m; raw samples).
+    pub detail: Vec<f64>,
+}
+
+impl JointLoad {
+    /// This load with `effort` (a `[sample][joint]` table, the fitted nuisance inertias' effort)
+    /// added to what drives the link. A link in free flight across a play moves under its load
+    /// alone, and the truth's inertias 3% off the model's put its impacts a millisecond off.
+    pub fn corrected(&self, effort: &Table) -> JointLoad {
+        let mut out = self.clone();
+        for (c, row) in out.correction.iter_mut().zip(effort) {
+            *c += row[self.joint];
+        }
+        out
+    }
+}
+
+/// Joint `j`'s encoder detail (raw less band-filtered position) low-passed at
+/// [`MOTOR_DETAIL_CUTOFF`] (or 0.4 of the recording's rate), at the raw samples (rad, m).
+pub fn motor_detail(prep: &Prepared, j: usize) -> Vec<f64> {
+    let rate = prep.keep.get(1).map_or(1, |s| s - prep.keep[0]) as f64 / prep.dt;
+    let pad = (rate / MOTOR_DETAIL_CUTOFF * 3.0) as usize;
+    crate::identify::filter::Butterworth2::new(MOTOR_DETAIL_CUTOFF.min(0.4 * rate), rate).filtfilt(&prep.motor_detail[j], pad)
 }
 
 /// The link mass matrix at every analysed sample (kg m^2, kg).
@@ -101,8 +137,8 @@ fn point_reflect_before(v: &mut [f64], first: usize) {
     }
 }
 
-/// The change in the joint's effort (analysed samples, `[sample][joint]`, only `load.joint`
-/// non-zero) when its drive obeys `law` instead of being rigid.
+/// The change in the joint's effort (analysed samples, `[sample][joint]`) when its drive obeys
+/// `law` instead of being rigid.
 pub fn signature(prep: &Prepared, jl: &JointLoad, law: Law, nq: usize) -> Table {
     let j = jl.joint;
     let n = prep.fast_qd[j].len();
@@ -124,27 +160,32 @@ pub fn signature(prep: &Prepared, jl: &JointLoad, law: Law, nq: usize) -> Table 
         }
     };
     let (first, last) = (prep.keep[0], prep.keep[prep.keep.len() - 1]);
-    // The motor's tie to the recorded motion, critically damped.
+    // The motor's tie to the recorded motion (band and detail), critically damped.
     let jm = jl.motor;
     let (kt, ct) = (jm * MOTOR_TIE * MOTOR_TIE, 2.0 * jm * MOTOR_TIE);
-    // The drive's torque less the load, and the link's lag behind the recorded motion (position,
-    // rate, acceleration) for the other joints' share (M_kj y'' + dtau_k/dqd_j y' + dtau_k/dq_j y).
-    let mut out = vec![0.0; n];
-    let (mut lag, mut lag_rate, mut lag_acc) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+    let detail = |s: usize| jl.detail.get(s).or(jl.detail.last()).copied().unwrap_or(0.0);
+    // The drive's torque on the link; the link's and motor's deviations from the band's motion.
+    let mut force = vec![0.0; n];
+    let (mut lag, mut motor) = (vec![0.0; n], vec![0.0; n]);
     let (inertia_j, stiffness_j) = (column(&jl.inertia, j), column(&jl.stiffness, j));
+    let driven: Vec<f64> = jl.load.iter().zip(&jl.correction).map(|(l, c)| l + c).collect();
     // Simulated on to the recording's end: the filter looks past the last analysed sample, and a
     // contact still ringing there, held or reflected, becomes a step (it made the last 50 ms
     // of a play's signature wrong by 10 times the residual's RMS). The load goes on as its point
     // reflection; 0.1 s on, the filter no longer looks.
-    let load_at = |s: usize| if s > last { 2.0 * jl.load[jl.load.len() - 1] - at_raw(prep, &jl.load, (2 * last).saturating_sub(s)) } else { at_raw(prep, &jl.load, s) };
-    // State: motor deviation z, link deviation y from the recorded motion, and their rates. The
+    let load_at = |s: usize| if s > last { 2.0 * driven[driven.len() - 1] - at_raw(prep, &driven, (2 * last).saturating_sub(s)) } else { at_raw(prep, &driven, s) };
+    // State: motor deviation z, link deviation y from the band's motion, and their rates. The
     // start is in the contact, on the slowly forced link's own path: a soft drive started at rest
     // (or after a spin-up on the load reflected) rang at its own mode (5 Hz, in the band) for a
     // second or two, 10 times the rest's residual.
     let mut st = {
-        let (m, g, l) = (inertia_j[0].max(1e-9), stiffness_j[0], &jl.load);
+        let (m, g, l) = (inertia_j[0].max(1e-9), stiffness_j[0], &driven);
+        // A play's side: the load's over the first 50 ms, not at the first sample (a yaw's load
+        // touching zero there started its play on the wrong side: 0.25 s of residual at 40
+        // times the floor while the link crossed).
+        let side = l.iter().take(1 + (0.05 / prep.dt) as usize).sum::<f64>().signum();
         // (Gravity's stiffness only where it does not nearly cancel the drive's.)
-        let (shift, ke, ce) = (half * l[0].signum(), if k + g > 0.5 * k { k + g } else { k }, c + jl.damping);
+        let (shift, ke, ce) = (half * side, if k + g > 0.5 * k { k + g } else { k }, c + jl.damping);
         // Forcing P = -(load + k shift) and its rate and curvature (one-sided, on the analysed
         // samples); the path y = P/ke - ce/ke^2 P' + (ce^2/ke^3 - m/ke^2) P''.
         let at = |i: usize| -(l.get(i).copied().unwrap_or(l[0]) + k * shift);
@@ -152,30 +193,30 @@ pub fn signature(prep: &Prepared, jl: &JointLoad, law: Law, nq: usize) -> Table 
         let (p0, p1) = (at(0), (-3.0 * at(0) + 4.0 * at(1) - at(2)) / (2.0 * da));
         let p2 = (at(0) - 2.0 * at(1) + at(2)) / (da * da);
         let y = p0 / ke - ce / (ke * ke) * p1 + (ce * ce / (ke * ke * ke) - m / (ke * ke)) * p2;
-        Vector4::new(0.0, 0.0, y, p1 / ke - ce / (ke * ke) * p2)
+        let z = detail(first);
+        Vector4::new(z, 0.0, z + y, p1 / ke - ce / (ke * ke) * p2)
     };
     for s in first..n {
         let (load, m, g) = (load_at(s), at_raw(prep, &inertia_j, s).max(1e-9), at_raw(prep, &stiffness_j, s));
-        // What the drive does at this sample, from the state at this sample: an output read
-        // after the step to the next sample, its load held over the step, led the load by half
-        // a sample (0.5 ms: a compliance's signature 5% off, its stiffness 3-4% low).
+        // The outputs at this sample come from the state at this sample: read after the step to
+        // the next one, with the load held over it, they led the load by half a sample (0.5 ms:
+        // a compliance's signature 5% off, its stiffness 3-4% low).
         let (z, zd, y, yd) = (st[0], st[1], st[2], st[3]);
         let (kk, shift, cc) = regime(z - y);
-        out[s] = kk * (z - y - shift) + cc * (zd - yd) - load;
+        force[s] = kk * (z - y - shift) + cc * (zd - yd);
         lag[s] = y;
-        lag_rate[s] = yd;
-        lag_acc[s] = (out[s] - g * y - jl.damping * yd) / m;
+        motor[s] = z;
         // Per regime (free, engaged) over this sample's step: s1 = step s0 + forcing f
         // (trapezoidal: stable at any contact stiffness and, unlike implicit Euler, without
         // numerical damping).
         let mut steps: [Option<(Matrix4<f64>, Matrix4<f64>)>; 2] = [None, None];
-        let next = load_at(s + 1);
+        let (next, d0, d1) = (load_at(s + 1), detail(s), detail(s + 1));
         for i in 0..SUBSTEPS {
-            // The regime at the substep's start; within it the law is linear. The load is linear
-            // between samples, and trapezoidal forcing is its mean over the substep.
+            // The regime at the substep's start; within it the law is linear. The load and the
+            // detail are linear between samples, and trapezoidal forcing is their substep mean.
             let (kk, shift, cc) = regime(st[0] - st[2]);
             let (step, forcing) = steps[usize::from(kk > 0.0)].get_or_insert_with(|| {
-                // J z'' = load - F - kt z - ct z';  m y'' = F - load - g y - dl y';
+                // J z'' = load - F - kt (z - d) - ct (z' - d');  m y'' = F - load - g y - dl y';
                 // F = kk (z - y - shift) + cc (z' - y'). The load stands for the band's share of
                 // F, which the recorded motion already holds: the rest knocks the motor.
                 #[rustfmt::skip]
@@ -189,25 +230,33 @@ pub fn signature(prep: &Prepared, jl: &JointLoad, law: Law, nq: usize) -> Table 
                 let inv = (id - a * (0.5 * h)).try_inverse().unwrap_or(id);
                 (inv * (id + a * (0.5 * h)), inv * h)
             });
-            let l = load + (next - load) * (i as f64 + 0.5) / SUBSTEPS as f64 + kk * shift;
-            st = *step * st + *forcing * Vector4::new(0.0, l / jm, 0.0, -l / m);
+            let w = (i as f64 + 0.5) / SUBSTEPS as f64;
+            let l = load + (next - load) * w + kk * shift;
+            let tie = kt * (d0 + (d1 - d0) * w) + ct * (d1 - d0) / dt;
+            st = *step * st + *forcing * Vector4::new(0.0, (l + tie) / jm, 0.0, -l / m);
         }
     }
     // Before the simulated span, which starts in the contact, each series goes on as its
     // point reflection (value and slope kept), as the measured effort does there.
-    for v in [&mut out, &mut lag, &mut lag_rate, &mut lag_acc] {
+    for v in [&mut force, &mut lag, &mut motor] {
         point_reflect_before(v, first);
     }
     let mut table = vec![vec![0.0; nq]; prep.t.len()];
-    for k in 0..nq {
-        let col: Vec<f64> = if k == j {
-            prep.band(&out)
-        } else {
-            let (mk, gk, ck) = (column(&jl.inertia, k), column(&jl.stiffness, k), column(&jl.rate, k));
-            let raw: Vec<f64> = (0..n).map(|s| at_raw(prep, &mk, s) * lag_acc[s] + at_raw(prep, &gk, s) * lag[s] + at_raw(prep, &ck, s) * lag_rate[s]).collect();
-            prep.band(&raw)
-        };
-        for (row, v) in table.iter_mut().zip(col) {
+    // The joint's own effort: the drive's torque through the analysis' filter, against the model's
+    // load. (The load, already in the band, filtered again lost up to a quarter of a play's
+    // signature: its kinks put the load's content near the band's edge.)
+    for (row, (f, l)) in table.iter_mut().zip(prep.band(&force).into_iter().zip(&jl.load)) {
+        row[j] = f - l;
+    }
+    // The other joints feel the link's lag behind the motor (the encoder), through the coupling
+    // inertia, stiffness and rate: M_kj y'' + dtau_k/dq_j y + dtau_k/dqd_j y'.
+    let rel: Vec<f64> = lag.iter().zip(&motor).map(|(y, z)| y - z).collect();
+    let rate = derivative(&rel, dt);
+    let acc = derivative(&rate, dt);
+    for k in (0..nq).filter(|&k| k != j) {
+        let (mk, gk, ck) = (column(&jl.inertia, k), column(&jl.stiffness, k), column(&jl.rate, k));
+        let raw: Vec<f64> = (0..n).map(|s| at_raw(prep, &mk, s) * acc[s] + at_raw(prep, &gk, s) * rel[s] + at_raw(prep, &ck, s) * rate[s]).collect();
+        for (row, v) in table.iter_mut().zip(prep.band(&raw)) {
             row[k] = v;
         }
     }

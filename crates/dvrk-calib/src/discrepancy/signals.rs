@@ -69,6 +69,9 @@ pub struct Prepared {
     /// what a nonlinear signature (friction's sign) is evaluated on before [`Prepared::band`]
     /// takes it to the analysis band, as the measured effort was.
     pub fast_qd: Vec<Vec<f64>>,
+    /// The encoder's raw position less its band-filtered one, at the recording's rate (rad, m;
+    /// `[joint][raw sample]`): what the band leaves out of the motor's motion (an impact's kink).
+    pub motor_detail: Vec<Vec<f64>>,
     /// The raw samples kept (indices into the recording).
     pub keep: Vec<usize>,
     band: Butterworth2,
@@ -122,10 +125,12 @@ pub fn prepare(log: &JointLog, p: &Processing) -> Result<Prepared> {
     // differentiated does not flip the sign at rest.
     let wide = Butterworth2::new((4.0 * p.cutoff).min(0.4 * rate), rate);
     let mut fast_qd = Vec::with_capacity(nq);
+    let mut motor_detail = Vec::with_capacity(nq);
     for k in 0..nq {
         let raw_q = column(&log.position, k);
         fast_qd.push(derivative(&wide.filtfilt(&raw_q, pad), dt));
         let qf = f.filtfilt(&raw_q, pad);
+        motor_detail.push(raw_q.iter().zip(&qf).map(|(r, f)| r - f).collect());
         let v = derivative(&qf, dt);
         let a = derivative(&v, dt);
         let raw = column(&log.effort, k);
@@ -181,6 +186,7 @@ pub fn prepare(log: &JointLog, p: &Processing) -> Result<Prepared> {
         noise_fraction,
         dt: stride as f64 * dt,
         fast_qd,
+        motor_detail,
         keep,
         band: f,
         pad,
