@@ -5,23 +5,31 @@
 //! interval around the wrong value. Such an estimate moves with the motion's regime, so the
 //! training samples are grouped four ways: consecutive time blocks (a model error that drifts),
 //! and quartiles of the focus joint's |speed|, position and |effort| (a law that differs from the
-//! truth's reads differently at low and high speed, load or pose).
+//! truth's reads differently at low and high speed, load or pose). An effect shared by every
+//! joint (a stream's latency) is also estimated joint by joint: each joint's own model error
+//! pulls its estimate its own way.
 
 use super::signals::{column, Prepared};
 
 /// Groups per partition.
 pub const GROUPS: usize = 4;
 
-/// Partitions of the training samples `0..prep.split`, each into [`GROUPS`] groups of sample
-/// indices: time blocks, then (with a focus joint) quartiles of its |speed|, position and |effort|.
-pub fn partitions(prep: &Prepared, focus: Option<usize>) -> Vec<Vec<Vec<usize>>> {
+/// Partitions of the training rows (`per_sample` rows a sample, sample-major), each into groups
+/// of row indices: [`GROUPS`] time blocks, then (with a focus joint) [`GROUPS`] quartiles of its
+/// |speed|, position and |effort|; with `by_joint`, one group per analysed joint.
+pub fn partitions(prep: &Prepared, focus: Option<usize>, by_joint: bool) -> Vec<Vec<Vec<usize>>> {
     let n = prep.split;
-    let mut out = vec![(0..GROUPS).map(|b| (b * n / GROUPS..(b + 1) * n / GROUPS).collect()).collect()];
+    let na = prep.active.len();
+    let rows = |samples: Vec<usize>| samples.into_iter().flat_map(|s| s * na..(s + 1) * na).collect::<Vec<usize>>();
+    let mut out = vec![(0..GROUPS).map(|b| rows((b * n / GROUPS..(b + 1) * n / GROUPS).collect())).collect::<Vec<_>>()];
     if let Some(k) = focus {
         let abs = |v: Vec<f64>| v.into_iter().map(f64::abs).collect::<Vec<_>>();
         for value in [abs(column(&prep.qd, k)), column(&prep.q, k), abs(column(&prep.effort, k))] {
-            out.push(quartiles(&value[..n]));
+            out.push(quartiles(&value[..n]).into_iter().map(rows).collect());
         }
+    }
+    if by_joint {
+        out.push((0..na).map(|a| (0..n).map(|s| s * na + a).collect()).collect());
     }
     out
 }
@@ -38,11 +46,6 @@ fn quartiles(value: &[f64]) -> Vec<Vec<usize>> {
             group
         })
         .collect()
-}
-
-/// The row indices of sample group `group` in a row vector with `per_sample` rows per sample.
-pub fn rows(group: &[usize], per_sample: usize) -> impl Iterator<Item = usize> + '_ {
-    group.iter().flat_map(move |s| s * per_sample..(s + 1) * per_sample)
 }
 
 /// `max(1, chi2 / (K - 1))` of the groups' `(estimate, variance)` about the whole fit's `x`;
