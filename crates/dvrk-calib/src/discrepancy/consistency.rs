@@ -72,6 +72,23 @@ pub fn parabola_minimum(points: &[(f64, f64)]) -> Option<(f64, f64)> {
     (a > 0.0).then(|| (0.5 * (x0 + x1) - (l1 - l0) / (2.0 * a * (x1 - x0)), 1.0 / a))
 }
 
+/// The variance (1 / curvature) of the parabola fitted by least squares to a profile's points
+/// with likelihood ratio up to `within` (`points`: `(x, lr)`); `None` with fewer than four such
+/// points or without curvature. Unlike [`parabola_minimum`] it sees the bowl, not the best
+/// point's neighbourhood.
+pub fn bowl_variance(points: &[(f64, f64)], within: f64) -> Option<f64> {
+    let used: Vec<(f64, f64)> = points.iter().copied().filter(|p| p.1 <= within).collect();
+    if used.len() < 4 {
+        return None;
+    }
+    // lr = a x^2 + b x + c, centred on the mean x for conditioning.
+    let mean = used.iter().map(|p| p.0).sum::<f64>() / used.len() as f64;
+    let a = nalgebra::DMatrix::from_fn(used.len(), 3, |i, j| (used[i].0 - mean).powi(2 - j as i32));
+    let y = nalgebra::DVector::from_iterator(used.len(), used.iter().map(|p| p.1));
+    let coef = a.svd(true, true).solve(&y, 1e-12).ok()?;
+    (coef[0] > 0.0).then(|| 1.0 / coef[0])
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -91,6 +108,16 @@ mod tests {
         let (xm, var) = parabola_minimum(&pts).unwrap();
         assert!((xm - 0.3).abs() < 1e-12 && (var - 0.25).abs() < 1e-12, "{xm} {var}");
         assert!(parabola_minimum(&pts[1..3]).is_none());
+    }
+
+    #[test]
+    fn a_jagged_profile_gets_its_bowl_width() {
+        // lr = (x / 0.5)^2 plus a wiggle that makes the best point's neighbours steep.
+        let pts: Vec<(f64, f64)> = (-20..=20).map(|i| i as f64 * 0.1).map(|x| (x, 4.0 * x * x + if x.abs() < 1e-9 { 0.0 } else { 3.0 })).collect();
+        let local = parabola_minimum(&pts).unwrap().1;
+        let bowl = bowl_variance(&pts, 30.0).unwrap();
+        assert!((bowl - 0.25).abs() < 0.02 && local < 0.01, "{bowl} {local}");
+        assert!(bowl_variance(&pts[..3], 30.0).is_none());
     }
 
     #[test]

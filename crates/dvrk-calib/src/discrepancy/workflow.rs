@@ -355,6 +355,9 @@ fn score_profile(fit: &Fitter, r: &Table, grid: &[f64], make: &dyn Fn(f64) -> Ta
     // The interval's centre: the parabola's vertex between grid points, else the best point.
     let mut centre = x(value);
     if let Some((xm, var)) = consistency::parabola_minimum(&profile) {
+        // Not narrower than the profile's bowl: a play's profile is jagged (each impact's timing
+        // jumps with b), and its best point's neighbours gave the wiggle's curvature.
+        let var = consistency::bowl_variance(&profile, BOWL_LR).map_or(var, |b| b.max(var));
         let half = (3.841 * var).sqrt();
         ci = [ci[0].min(back(xm - half)), ci[1].max(back(xm + half))];
         centre = xm;
@@ -406,6 +409,9 @@ fn score_profile(fit: &Fitter, r: &Table, grid: &[f64], make: &dyn Fn(f64) -> Ta
         at_edge: value <= grid[0] || value >= grid[grid.len() - 1],
     }
 }
+
+/// Likelihood ratio (to the best point) up to which a profile's points give its bowl's width.
+const BOWL_LR: f64 = 30.0;
 
 /// Passes of a play's profile with the link's load corrected by the nuisance inertias: a link
 /// in free flight across the play moves under its load alone, and the truth's inertias 3% off
