@@ -22,7 +22,7 @@ const DAMPING_RATIO: f64 = 0.1;
 /// Not profiled: once the motor's recorded detail drives the play, the contact's stiffness
 /// (tried 500-4000 rad/s) no longer shows in the band, and profiling it overfitted (seed 1:
 /// 500 rad/s chosen against the truth's 1600, held-out 1.26 -> 1.81 of the floor).
-pub const CONTACT_BANDWIDTH: f64 = 2.0 * std::f64::consts::PI * 300.0;
+const CONTACT_BANDWIDTH: f64 = 2.0 * std::f64::consts::PI * 300.0;
 
 /// Low-pass (Hz) on the encoder's detail (its raw motion less the band's) the motor is tied to.
 /// A play's impacts kink the motor's motion, which the band smears over +-50 ms: tied to the
@@ -50,9 +50,9 @@ const SUBSTEPS: usize = 4;
 pub enum Law {
     /// Spring of this stiffness (N·m/rad, N/m).
     Compliance(f64),
-    /// Play of half-width `half` (rad, m), a stiff contact beyond it with natural frequency
-    /// `contact` on the motor inertia (rad/s).
-    Backlash { half: f64, contact: f64 },
+    /// Play of half-width `half` (rad, m), a stiff contact beyond it ([`CONTACT_BANDWIDTH`] on
+    /// the motor inertia).
+    Backlash { half: f64 },
 }
 
 /// What one joint's drive simulation needs, along the analysed samples.
@@ -97,7 +97,7 @@ impl JointLoad {
 /// Joint `j`'s encoder detail (raw less band-filtered position) low-passed at
 /// [`MOTOR_DETAIL_CUTOFF`] (or 0.4 of the recording's rate), at the raw samples (rad, m).
 pub fn motor_detail(prep: &Prepared, j: usize) -> Vec<f64> {
-    let rate = prep.keep.get(1).map_or(1, |s| s - prep.keep[0]) as f64 / prep.dt;
+    let rate = 1.0 / prep.raw_dt();
     let pad = (rate / MOTOR_DETAIL_CUTOFF * 3.0) as usize;
     crate::identify::filter::Butterworth2::new(MOTOR_DETAIL_CUTOFF.min(0.4 * rate), rate).filtfilt(&prep.motor_detail[j], pad)
 }
@@ -142,11 +142,11 @@ fn point_reflect_before(v: &mut [f64], first: usize) {
 pub fn signature(prep: &Prepared, jl: &JointLoad, law: Law, nq: usize) -> Table {
     let j = jl.joint;
     let n = prep.fast_qd[j].len();
-    let dt = prep.dt / (prep.keep.get(1).map_or(1, |s| s - prep.keep[0]) as f64);
+    let dt = prep.raw_dt();
     let h = dt / SUBSTEPS as f64;
     let (k, half) = match law {
         Law::Compliance(k) => (k, 0.0),
-        Law::Backlash { half, contact } => (jl.motor * contact * contact, half),
+        Law::Backlash { half } => (jl.motor * CONTACT_BANDWIDTH * CONTACT_BANDWIDTH, half),
     };
     let c = 2.0 * DAMPING_RATIO * (k * jl.motor).sqrt();
     // The law at stretch d (motor - link): stiffness, the play's shift, damping.

@@ -79,6 +79,11 @@ pub struct Prepared {
 }
 
 impl Prepared {
+    /// The recording's own sample period (s): `dt` over the decimation stride.
+    pub fn raw_dt(&self) -> f64 {
+        self.dt / self.keep.get(1).map_or(1, |s| s - self.keep[0]) as f64
+    }
+
     /// A signal at the recording's rate (`raw[sample]`) through the analysis' filter and
     /// decimation: the value at every analysed sample.
     pub fn band(&self, raw: &[f64]) -> Vec<f64> {

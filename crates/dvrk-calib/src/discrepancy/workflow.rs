@@ -610,7 +610,7 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
     for e in &arm.model.effects {
         let law = match (e.kind, e.joint) {
             (EffectKind::JointCompliance, Some(j)) => Some((j, super::drive::Law::Compliance(e.get("stiffness")))),
-            (EffectKind::Backlash, Some(j)) => Some((j, super::drive::Law::Backlash { half: e.get("b"), contact: super::drive::CONTACT_BANDWIDTH })),
+            (EffectKind::Backlash, Some(j)) => Some((j, super::drive::Law::Backlash { half: e.get("b") })),
             _ => None,
         };
         if let Some((j, law)) = law {
@@ -668,7 +668,7 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
         let name = &arm.model.joints[j].name;
         let s = drive_profile(&jl, &super::drive::Law::Compliance, &geometric(1.0, 1e5, 26), 0);
         scored.push(Scored { candidate: None, kind: EffectKind::JointCompliance, label: format!("joint_compliance on {name}"), score: s, joint: Some(j), kinematic: None });
-        let s = drive_profile(&jl, &|half| super::drive::Law::Backlash { half, contact: super::drive::CONTACT_BANDWIDTH }, &geometric(2.5e-4, 0.04, 21), PLAY_PASSES);
+        let s = drive_profile(&jl, &|half| super::drive::Law::Backlash { half }, &geometric(2.5e-4, 0.04, 21), PLAY_PASSES);
         scored.push(Scored { candidate: None, kind: EffectKind::Backlash, label: format!("backlash on {name}"), score: s, joint: Some(j), kinematic: None });
     }
     let kin = match &log.markers {
