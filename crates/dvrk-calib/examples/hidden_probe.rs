@@ -1,4 +1,4 @@
-//! One hidden-effect trial, printed: `[DVRK_PERTURB=0.03] [DVRK_TRUTH_DT=1.25e-4] [DVRK_DUMP=residual.csv] cargo run --release -p dvrk-calib --example hidden_probe -- KIND SEED [ENR]`.
+//! One hidden-effect trial, printed: `[DVRK_PERTURB=0.03] [DVRK_NOISE=1] [DVRK_POS_NOISE=1] [DVRK_TRUTH_DT=1.25e-4] [DVRK_DUMP=residual.csv] cargo run --release -p dvrk-calib --example hidden_probe -- KIND SEED [ENR]`.
 //! DVRK_DUMP writes the band-limited residual before and after, with each joint's position,
 //! velocity and load, one row per analysed sample.
 use dvrk_calib::discrepancy::*;
@@ -14,6 +14,15 @@ fn main() {
     // DVRK_TRUTH_DT: the truth's time step (s).
     if let Some(dt) = std::env::var("DVRK_TRUTH_DT").ok().and_then(|s| s.parse().ok()) {
         o.truth_dt = dt;
+    }
+    // DVRK_NOISE: the sensor noises' scale (ENR is relative to the effort noise: scale it too);
+    // DVRK_POS_NOISE: the encoder noise's alone.
+    if let Some(k) = std::env::var("DVRK_NOISE").ok().and_then(|s| s.parse::<f64>().ok()) {
+        o.effort_noise = Some(generate::EFFORT_NOISE.iter().map(|x| x * k).collect());
+        o.position_noise = generate::POSITION_NOISE * k;
+    }
+    if let Some(k) = std::env::var("DVRK_POS_NOISE").ok().and_then(|s| s.parse::<f64>().ok()) {
+        o.position_noise = generate::POSITION_NOISE * k;
     }
     let h = hidden_effect("psm", &o).unwrap();
     println!("generate {:.2} s; answer {}", t0.elapsed().as_secs_f64(), serde_json::to_string(&h.answer).unwrap());

@@ -10,6 +10,7 @@
 //! pulls its estimate its own way.
 
 use super::signals::{column, Prepared};
+use super::stats::effective_fraction;
 
 /// Groups per partition.
 pub const GROUPS: usize = 4;
@@ -89,6 +90,36 @@ pub fn bowl_variance(points: &[(f64, f64)], within: f64) -> Option<f64> {
     (coef[0] > 0.0).then(|| 1.0 / coef[0])
 }
 
+/// The variance of a one-parameter estimate from its score, robust to a residual that is neither
+/// white nor independent of the motion (a sandwich with the score's autocorrelation, as in
+/// Newey and West): `sum(u)^2`'s expectation `sum u_t^2 / f` over `(d^T d)^2`, where `u_t` is
+/// sample t's share of `d^T e` and `f` [`effective_fraction`] of the `u_t`. `d` is the residual's
+/// derivative in the parameter and `e` the residual at the estimate (`per_sample` rows a sample,
+/// sample-major, both with the nuisance taken out), over `rows` (in time order: all of them, or
+/// a group of [`partitions`]). Unlike a profile's curvature, which scales the noise's variance
+/// alone, it grows where the residual left at each event (a play's impact) varies with the
+/// event. `None` without sensitivity.
+pub fn sandwich_variance(d: &[f64], e: &[f64], rows: &[usize], per_sample: usize) -> Option<f64> {
+    let info: f64 = rows.iter().map(|&i| d[i] * d[i]).sum();
+    if !(info > 0.0) || per_sample == 0 {
+        return None;
+    }
+    // Each sample's share, summed over its rows (consecutive in `rows`).
+    let mut u: Vec<f64> = Vec::new();
+    let mut last = usize::MAX;
+    for &i in rows {
+        if i / per_sample != last {
+            u.push(0.0);
+            last = i / per_sample;
+        }
+        if let Some(x) = u.last_mut() {
+            *x += d[i] * e[i];
+        }
+    }
+    let energy: f64 = u.iter().map(|x| x * x).sum();
+    Some(energy / effective_fraction(std::slice::from_ref(&u)) / (info * info))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -118,6 +149,36 @@ mod tests {
         let bowl = bowl_variance(&pts, 30.0).unwrap();
         assert!((bowl - 0.25).abs() < 0.02 && local < 0.01, "{bowl} {local}");
         assert!(bowl_variance(&pts[..3], 30.0).is_none());
+    }
+
+    #[test]
+    fn the_sandwich_is_the_least_squares_variance_for_white_noise_and_wider_for_events() {
+        // d = 1 everywhere, e white with unit variance: var = n / n^2 = 1 / n (to sampling error).
+        let n = 4000;
+        let mut state = 12345u64;
+        let mut unit = || {
+            // Two uniforms summed, centred and scaled: variance 1.
+            let mut u = || {
+                state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                (state >> 11) as f64 / (1u64 << 53) as f64
+            };
+            (u() + u() - 1.0) * 6f64.sqrt()
+        };
+        let e: Vec<f64> = (0..n).map(|_| unit()).collect();
+        let d = vec![1.0; n];
+        let all: Vec<usize> = (0..n).collect();
+        let white = sandwich_variance(&d, &e, &all, 1).unwrap() * n as f64;
+        assert!((white - 1.0).abs() < 0.1, "{white}");
+        // The same residual held over events 20 samples long: 20 times the variance.
+        let held: Vec<f64> = (0..n).map(|i| e[i / 20 * 20]).collect();
+        let events = sandwich_variance(&d, &held, &all, 1).unwrap() * n as f64;
+        assert!(events > 10.0 && events < 30.0, "{events}");
+        // Two rows a sample: the same as their sums' one row a sample, here 2 d e each.
+        let two: Vec<f64> = e.iter().flat_map(|x| [*x, *x]).collect();
+        let rows: Vec<usize> = (0..2 * n).collect();
+        let paired = sandwich_variance(&vec![1.0; 2 * n], &two, &rows, 2).unwrap() * n as f64;
+        assert!((paired - white).abs() < 1e-9 * white, "{paired} {white}");
+        assert!(sandwich_variance(&[0.0; 4], &[1.0; 4], &[0, 1, 2, 3], 2).is_none());
     }
 
     #[test]

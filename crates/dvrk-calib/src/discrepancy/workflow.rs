@@ -186,7 +186,21 @@ fn score_linear(c: &Candidate, fit: &Fitter, r: &Table, o: &Options, rng: &mut C
     let cov = g.try_inverse().unwrap_or_else(|| DMatrix::from_element(p, p, f64::INFINITY)) * (s2 / frac);
     // A model error that changes along the recording, or a law that is not the truth's, moves
     // the estimate between parts of the motion more than the noise would: widen by that.
-    let cov = cov * block_scale(&train, &a, &(fit.whitened(&e1) + &a * &x), &x, &c.lower, frac, c.focus)?;
+    let mut cov = cov * block_scale(&train, &a, &(fit.whitened(&e1) + &a * &x), &x, &c.lower, frac, c.focus)?;
+    // Not narrower than the score's scatter ([`consistency::sandwich_variance`]), each parameter
+    // through its column less the others' share of it.
+    let aw = DMatrix::from_columns(&a.column_iter().map(|col| fit.whitened(&col.into_owned())).collect::<Vec<_>>());
+    for i in 0..p {
+        let own = aw.column(i).into_owned();
+        let others = aw.clone().remove_column(i);
+        let partial = match (p > 1).then(|| others.clone().svd(true, true).solve(&own, 1e-12).ok()).flatten() {
+            Some(beta) => &own - &others * beta,
+            None => own,
+        };
+        if let Some(v) = consistency::sandwich_variance(partial.as_slice(), white.as_slice(), &(0..train.len()).collect::<Vec<_>>(), prep.active.len()) {
+            cov[(i, i)] = cov[(i, i)].max(v);
+        }
+    }
     let ci = (0..p).map(|i| {
         let h = 1.96 * cov[(i, i)].max(0.0).sqrt();
         [x[i] - h, x[i] + h]
@@ -354,6 +368,11 @@ fn score_profile(fit: &Fitter, r: &Table, grid: &[f64], make: &dyn Fn(f64) -> Ta
     let profile: Vec<(f64, f64)> = points.iter().map(|p| (x(p.0), lr(n_eff_pooled, p.1, rss1))).collect();
     // The interval's centre: the parabola's vertex between grid points, else the best point.
     let mut centre = x(value);
+    // The residual's derivative in x at the vertex (whitened) and the score's variance
+    // ([`consistency::sandwich_variance`]): a residual each event (a play's impact) leaves its
+    // own way says more about the estimate's error than the noise's variance does.
+    let mut sandwich: Option<(DVector<f64>, f64)> = None;
+    let (all, na): (Vec<usize>, usize) = ((0..train.len()).collect(), prep.active.len());
     if let Some((xm, var)) = consistency::parabola_minimum(&profile) {
         // Not narrower than the profile's bowl: a play's profile is jagged (each impact's timing
         // jumps with b), and its best point's neighbours gave the wiggle's curvature.
@@ -361,6 +380,9 @@ fn score_profile(fit: &Fitter, r: &Table, grid: &[f64], make: &dyn Fn(f64) -> Ta
         let half = (3.841 * var).sqrt();
         ci = [ci[0].min(back(xm - half)), ci[1].max(back(xm + half))];
         centre = xm;
+        let h = if geometric { var.sqrt().max(SANDWICH_STEP) } else { var.sqrt() };
+        let slope = fit.whitened(&(train.vector(&sub(&make(back(xm + h)), &make(back(xm - h)))) / (2.0 * h)));
+        sandwich = consistency::sandwich_variance(slope.as_slice(), white.as_slice(), &all, na).map(|v| (slope, v));
     }
     // Widened by the estimate's disagreement between the groups of the training samples.
     let frac = n_eff_pooled / train.len() as f64;
@@ -375,16 +397,24 @@ fn score_profile(fit: &Fitter, r: &Table, grid: &[f64], make: &dyn Fn(f64) -> Ta
             consistency::parabola_minimum(&points.iter().map(|p| (x(p.0), lr(n_eff, p.2[g], least))).collect::<Vec<_>>())
         })
         .collect();
-    let mut widen: f64 = 1.0;
+    // The groups' scale against the profile's variances, and against the sandwich's (each group's
+    // own): each widens the interval it scales, and the wider of the two is kept.
+    let (mut widen, mut widen_sandwich): (f64, f64) = (1.0, 1.0);
     let mut rest = &minima[..];
     for partition in &partitions {
         let (these, next) = rest.split_at(partition.len());
         widen = widen.max(consistency::scale(&these.iter().flatten().copied().collect::<Vec<_>>(), centre));
+        if let Some((slope, _)) = &sandwich {
+            let groups: Vec<(f64, f64)> =
+                these.iter().zip(partition).filter_map(|(m, rows)| Some((m.as_ref()?.0, consistency::sandwich_variance(slope.as_slice(), white.as_slice(), rows, na)?))).collect();
+            widen_sandwich = widen_sandwich.max(consistency::scale(&groups, centre));
+        }
         rest = next;
     }
     let stretch = |end: f64| back(centre + (x(end) - centre) * widen.sqrt());
+    let scatter = sandwich.as_ref().map_or(0.0, |(_, v)| (3.841 * v * widen_sandwich).sqrt());
     // Not below the grid's start: a physical bound (no negative latency, stiffness or play).
-    let ci = [stretch(ci[0]).max(grid[0]), stretch(ci[1])];
+    let ci = [stretch(ci[0]).min(back(centre - scatter)).max(grid[0]), stretch(ci[1]).max(back(centre + scatter))];
     let (eh0, eh1) = (fit.held_out(&y, &h0), fit.held_out(&e1, &h1));
     let size_at = |k: usize| (sig[..prep.split].iter().map(|e| e[k] * e[k]).sum::<f64>() / prep.split as f64).sqrt() / prep.noise[k];
     let size = match focus {
@@ -409,6 +439,10 @@ fn score_profile(fit: &Fitter, r: &Table, grid: &[f64], make: &dyn Fn(f64) -> Ta
         at_edge: value <= grid[0] || value >= grid[grid.len() - 1],
     }
 }
+
+/// Least half-step (in ln of the value) of a geometric profile's derivative for its sandwich
+/// variance: a play's profile is jagged below it (each impact's timing jumps with b).
+const SANDWICH_STEP: f64 = 0.005;
 
 /// Likelihood ratio (to the best point) up to which a profile's points give its bowl's width.
 const BOWL_LR: f64 = 30.0;
