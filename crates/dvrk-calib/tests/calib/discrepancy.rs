@@ -134,14 +134,18 @@ fn joint_logs_round_trip_and_bad_recordings_are_refused() {
 
 /// The detection-rate table: TRIALS seeded trials per class at ENR drawn in [3, 8], and
 /// effect-free trials. `DVRK_TRIALS=60 cargo test --release -p dvrk-calib --test calib
-/// detection_rate_table -- --ignored --nocapture` (about 9 s a trial). `DVRK_TRACKER=1` adds a
+/// detection_rate_table -- --ignored --nocapture` (about 16 s a trial on 2 cores). `DVRK_TRACKER=1` adds a
 /// tracked marker on the tool shaft (the kinematic channel; link_length joins the classes),
 /// `DVRK_KINDS=backlash,latency` picks classes, `DVRK_FREE=N` the number of effect-free trials,
-/// `DVRK_ENR=1,3` draws the ENR in [1, 3] instead (for the detection-rate curve's low end). The curve, by ENR bins of 1, closes the table.
+/// `DVRK_ENR=1,3` draws the ENR in [1, 3] instead (for the detection-rate curve's low end), and
+/// `DVRK_FIRST_SEED=1030` starts the class trials there (a table grown in parts; each seed's
+/// ENR is fixed by the seed), `DVRK_TRUTH_DT=6.25e-5` sets the truth's step (s). The curve,
+/// by ENR bins of 1, closes the table.
 #[test]
 #[ignore]
 fn detection_rate_table() {
     let trials: u64 = std::env::var("DVRK_TRIALS").ok().and_then(|s| s.parse().ok()).unwrap_or(10);
+    let first: u64 = std::env::var("DVRK_FIRST_SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(1000).max(1000);
     let tracker = std::env::var("DVRK_TRACKER").is_ok_and(|v| v == "1");
     let mut kinds: Vec<EffectKind> = HIDDEN_KINDS.to_vec();
     if tracker {
@@ -150,9 +154,10 @@ fn detection_rate_table() {
     if let Ok(list) = std::env::var("DVRK_KINDS") {
         kinds.retain(|k| list.split(',').any(|n| n.trim() == k.name()));
     }
+    let truth_dt: f64 = std::env::var("DVRK_TRUTH_DT").ok().and_then(|s| s.parse().ok()).unwrap_or(HiddenOptions::default().truth_dt);
     let make = |hidden: Hidden, seed: u64, enr: Option<f64>| {
         let marker = tracker.then(dvrk_calib::discrepancy::generate::MarkerOptions::default);
-        hidden_effect("psm", &HiddenOptions { hidden, seed, enr, duration: 30.0, marker, ..Default::default() }).unwrap()
+        hidden_effect("psm", &HiddenOptions { hidden, seed, enr, duration: 30.0, marker, truth_dt, ..Default::default() }).unwrap()
     };
     let (enr_lo, enr_hi) = match std::env::var("DVRK_ENR").ok().and_then(|v| v.split_once(',').and_then(|(a, b)| Some((a.parse::<f64>().ok()?, b.parse::<f64>().ok()?)))) {
         Some(range) => range,
@@ -177,12 +182,11 @@ fn detection_rate_table() {
     };
     for kind in kinds {
         let (mut right, mut wrong, mut amb, mut none, mut covered, mut ratios, mut raw, mut kin) = (0, 0, 0, 0, 0, Vec::new(), Vec::new(), Vec::new());
-        for (seed, answer, r) in run(Hidden::Kind(kind), 1000..1000 + trials, &|s| Some(enr_lo + (enr_hi - enr_lo) * (((s - 1000) * 7919) % 100) as f64 / 100.0)) {
-            let s = seed - 1000;
+        for (seed, answer, r) in run(Hidden::Kind(kind), first..first + trials, &|s| Some(enr_lo + (enr_hi - enr_lo) * (((s - 1000) * 7919) % 100) as f64 / 100.0)) {
             let truth = &answer.effects[0].spec;
             let correct = r.verdict == "named" && r.effects[0].name == truth.name && r.effects[0].joint == truth.joint && r.effects[0].link == truth.link.as_ref().map(|l| l.to_string());
             // One line a trial, for the detection-rate curve against ENR.
-            println!("  trial {} enr {:.2} verdict {} correct {correct}", kind.name(), answer.effects[0].enr, r.verdict);
+            println!("  trial {} seed {seed} enr {:.2} verdict {} correct {correct} held-out {:.3}", kind.name(), answer.effects[0].enr, r.verdict, r.rms_heldout_after);
             curve.push((answer.effects[0].enr, correct));
             match r.verdict.as_str() {
                 "named" => {
@@ -201,7 +205,7 @@ fn detection_rate_table() {
                         kin.extend(r.kinematic.as_ref().map(|k| k.rms_heldout_after));
                     } else {
                         wrong += 1;
-                        println!("  {} seed {}: named {} {:?} {:?}", kind.name(), 1000 + s, e.name, e.joint, e.link);
+                        println!("  {} seed {seed}: named {} {:?} {:?}", kind.name(), e.name, e.joint, e.link);
                     }
                 }
                 "ambiguous" => amb += 1,
