@@ -8,6 +8,11 @@ use dvrk_calib::discrepancy::generate::HIDDEN_KINDS;
 use dvrk_calib::discrepancy::{discrepancy, hidden_effect, joint_log, Hidden, HiddenOptions, HiddenRecording, Options};
 use dvrk_kin::effects::EffectKind;
 
+/// The table tests' settings: environment variable `name` parsed, else `default`.
+fn env_or<T: std::str::FromStr>(name: &str, default: T) -> T {
+    std::env::var(name).ok().and_then(|s| s.parse().ok()).unwrap_or(default)
+}
+
 fn trial(hidden: Hidden, seed: u64, enr: Option<f64>, duration: f64) -> HiddenRecording {
     hidden_effect("psm", &HiddenOptions { hidden, seed, enr, duration, ..Default::default() }).unwrap()
 }
@@ -134,8 +139,8 @@ fn joint_logs_round_trip_and_bad_recordings_are_refused() {
 
 /// The detection-rate table: TRIALS seeded trials per class at ENR drawn in [3, 8], and
 /// effect-free trials. `DVRK_TRIALS=60 cargo test --release -p dvrk-calib --test calib
-/// detection_rate_table -- --ignored --nocapture` (about 16 s a trial on 2 cores). `DVRK_TRACKER=1` adds a
-/// tracked marker on the tool shaft (the kinematic channel; link_length joins the classes),
+/// detection_rate_table -- --ignored --nocapture` (about 16 s a trial on 2 cores).
+/// `DVRK_TRACKER=1` adds a tracked marker on the tool shaft (the kinematic channel; link_length joins the classes),
 /// `DVRK_KINDS=backlash,latency` picks classes, `DVRK_FREE=N` the number of effect-free trials,
 /// `DVRK_ENR=1,3` draws the ENR in [1, 3] instead (for the detection-rate curve's low end), and
 /// `DVRK_FIRST_SEED=1030` starts the class trials there (a table grown in parts; each seed's
@@ -144,8 +149,8 @@ fn joint_logs_round_trip_and_bad_recordings_are_refused() {
 #[test]
 #[ignore]
 fn detection_rate_table() {
-    let trials: u64 = std::env::var("DVRK_TRIALS").ok().and_then(|s| s.parse().ok()).unwrap_or(10);
-    let first: u64 = std::env::var("DVRK_FIRST_SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(1000).max(1000);
+    let trials: u64 = env_or("DVRK_TRIALS", 10);
+    let first: u64 = env_or("DVRK_FIRST_SEED", 1000).max(1000);
     let tracker = std::env::var("DVRK_TRACKER").is_ok_and(|v| v == "1");
     let mut kinds: Vec<EffectKind> = HIDDEN_KINDS.to_vec();
     if tracker {
@@ -154,7 +159,7 @@ fn detection_rate_table() {
     if let Ok(list) = std::env::var("DVRK_KINDS") {
         kinds.retain(|k| list.split(',').any(|n| n.trim() == k.name()));
     }
-    let truth_dt: f64 = std::env::var("DVRK_TRUTH_DT").ok().and_then(|s| s.parse().ok()).unwrap_or(HiddenOptions::default().truth_dt);
+    let truth_dt: f64 = env_or("DVRK_TRUTH_DT", HiddenOptions::default().truth_dt);
     let make = |hidden: Hidden, seed: u64, enr: Option<f64>| {
         let marker = tracker.then(dvrk_calib::discrepancy::generate::MarkerOptions::default);
         hidden_effect("psm", &HiddenOptions { hidden, seed, enr, duration: 30.0, marker, truth_dt, ..Default::default() }).unwrap()
@@ -191,7 +196,7 @@ fn detection_rate_table() {
             match r.verdict.as_str() {
                 "named" => {
                     let e = &r.effects[0];
-                    if e.name == truth.name && e.joint == truth.joint && e.link == truth.link.as_ref().map(|l| l.to_string()) {
+                    if correct {
                         right += 1;
                         let p = main_parameter(&e.name);
                         if let Some([lo, hi]) = e.ci95.get(p) {
@@ -222,7 +227,7 @@ fn detection_rate_table() {
     }
     let (mut alarms, mut floor_ratios) = (0, Vec::new());
     // DVRK_FREE: how many effect-free trials (default twice the trials per class).
-    let free: u64 = std::env::var("DVRK_FREE").ok().and_then(|s| s.parse().ok()).unwrap_or(2 * trials);
+    let free: u64 = env_or("DVRK_FREE", 2 * trials);
     for (seed, _, r) in run(Hidden::None, 5000..5000 + free, &|_| None) {
         floor_ratios.push(r.rms_heldout_after);
         if r.verdict != "none" {
@@ -303,11 +308,11 @@ fn two_hidden_effects_are_named_one_round_each() {
 #[ignore]
 fn two_effect_table() {
     use dvrk_calib::discrepancy::discrepancy_repeated;
-    let trials: u64 = std::env::var("DVRK_TRIALS").ok().and_then(|s| s.parse().ok()).unwrap_or(10);
+    let trials: u64 = env_or("DVRK_TRIALS", 10);
     let scene = dvrk_sim::Scene::load("psm").unwrap();
     let model = dvrk_kin::load("psm", None).unwrap();
     // DVRK_FIRST_SEED: where the trials' seeds start (7000), to rerun one.
-    let first: u64 = std::env::var("DVRK_FIRST_SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(7000);
+    let first: u64 = env_or("DVRK_FIRST_SEED", 7000);
     let (mut both, mut one, mut wrong) = (0, 0, 0);
     let start = first.saturating_sub(7000);
     // Trials in parallel (one per core), counted in seed order.
