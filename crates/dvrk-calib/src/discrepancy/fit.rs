@@ -124,6 +124,12 @@ impl Fitter<'_> {
         }
     }
 
+    /// The inertial parameters' change the nuisance fits to training residual `v`
+    /// ([`Nuisance::parameters`]); `None` without a nuisance.
+    pub fn nuisance_parameters(&self, v: &DVector<f64>) -> Option<DVector<f64>> {
+        self.nuisance.map(|n| n.parameters(&n.theta(v)))
+    }
+
     /// The nuisance fitted to training residual `v`, as efforts `[sample][joint]` at every sample
     /// (zero on joints that are not analysed; all zero without a nuisance).
     pub fn nuisance_effort(&self, v: &DVector<f64>) -> Table {

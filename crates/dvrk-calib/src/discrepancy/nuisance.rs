@@ -58,6 +58,10 @@ pub struct Nuisance {
     /// Rows `0..train` are the fitted part.
     train: usize,
     chol: Cholesky<f64, Dyn>,
+    /// The parameters the columns of `n` are (indices into the model's linear-form vector) and
+    /// every parameter's prior standard deviation (the columns' scale).
+    keep: Vec<usize>,
+    stds: Vec<f64>,
 }
 
 impl Nuisance {
@@ -95,7 +99,7 @@ impl Nuisance {
             p[(d, d)] += lambda;
         }
         let chol = p.cholesky().ok_or_else(|| CalibError::data("inertia nuisance", "the prior's normal matrix is not positive definite"))?;
-        Ok(Some(Nuisance { n, train, chol }))
+        Ok(Some(Nuisance { n, train, chol, keep, stds }))
     }
 
     /// `L^-1 N_train^T v` for a training-row vector `v`.
@@ -118,6 +122,16 @@ impl Nuisance {
     /// The nuisance fitted to training residual `v` (scaled units).
     pub fn theta(&self, v: &DVector<f64>) -> DVector<f64> {
         self.chol.solve(&self.n.rows(0, self.train).tr_mul(v))
+    }
+
+    /// The inertial parameters' change of a fitted nuisance `theta` (kg, kg m, kg m^2; every
+    /// body's, in dvrk-kin's regressor order).
+    pub fn parameters(&self, theta: &DVector<f64>) -> DVector<f64> {
+        let mut out = DVector::zeros(self.stds.len());
+        for (c, &k) in self.keep.iter().enumerate() {
+            out[k] = theta[c] * self.stds[k];
+        }
+        out
     }
 
     /// The fitted nuisance's contribution on rows `start..start + len` (scaled units).

@@ -447,12 +447,14 @@ const SANDWICH_STEP: f64 = 0.005;
 /// Likelihood ratio (to the best point) up to which a profile's points give its bowl's width.
 const BOWL_LR: f64 = 30.0;
 
-/// Passes of a play's profile with the link's load corrected by the nuisance inertias: a link
-/// in free flight across the play moves under its load alone, and the truth's inertias 3% off
-/// the model's put its impacts a millisecond off. Seed 1 (ENR 5): held-out 3.17 of the floor
-/// without, 1.27 with two passes (b -0.5%, its interval covering). A compliance gained nothing
-/// (seeds 2, 11: held-out 1.058, 1.053 without; 1.091, 1.067 with two passes).
-const PLAY_PASSES: usize = 2;
+/// Passes of a drive's profile with the link's load, inertia and stiffness corrected by the
+/// nuisance inertias ([`super::drive::LoadChange`]): a link in free flight across a play moves
+/// under its load alone, and the truth's inertias 3% off the model's put its impacts a
+/// millisecond off (seed 1: held-out 3.17 of the floor without, 1.27 with two passes); a
+/// compliance's signature is its link's inertia and stiffness times the deflection, and its
+/// stiffness moved 0.45% per 1% of the outer pitch's `M_jj` (seeds 1039, 1045: -1.27%, +1.19%
+/// uncorrected; -0.13%, +0.05% with two passes, held-out 1.041 and 1.075 of the floor).
+const DRIVE_PASSES: usize = 2;
 
 /// Supported linear candidates [`pair_choice`] fits two at a time.
 const PAIR_POOL: usize = 6;
@@ -679,30 +681,33 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
         kinematic: None,
     });
     // The drives: compliance and play per moving joint, each a profile of its own simulation;
-    // where a play shows, profiled again with the link driven by the load the fit's nuisance
-    // inertias correct ([`PLAY_PASSES`]).
-    let drive_profile = |jl: &super::drive::JointLoad, law: &dyn Fn(f64) -> super::drive::Law, grid: &[f64], passes: usize| -> Score {
+    // where one shows, profiled again with the link's load, inertia and stiffness as the fit's
+    // nuisance inertias correct them ([`DRIVE_PASSES`]).
+    let drive_profile = |jl: &super::drive::JointLoad, law: &dyn Fn(f64) -> super::drive::Law, grid: &[f64]| -> Result<Score> {
         let profile = |jl: &super::drive::JointLoad| score_profile(&fit, &r, grid, &|v| super::drive::signature(&prep, jl, law(v), nq), Some(jl.joint));
         let mut s = profile(jl);
         let mut current = jl.clone();
-        for _ in 0..passes {
+        for _ in 0..DRIVE_PASSES {
             if s.delta_bic <= o.min_delta_bic {
                 break;
             }
-            let nuisance = sub(&s.effect, &super::drive::signature(&prep, &current, law(s.x[0]), nq));
-            current = current.corrected(&nuisance);
+            let e1 = Rows::train(&prep).vector(&sub(&r, &super::drive::signature(&prep, &current, law(s.x[0]), nq)));
+            let Some(dpi) = fit.nuisance_parameters(&e1) else {
+                break;
+            };
+            current = jl.corrected(&super::drive::LoadChange::of(&arm.model, predictor.dynamics(), &gravity, jl.joint, &dpi, (&prep.q, &prep.qd, &prep.qdd))?);
             s = profile(&current);
         }
-        s
+        Ok(s)
     };
     for &j in &prep.active {
         let Some(jl) = joint_load(j, &base) else {
             continue;
         };
         let name = &arm.model.joints[j].name;
-        let s = drive_profile(&jl, &super::drive::Law::Compliance, &geometric(1.0, 1e5, 26), 0);
+        let s = drive_profile(&jl, &super::drive::Law::Compliance, &geometric(1.0, 1e5, 26))?;
         scored.push(Scored { candidate: None, kind: EffectKind::JointCompliance, label: format!("joint_compliance on {name}"), score: s, joint: Some(j), kinematic: None });
-        let s = drive_profile(&jl, &|half| super::drive::Law::Backlash { half }, &geometric(2.5e-4, 0.04, 21), PLAY_PASSES);
+        let s = drive_profile(&jl, &|half| super::drive::Law::Backlash { half }, &geometric(2.5e-4, 0.04, 21))?;
         scored.push(Scored { candidate: None, kind: EffectKind::Backlash, label: format!("backlash on {name}"), score: s, joint: Some(j), kinematic: None });
     }
     let kin = match &log.markers {
