@@ -298,8 +298,9 @@ pub fn signature(prep: &Prepared, jl: &JointLoad, law: Law, nq: usize) -> Table 
     let mut table = vec![vec![0.0; nq]; prep.t.len()];
     // The joint's own effort: the drive's torque through the analysis' filter, against the load
     // that drives the link (the correction is the nuisance's, refitted next to the signature:
-    // left in the signature it was counted twice, and the held-out residual grew). (The load, already in the band, filtered again lost up to a quarter of a play's
-    // signature: its kinks put the load's content near the band's edge.)
+    // left in the signature it was counted twice, and the held-out residual grew). The load,
+    // already in the band, is not filtered again: that lost up to a quarter of a play's
+    // signature (its kinks put the load's content near the band's edge).
     for ((row, f), (l, c)) in table.iter_mut().zip(prep.band(&force)).zip(jl.load.iter().zip(&jl.correction)) {
         row[j] = f - l - c;
     }
