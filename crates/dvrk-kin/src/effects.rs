@@ -7,11 +7,15 @@
 //!   joint's true angle is the reading plus `offset`), `link_length` (a DH `a` or `d` changed by
 //!   `a`, `d` metres), `base_registration` (the base frame moved by `x y z`, rotation vector
 //!   `rx ry rz`);
-//! - dynamics (dvrk-kin's [`effort`] and [`payload_inertias`], and dvrk-sim's physics):
+//! - dynamics (dvrk-kin's [`effort`] and [`effect_inertias`], and dvrk-sim's physics):
 //!   `coulomb_friction`, `viscous_friction`, `spring`, `payload_mass`;
+//! - both: `counterweight_error` (the counterweight's travel per unit insertion `mu`, replacing
+//!   the model's parameter of that name, and its mass `mass`, the body's inertia scaled with it:
+//!   the same block, heavier or lighter); the counterweight is the body a frame moving by `mu`
+//!   carries;
 //! - the simulated drive and sensors (dvrk-sim): `joint_compliance`, `backlash`, `latency`;
-//! - `coupling_error`, `counterweight_error`: parsed and checked; not simulated yet (dvrk-sim
-//!   refuses a model that has them rather than ignoring them).
+//! - `coupling_error`: parsed and checked; not simulated yet (dvrk-sim refuses a model that has
+//!   it rather than ignoring it).
 //!
 //! ```toml
 //! [[effects]]
@@ -133,7 +137,9 @@ impl EffectKind {
     /// What it acts on.
     pub fn target(self) -> Target {
         match self {
-            EffectKind::JointOffset | EffectKind::JointCompliance | EffectKind::Backlash | EffectKind::CoulombFriction | EffectKind::ViscousFriction | EffectKind::Spring => Target::Joint,
+            EffectKind::JointOffset | EffectKind::JointCompliance | EffectKind::Backlash | EffectKind::CoulombFriction | EffectKind::ViscousFriction | EffectKind::Spring => {
+                Target::Joint
+            }
             EffectKind::LinkLength | EffectKind::PayloadMass => Target::Link,
             EffectKind::BaseRegistration | EffectKind::Latency | EffectKind::CouplingError | EffectKind::CounterweightError => Target::Model,
         }
@@ -181,7 +187,8 @@ const COULOMB: &[ParameterInfo] = &[
     p("smoothing", "rad/s", "m/s", 0.0, 1.0, Some(0.0)),
 ];
 const VISCOUS: &[ParameterInfo] = &[p("fv", "N·m s/rad", "N s/m", 0.0, 1000.0, None)];
-const PAYLOAD: &[ParameterInfo] = &[p("mass", "kg", "kg", 0.0, 20.0, None), p("x", "m", "m", -1.0, 1.0, Some(0.0)), p("y", "m", "m", -1.0, 1.0, Some(0.0)), p("z", "m", "m", -1.0, 1.0, Some(0.0))];
+const PAYLOAD: &[ParameterInfo] =
+    &[p("mass", "kg", "kg", 0.0, 20.0, None), p("x", "m", "m", -1.0, 1.0, Some(0.0)), p("y", "m", "m", -1.0, 1.0, Some(0.0)), p("z", "m", "m", -1.0, 1.0, Some(0.0))];
 const COUNTERWEIGHT: &[ParameterInfo] = &[p("mu", "1", "1", 0.0, 2.0, None), p("mass", "kg", "kg", 0.0, 10.0, None)];
 const SPRING: &[ParameterInfo] = &[p("k", "N·m/rad", "N/m", 0.0, 1e5, None), p("rest", "rad", "m", -10.0, 10.0, Some(0.0))];
 
@@ -239,7 +246,12 @@ pub fn check_effects(model: &Model) -> Result<Vec<Effect>> {
                     Some((r, col)) if (1..=c.nrows()).contains(&r) && (1..=c.ncols()).contains(&col) && v.is_finite() && v.abs() <= 0.5 => {
                         parameters.insert(name.clone(), *v);
                     }
-                    _ => return Err(KinError::field(field(&format!("parameters.{name}")), format!("{v}: expected dRC (1-based row, column of the {}x{} coupling) with |value| <= 0.5", c.nrows(), c.ncols()))),
+                    _ => {
+                        return Err(KinError::field(
+                            field(&format!("parameters.{name}")),
+                            format!("{v}: expected dRC (1-based row, column of the {}x{} coupling) with |value| <= 0.5", c.nrows(), c.ncols()),
+                        ))
+                    }
                 }
             }
         } else {
@@ -256,14 +268,52 @@ pub fn check_effects(model: &Model) -> Result<Vec<Effect>> {
                     (None, None) => return Err(KinError::field(field(&format!("parameters.{}", info.name)), format!("missing ({unit})"))),
                 };
                 if !(v.is_finite() && v >= info.lower && v <= info.upper) {
-                    return Err(KinError::field(field(&format!("parameters.{}", info.name)), format!("{v} {unit} is outside its physical bounds [{}, {}]", info.lower, info.upper)));
+                    return Err(KinError::field(
+                        field(&format!("parameters.{}", info.name)),
+                        format!("{v} {unit} is outside its physical bounds [{}, {}]", info.lower, info.upper),
+                    ));
                 }
                 parameters.insert(info.name.to_string(), v);
             }
         }
+        let frame = match kind {
+            EffectKind::CounterweightError => Some(counterweight_frame(model).ok_or_else(|| {
+                KinError::field(field("name"), format!("model `{}` has no counterweight (no frame moves by the parameter `{COUNTERWEIGHT_TRAVEL}`)", model.name))
+            })?),
+            _ => frame,
+        };
         out.push(Effect { kind, joint, frame, parameters });
     }
     Ok(out)
+}
+
+/// The model parameter a counterweight's travel per unit insertion goes by (Table 4's mu).
+const COUNTERWEIGHT_TRAVEL: &str = "mu";
+
+/// Whether the expression `e` names the identifier `name`.
+fn names(e: &crate::spec::Value, name: &str) -> bool {
+    matches!(e, crate::spec::Value::Expr(x) if x.split(|c: char| !(c.is_alphanumeric() || c == '_')).any(|w| w == name))
+}
+
+/// The counterweight's frame: the first whose DH figures move by [`COUNTERWEIGHT_TRAVEL`].
+fn counterweight_frame(model: &Model) -> Option<usize> {
+    (0..model.frames.len()).find(|&i| model.spec_frame(i).is_some_and(|f| [&f.a, &f.alpha, &f.d, &f.theta].into_iter().any(|v| names(v, COUNTERWEIGHT_TRAVEL))))
+}
+
+/// The spec with a `counterweight_error`'s `mu` in place of the model's parameter (before
+/// compiling; the last one wins).
+pub(crate) fn apply_counterweight(spec: &mut crate::ModelSpec) -> Result<()> {
+    let name = EffectKind::CounterweightError.name();
+    let Some((i, mu)) = spec.effects.iter().enumerate().filter(|(_, e)| e.name == name).last().map(|(i, e)| (i, e.parameters.get("mu").copied())) else {
+        return Ok(());
+    };
+    // A missing or out-of-bounds mu is reported by check_effects with the other parameters.
+    let Some(mu) = mu else { return Ok(()) };
+    let p = spec.parameters.get_mut(COUNTERWEIGHT_TRAVEL).ok_or_else(|| {
+        KinError::field(format!("effects[{i}] ({name}).parameters.mu"), format!("the model has no parameter `{COUNTERWEIGHT_TRAVEL}` (a counterweight's travel) for it to replace"))
+    })?;
+    p.value = mu;
+    Ok(())
 }
 
 /// Joint-space effort (N·m, N) of the friction and spring effects at `q`, `qd`, added to `out`:
@@ -286,9 +336,10 @@ pub fn effort(effects: &[Effect], q: &[f64], qd: &[f64], velocity_scale: f64, ou
     }
 }
 
-/// `inertias` with every `payload_mass` added as a point mass on its link's body (each inertia in
-/// its body's first frame, [`crate::Model::bodies`] order).
-pub fn payload_inertias(model: &Model, effects: &[Effect], inertias: &[crate::BodyInertia]) -> Result<Vec<crate::BodyInertia>> {
+/// `inertias` with every `payload_mass` added as a point mass on its link's body, and a
+/// `counterweight_error`'s mass given to the counterweight (its inertia scaled by the same
+/// ratio); each inertia in its body's first frame, [`crate::Model::bodies`] order.
+pub fn effect_inertias(model: &Model, effects: &[Effect], inertias: &[crate::BodyInertia]) -> Result<Vec<crate::BodyInertia>> {
     let mut out = inertias.to_vec();
     let fk = model.fk(&model.home())?;
     for e in effects.iter().filter(|e| e.kind == EffectKind::PayloadMass) {
@@ -298,6 +349,14 @@ pub fn payload_inertias(model: &Model, effects: &[Effect], inertias: &[crate::Bo
         // The point in the body's first frame (constant: both frames are on one body).
         let local = (fk[first].inverse() * fk[f]) * nalgebra::Point3::new(e.get("x"), e.get("y"), e.get("z"));
         out[b] = out[b].with_point_mass(e.get("mass"), &local.coords);
+    }
+    for e in effects.iter().filter(|e| e.kind == EffectKind::CounterweightError) {
+        let Some(f) = e.frame else { continue };
+        let b = &mut out[model.frames[f].body];
+        // Zero: a counterweight removed (a model needs a positive mass: kept at 1 ug).
+        let ratio = e.get("mass").max(1e-9) / b.mass;
+        b.mass *= ratio;
+        b.inertia *= ratio;
     }
     Ok(out)
 }

@@ -347,6 +347,7 @@ impl Model {
         // A link_length effect edits the DH table itself; the spec keeps the file's numbers.
         let file_spec = spec.clone();
         crate::effects::apply_link_lengths(&mut spec)?;
+        crate::effects::apply_counterweight(&mut spec)?;
         let mut parameters = BTreeMap::new();
         for (k, p) in &spec.parameters {
             if !p.value.is_finite() {

@@ -30,7 +30,8 @@ fn joint_offset_is_the_encoder_zero() {
 #[test]
 fn link_length_and_base_registration_move_the_frames() {
     let nominal = dvrk_kin::load("psm", None).unwrap();
-    let m = psm_with("[[effects]]\nname = \"link_length\"\nlink = 8\nparameters = { a = 0.002 }\n[[effects]]\nname = \"base_registration\"\nparameters = { x = 0.1, rz = 0.5 }\n").unwrap();
+    let m = psm_with("[[effects]]\nname = \"link_length\"\nlink = 8\nparameters = { a = 0.002 }\n[[effects]]\nname = \"base_registration\"\nparameters = { x = 0.1, rz = 0.5 }\n")
+        .unwrap();
     let q = nominal.home();
     let (fm, fnom) = (m.fk(&q).unwrap(), nominal.fk(&q).unwrap());
     let id = |r: i64| m.frame_id(&FrameRef::Index(r)).unwrap();
@@ -61,7 +62,8 @@ fn friction_and_spring_efforts_in_closed_form() {
     assert!((out[3] + 0.002 * 0.5).abs() < 1e-18);
     assert!(out.iter().enumerate().all(|(k, x)| k == 0 || k == 3 || *x == 0.0));
     // The inverse dynamics with effects: the rigid-body effort plus what friction and springs take.
-    let ine: Vec<dvrk_kin::BodyInertia> = m.bodies.iter().map(|_| dvrk_kin::BodyInertia::new(0.5, [0.01, 0.0, 0.0], [[1e-3, 0.0, 0.0], [0.0, 1e-3, 0.0], [0.0, 0.0, 1e-3]])).collect();
+    let ine: Vec<dvrk_kin::BodyInertia> =
+        m.bodies.iter().map(|_| dvrk_kin::BodyInertia::new(0.5, [0.01, 0.0, 0.0], [[1e-3, 0.0, 0.0], [0.0, 1e-3, 0.0], [0.0, 0.0, 1e-3]])).collect();
     let dm = dvrk_kin::DynamicsModel::new(&m, ine).unwrap();
     let mut data = dvrk_kin::DynamicsData::new(&m);
     let g = nalgebra::Vector3::new(0.0, 0.0, -9.81);
@@ -73,16 +75,60 @@ fn friction_and_spring_efforts_in_closed_form() {
     }
 }
 
+/// `counterweight_error`: frame 11 (the counterweight) slides `mu` per metre of insertion, and the
+/// insertion's gravity torque carries the new mass times the new travel (closed form: the
+/// counterweight moves along its frame's z, so it adds `-m mu g . z11`).
+#[test]
+fn a_counterweight_error_sets_the_travel_and_the_mass() {
+    let (mu, mass) = (0.7, 0.6);
+    let nominal = dvrk_kin::load("psm", None).unwrap();
+    let m = psm_with(&format!("[[effects]]\nname = \"counterweight_error\"\nparameters = {{ mu = {mu}, mass = {mass} }}\n")).unwrap();
+    let cw = m.frame_id(&FrameRef::Index(11)).unwrap();
+    let (mut q0, mut q1) = (m.home(), m.home());
+    q0[2] = 0.05;
+    q1[2] = 0.15;
+    let travel = |model: &Model| (model.fk(&q1).unwrap()[cw].translation.vector - model.fk(&q0).unwrap()[cw].translation.vector).norm() / 0.1;
+    assert!((travel(&m) - mu).abs() < 1e-12 && (travel(&nominal) - 0.6025).abs() < 1e-12, "{} {}", travel(&m), travel(&nominal));
+    assert_eq!(m.spec.parameters["mu"].value, 0.6025, "the file keeps its own mu");
+    // Every body 0.5 kg: the counterweight's becomes `mass`, its inertia scaled alike.
+    let ine: Vec<dvrk_kin::BodyInertia> =
+        m.bodies.iter().map(|_| dvrk_kin::BodyInertia::new(0.5, [0.0, 0.0, 0.01], [[1e-3, 0.0, 0.0], [0.0, 1e-3, 0.0], [0.0, 0.0, 2e-4]])).collect();
+    let with = dvrk_kin::effects::effect_inertias(&m, &m.effects, &ine).unwrap();
+    let b = m.frames[cw].body;
+    assert_eq!(with[b].mass, mass);
+    assert!((with[b].inertia[(2, 2)] - 2e-4 * mass / 0.5).abs() < 1e-18);
+    assert!(with.iter().enumerate().all(|(k, x)| k == b || *x == ine[k]));
+    let g = nalgebra::Vector3::new(0.0, 0.0, -9.81);
+    let q = [0.3, -0.2, 0.15, 0.0, 0.0, 0.0, 0.3];
+    let hold = |model: &Model, inertias: Vec<dvrk_kin::BodyInertia>| {
+        let dm = dvrk_kin::DynamicsModel::new(model, inertias).unwrap();
+        let mut out = [0.0; 7];
+        dvrk_kin::gravity_torque(model, &dm, &mut dvrk_kin::DynamicsData::new(model), &q, &g, &mut out).unwrap();
+        out
+    };
+    let (a, b0) = (hold(&m, with), hold(&nominal, ine));
+    let z = m.fk(&q).unwrap()[cw].rotation * nalgebra::Vector3::z();
+    let expect = -(mass * mu - 0.5 * 0.6025) * g.dot(&z);
+    assert!((a[2] - b0[2] - expect).abs() < 1e-12, "{} vs {expect}", a[2] - b0[2]);
+}
+
 #[test]
 fn bad_effects_name_the_effect_the_field_and_the_value() {
     let err = |t: &str| psm_with(t).unwrap_err().to_string();
     assert!(err("[[effects]]\nname = \"stiction\"\n").contains("effects[0].name`: `stiction` is not an effect (vocabulary: joint_offset, link_length"));
     assert!(err("[[effects]]\nname = \"backlash\"\nparameters = { b = 0.01 }\n").contains("effects[0] (backlash).joint`: missing: this effect acts on a joint"));
-    assert!(err("[[effects]]\nname = \"backlash\"\njoint = \"outer_yaw\"\nparameters = { b = -0.01 }\n").contains("effects[0] (backlash).parameters.b`: -0.01 rad is outside its physical bounds [0, 0.2]"));
-    assert!(err("[[effects]]\nname = \"viscous_friction\"\njoint = \"outer_insertion\"\nparameters = { fc = 1 }\n").contains("parameters.fc`: not a parameter of viscous_friction (parameters: fv)"));
+    assert!(err("[[effects]]\nname = \"backlash\"\njoint = \"outer_yaw\"\nparameters = { b = -0.01 }\n")
+        .contains("effects[0] (backlash).parameters.b`: -0.01 rad is outside its physical bounds [0, 0.2]"));
+    assert!(err("[[effects]]\nname = \"viscous_friction\"\njoint = \"outer_insertion\"\nparameters = { fc = 1 }\n")
+        .contains("parameters.fc`: not a parameter of viscous_friction (parameters: fv)"));
     assert!(err("[[effects]]\nname = \"latency\"\njoint = \"outer_yaw\"\nparameters = { seconds = 0.01 }\n").contains("`outer_yaw` given, but latency does not act on a joint"));
     assert!(err("[[effects]]\nname = \"spring\"\njoint = \"elbow\"\nparameters = { k = 1 }\n").contains("effects[0] (spring).joint"));
     assert!(err("[[effects]]\nname = \"joint_compliance\"\njoint = \"outer_insertion\"\n").contains("parameters.stiffness`: missing (N/m)"));
+    assert!(err("[[effects]]\nname = \"counterweight_error\"\nparameters = { mu = 2.5, mass = 0.5 }\n")
+        .contains("(counterweight_error).parameters.mu`: 2.5 1 is outside its physical bounds [0, 2]"));
+    let ecm = |t: &str| load_toml_text(&format!("{}\n{t}", builtin_text("ecm").unwrap()), Path::new("ecm-effects.toml"), None, None).unwrap_err().to_string();
+    let e = ecm("[[effects]]\nname = \"counterweight_error\"\nparameters = { mu = 0.5, mass = 0.5 }\n");
+    assert!(e.contains("effects[0] (counterweight_error).parameters.mu`: the model has no parameter `mu`"), "{e}");
 }
 
 /// `[[inertials]]` (what `dvrk identify -o` writes): read back per body, written back by
@@ -99,7 +145,11 @@ fn model_file_inertials_are_read_checked_and_written_back() {
     let again = load_toml_text(&m.spec.to_toml().unwrap(), Path::new("again.toml"), None, None).unwrap();
     assert_eq!(again.spec.inertials, m.spec.inertials);
     let err = |s: &str| psm_with(s).unwrap_err().to_string();
-    assert!(err(&body.replace("yaw_link", "elbow")).contains("inertials[0] (elbow).body`: model psm has no body `elbow` (valid: yaw_link,"), "{}", err(&body.replace("yaw_link", "elbow")));
+    assert!(
+        err(&body.replace("yaw_link", "elbow")).contains("inertials[0] (elbow).body`: model psm has no body `elbow` (valid: yaw_link,"),
+        "{}",
+        err(&body.replace("yaw_link", "elbow"))
+    );
     assert!(err(&format!("{body}{body}")).contains("inertials[1] (yaw_link).body`: body appears twice"));
     assert!(err(&body.replace("mass = 1.5", "mass = -1.5")).contains("inertials[0] (yaw_link).mass"));
     // 0.018 > 0.016 + 0.001: no mass distribution has these moments.

@@ -9,6 +9,8 @@
 //! - `latency`: the measured joint stream (what the controller and the recorder see) is the
 //!   state `seconds` ago;
 //! - `payload_mass`: mass and inertia added to the link's body when the sim is built;
+//! - `counterweight_error`: the counterweight's mass when the sim is built, its travel per unit
+//!   insertion in the compiled model's kinematics (its cable follows the insertion by that ratio);
 //! - `joint_offset`, `link_length`, `base_registration`: already in the compiled model's
 //!   kinematics, which the sim is built from.
 //!
@@ -143,8 +145,8 @@ impl ArmEffects {
                         out.delay = Some(Delay::new(steps, home));
                     }
                 }
-                EffectKind::PayloadMass | EffectKind::JointOffset | EffectKind::LinkLength | EffectKind::BaseRegistration => {}
-                EffectKind::CouplingError | EffectKind::CounterweightError => {
+                EffectKind::PayloadMass | EffectKind::CounterweightError | EffectKind::JointOffset | EffectKind::LinkLength | EffectKind::BaseRegistration => {}
+                EffectKind::CouplingError => {
                     return Err(SimError::Build(format!("{}: not simulated yet (the model has it; dvrk-sim refuses rather than ignore it)", what(None))));
                 }
             }

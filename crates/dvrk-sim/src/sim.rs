@@ -349,7 +349,7 @@ impl Sim {
             let body_pose: Vec<Pose> = model.bodies.iter().map(|b| fk[b.frames[0]]).collect();
             let mut handles = Vec::with_capacity(model.bodies.len());
             // The bodies' inertials with any payload_mass effect added.
-            let inertias = dvrk_kin::effects::payload_inertias(model, &model.effects, &arm.inertials.body_inertias(model)?)?;
+            let inertias = dvrk_kin::effects::effect_inertias(model, &model.effects, &arm.inertials.body_inertias(model)?)?;
             for (bi, ine) in inertias.iter().enumerate() {
                 let i = ine.inertia;
                 let cols = [[i[(0, 0)], i[(1, 0)], i[(2, 0)]], [i[(0, 1)], i[(1, 1)], i[(2, 1)]], [i[(0, 2)], i[(1, 2)], i[(2, 2)]]];

@@ -1,8 +1,9 @@
 //! Each physical effect of the vocabulary, simulated on its own, produces its signature
 //! (issue 6): Coulomb friction a torque step with the velocity's sign, compliance a deflection
 //! proportional to the load, backlash dead travel at reversals, latency a residual parallel to
-//! the velocity, a spring an effort proportional to the displacement, a payload the gravity
-//! torque dvrk-kin's independent Newton-Euler gives for the added mass.
+//! the velocity, a spring an effort proportional to the displacement, a payload or a
+//! counterweight error the gravity torque dvrk-kin's independent Newton-Euler gives for the
+//! added mass (and, for the counterweight, its travel).
 
 use dvrk_sim::{Gains, Scene, Sim, SimOptions};
 use std::path::Path;
@@ -140,16 +141,17 @@ fn a_joint_spring_needs_effort_in_proportion_to_the_displacement() {
     assert!(((e1 - e0) / (k * q1) - 1.0).abs() < 0.01, "{e0} {e1}");
 }
 
-#[test]
-fn a_payload_adds_the_gravity_torque_of_its_mass() {
+/// The PID's efforts on joints 0-2 holding `scene`'s PSM at a pose against gravity (integral
+/// gain raised so the hold settles), and dvrk-kin's Newton-Euler gravity torque there with the
+/// model's effect inertias.
+fn held_against_gravity(scene: &Scene) -> ([f64; 3], [f64; 3]) {
     use dvrk_sim::dvrk_kin::{gravity_torque, DynamicsData, DynamicsModel};
-    let scene = psm_with("[[effects]]\nname = \"payload_mass\"\nlink = 7\nparameters = { mass = 0.2, z = 0.05 }\n");
     let arm = &scene.arms[0];
     let model = &arm.model;
-    let inertias = dvrk_sim::dvrk_kin::effects::payload_inertias(model, &model.effects, &arm.inertials.body_inertias(model).unwrap()).unwrap();
+    let inertias = dvrk_sim::dvrk_kin::effects::effect_inertias(model, &model.effects, &arm.inertials.body_inertias(model).unwrap()).unwrap();
     let dm = DynamicsModel::new(model, inertias).unwrap();
     let mut data = DynamicsData::new(model);
-    let mut sim = Sim::new(&scene, &SimOptions::default()).unwrap();
+    let mut sim = Sim::new(scene, &SimOptions::default()).unwrap();
     let target = [0.3, -0.2, 0.15, 0.0, 0.0, 0.0, 0.3];
     for (i, x) in target.iter().enumerate() {
         sim.set_target(i, *x, 0.0).unwrap();
@@ -161,9 +163,38 @@ fn a_payload_adds_the_gravity_torque_of_its_mass() {
     }
     let mut g = vec![0.0; model.nq()];
     gravity_torque(model, &dm, &mut data, sim.q(), &nalgebra::Vector3::from(scene.gravity), &mut g).unwrap();
-    for k in [0, 1, 2] {
-        let e = sim.effort(k).unwrap();
-        eprintln!("payload 0.2 kg: joint {k}: PID {e:.5}, Newton-Euler {:.5}", g[k]);
-        assert!((e - g[k]).abs() < 0.01 * g[k].abs() + 2e-3, "joint {k}: {e} vs {}", g[k]);
+    (std::array::from_fn(|k| sim.effort(k).unwrap()), std::array::from_fn(|k| g[k]))
+}
+
+#[test]
+fn a_payload_adds_the_gravity_torque_of_its_mass() {
+    let (pid, ne) = held_against_gravity(&psm_with("[[effects]]\nname = \"payload_mass\"\nlink = 7\nparameters = { mass = 0.2, z = 0.05 }\n"));
+    for k in 0..3 {
+        eprintln!("payload 0.2 kg: joint {k}: PID {:.5}, Newton-Euler {:.5}", pid[k], ne[k]);
+        assert!((pid[k] - ne[k]).abs() < 0.01 * ne[k].abs() + 2e-3, "joint {k}: {} vs {}", pid[k], ne[k]);
     }
+}
+
+/// A heavier counterweight travelling further: the insertion's and the pitch's holding efforts
+/// move by what Newton-Euler gives for the new mass and `mu`; on the insertion, by the closed
+/// form `-(m' mu' - m mu) g . z11` (the counterweight slides along its frame's z, `mu` per metre
+/// of insertion).
+#[test]
+fn a_counterweight_error_moves_the_gravity_efforts_by_its_mass_and_travel() {
+    let (mu, mass) = (0.7, 0.6);
+    let nominal = Scene::load("psm").unwrap();
+    let scene = psm_with(&format!("[[effects]]\nname = \"counterweight_error\"\nparameters = {{ mu = {mu}, mass = {mass} }}\n"));
+    let (pid0, _) = held_against_gravity(&nominal);
+    let (pid, ne) = held_against_gravity(&scene);
+    for k in 0..3 {
+        eprintln!("counterweight mu {mu}, {mass} kg: joint {k}: PID {:.5} (nominal {:.5}), Newton-Euler {:.5}", pid[k], pid0[k], ne[k]);
+        assert!((pid[k] - ne[k]).abs() < 0.01 * ne[k].abs() + 2e-3, "joint {k}: {} vs {}", pid[k], ne[k]);
+    }
+    let model = &nominal.arms[0].model;
+    let cw = model.frame_id(&dvrk_sim::dvrk_kin::FrameRef::Index(11)).unwrap();
+    let m0 = nominal.arms[0].inertials.body_inertias(model).unwrap()[model.frames[cw].body].mass;
+    let z = model.fk(&[0.3, -0.2, 0.15, 0.0, 0.0, 0.0, 0.3]).unwrap()[cw].rotation * nalgebra::Vector3::z();
+    let expect = -(mass * mu - m0 * model.spec.parameters["mu"].value) * nalgebra::Vector3::from(nominal.gravity).dot(&z);
+    eprintln!("insertion: {:.5} N more (closed form {expect:.5})", pid[2] - pid0[2]);
+    assert!(expect.abs() > 0.3 && (pid[2] - pid0[2] - expect).abs() < 0.01 * expect.abs(), "{} vs {expect}", pid[2] - pid0[2]);
 }

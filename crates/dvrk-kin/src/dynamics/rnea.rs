@@ -36,7 +36,7 @@ pub fn inverse_dynamics(
 /// The effort the drives must supply (N·m, N): [`inverse_dynamics`] plus what the model's
 /// friction and spring effects take ([`crate::effects::effort`], `velocity_scale` smoothing the
 /// Coulomb sign, 0 for a hard sign). Payload masses enter through `dm`'s inertias (build it
-/// from [`crate::effects::payload_inertias`]). Allocates nothing.
+/// from [`crate::effects::effect_inertias`]). Allocates nothing.
 #[allow(clippy::too_many_arguments)]
 pub fn actuator_effort(
     model: &Model,
