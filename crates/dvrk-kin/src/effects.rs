@@ -14,8 +14,12 @@
 //!   the same block, heavier or lighter); the counterweight is the body a frame moving by `mu`
 //!   carries;
 //! - the simulated drive and sensors (dvrk-sim): `joint_compliance`, `backlash`, `latency`;
-//! - `coupling_error`: parsed and checked; not simulated yet (dvrk-sim refuses a model that has
-//!   it rather than ignoring it).
+//! - kinematics and dynamics: `coupling_error` (`dRC`: the true actuator-to-joint coupling is the
+//!   model's plus `dRC` at 1-based row R, column C; the controller reads joints through the
+//!   model's). The compiled model's frames follow the true joints of the joints read, so its
+//!   kinematics and inverse dynamics (the effort the controller reports) honour it; dvrk-sim
+//!   builds the mechanism on the true joints and maps its sensors and motors
+//!   ([`crate::coupling`]).
 //!
 //! ```toml
 //! [[effects]]
@@ -238,11 +242,7 @@ pub fn check_effects(model: &Model) -> Result<Vec<Effect>> {
         if kind == EffectKind::CouplingError {
             let c = model.coupling_matrix().ok_or_else(|| KinError::field(field("name"), format!("model `{}` has no actuator coupling to be in error", model.name)))?;
             for (name, v) in &e.parameters {
-                let rc = name.strip_prefix('d').and_then(|s| {
-                    let (r, c) = s.split_at(s.len() / 2);
-                    Some((r.parse::<usize>().ok()?, c.parse::<usize>().ok()?))
-                });
-                match rc {
+                match coupling_entry(name) {
                     Some((r, col)) if (1..=c.nrows()).contains(&r) && (1..=c.ncols()).contains(&col) && v.is_finite() && v.abs() <= 0.5 => {
                         parameters.insert(name.clone(), *v);
                     }
@@ -285,6 +285,13 @@ pub fn check_effects(model: &Model) -> Result<Vec<Effect>> {
         out.push(Effect { kind, joint, frame, parameters });
     }
     Ok(out)
+}
+
+/// The 1-based (row, column) a `coupling_error` parameter `dRC` names.
+pub(crate) fn coupling_entry(name: &str) -> Option<(usize, usize)> {
+    let s = name.strip_prefix('d')?;
+    let (r, c) = s.split_at(s.len() / 2);
+    Some((r.parse::<usize>().ok()?, c.parse::<usize>().ok()?))
 }
 
 /// The model parameter a counterweight's travel per unit insertion goes by (Table 4's mu).
@@ -361,9 +368,14 @@ pub fn effect_inertias(model: &Model, effects: &[Effect], inertias: &[crate::Bod
     Ok(out)
 }
 
-/// Apply the kinematic effects to a model being compiled: the joint offsets enter every frame
-/// variable that depends on the joint (`phi = c (q + offset) + b`), the registration the base.
-pub(crate) fn apply_kinematic(model: &mut Model, effects: &[Effect]) {
+/// Apply the kinematic effects to a model being compiled: a coupling error maps the joints read
+/// to the true ones (`phi = c B q`, [`crate::coupling`]), then the joint offsets enter every
+/// frame variable that depends on the joint (`phi = c B (q + offset) + b`: the reading's zero),
+/// the registration the base.
+pub(crate) fn apply_kinematic(model: &mut Model, effects: &[Effect]) -> Result<()> {
+    if let Some(b) = crate::coupling::error_map(model, effects)? {
+        crate::coupling::remap_joints(model, &b);
+    }
     for e in effects {
         match e.kind {
             EffectKind::JointOffset => {
@@ -384,6 +396,7 @@ pub(crate) fn apply_kinematic(model: &mut Model, effects: &[Effect]) {
             _ => {}
         }
     }
+    Ok(())
 }
 
 /// The spec with every `link_length` applied to its frame's `a` and `d` (before compiling).

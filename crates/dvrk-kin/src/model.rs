@@ -67,7 +67,7 @@ pub(crate) struct Eval {
 }
 
 impl Eval {
-    fn build(frames: &[Frame]) -> Eval {
+    pub(crate) fn build(frames: &[Frame]) -> Eval {
         let mut eval = Eval::default();
         for f in frames {
             let angle = match f.motion {
@@ -524,7 +524,7 @@ impl Model {
             return Err(KinError::field("frames", "a model needs at least one frame"));
         }
         let effects = crate::effects::check_effects(&model)?;
-        crate::effects::apply_kinematic(&mut model, &effects);
+        crate::effects::apply_kinematic(&mut model, &effects)?;
         model.effects = effects;
         let declared: Vec<Option<String>> =
             (0..model.frames.len()).map(|i| model.spec_frame(i).and_then(|f| f.body.clone())).collect();

@@ -112,6 +112,44 @@ fn a_counterweight_error_sets_the_travel_and_the_mass() {
     assert!((a[2] - b0[2] - expect).abs() < 1e-12, "{} vs {expect}", a[2] - b0[2]);
 }
 
+/// `coupling_error`: the controller reads joints through the model's coupling `C`, the mechanism
+/// moves by `C + dC`, so the true joints are `B q` with `B = (C + dC) C^-1`. The compiled model
+/// puts every frame where the nominal one puts `B q`, reports the efforts `B^T tau(B q)` (virtual
+/// work), and `without_coupling_error` is the nominal mechanism in the true joints.
+#[test]
+fn a_coupling_error_maps_the_joints_read_to_the_true_ones() {
+    let nominal = dvrk_kin::load("psm", None).unwrap();
+    let m = psm_with("[[effects]]\nname = \"coupling_error\"\nparameters = { d65 = 0.05, d55 = 0.02 }\n").unwrap();
+    let c = nominal.coupling_matrix().unwrap();
+    assert_eq!((c[(5, 4)], c[(4, 4)]), (-0.8306, 1.0186), "the wrist yaw's coupling on the pitch actuator, the pitch's own");
+    let mut truth = c.clone();
+    truth[(5, 4)] += 0.05;
+    truth[(4, 4)] += 0.02;
+    let b = &truth * c.clone().try_inverse().unwrap();
+    assert!((m.coupling_error_map().unwrap() - &b).amax() < 1e-15);
+    let map = |x: &[f64; 7]| -> [f64; 7] { std::array::from_fn(|k| (0..7).map(|j| b[(k, j)] * x[j]).sum()) };
+    let (q, qd, qdd) = ([0.3, -0.4, 0.12, 0.2, 0.5, -0.3, 0.4], [0.2, 0.1, 0.05, -0.3, 0.6, 0.4, 0.1], [1.0, -0.5, 0.2, 0.3, -2.0, 1.5, 0.5]);
+    let worst = |a: Vec<dvrk_kin::Pose>, b: Vec<dvrk_kin::Pose>| a.iter().zip(&b).map(|(x, y)| (x.to_homogeneous() - y.to_homogeneous()).amax()).fold(0.0, f64::max);
+    assert!(worst(m.fk(&q).unwrap(), nominal.fk(&map(&q)).unwrap()) < 1e-14);
+    let link = m.without_coupling_error();
+    assert!(link.coupling_error_map().is_none() && worst(link.fk(&map(&q)).unwrap(), nominal.fk(&map(&q)).unwrap()) < 1e-14);
+    let ine: Vec<dvrk_kin::BodyInertia> =
+        m.bodies.iter().map(|_| dvrk_kin::BodyInertia::new(0.05, [0.01, 0.0, 0.01], [[1e-4, 0.0, 0.0], [0.0, 1e-4, 0.0], [0.0, 0.0, 5e-5]])).collect();
+    let g = nalgebra::Vector3::new(0.0, 0.0, -9.81);
+    let effort = |model: &Model, q: &[f64; 7], qd: &[f64; 7], qdd: &[f64; 7]| {
+        let dm = dvrk_kin::DynamicsModel::new(model, ine.clone()).unwrap();
+        let mut out = [0.0; 7];
+        dvrk_kin::inverse_dynamics(model, &dm, &mut dvrk_kin::DynamicsData::new(model), q, qd, qdd, &g, &mut out).unwrap();
+        out
+    };
+    let read = effort(&m, &q, &qd, &qdd);
+    let true_tau = effort(&nominal, &map(&q), &map(&qd), &map(&qdd));
+    for k in 0..7 {
+        let expect: f64 = (0..7).map(|j| b[(j, k)] * true_tau[j]).sum();
+        assert!((read[k] - expect).abs() < 1e-12 * (1.0 + expect.abs()), "joint {k}: {} vs {expect}", read[k]);
+    }
+}
+
 #[test]
 fn bad_effects_name_the_effect_the_field_and_the_value() {
     let err = |t: &str| psm_with(t).unwrap_err().to_string();
@@ -129,6 +167,8 @@ fn bad_effects_name_the_effect_the_field_and_the_value() {
     let ecm = |t: &str| load_toml_text(&format!("{}\n{t}", builtin_text("ecm").unwrap()), Path::new("ecm-effects.toml"), None, None).unwrap_err().to_string();
     let e = ecm("[[effects]]\nname = \"counterweight_error\"\nparameters = { mu = 0.5, mass = 0.5 }\n");
     assert!(e.contains("effects[0] (counterweight_error).parameters.mu`: the model has no parameter `mu`"), "{e}");
+    assert!(err("[[effects]]\nname = \"coupling_error\"\nparameters = { d68 = 0.1 }\n")
+        .contains("(coupling_error).parameters.d68`: 0.1: expected dRC (1-based row, column of the 7x7 coupling)"));
 }
 
 /// `[[inertials]]` (what `dvrk identify -o` writes): read back per body, written back by

@@ -8,6 +8,9 @@
 //!   see the motor; the link lags by the deflection or the play;
 //! - `latency`: the measured joint stream (what the controller and the recorder see) is the
 //!   state `seconds` ago;
+//! - `coupling_error`: the mechanism is built on the true joints (`q_true = B q`, dvrk-kin's
+//!   [`dvrk_kin::Model::coupling_error_map`]); the controller reads `B^-1 q_true` and its
+//!   efforts reach the joints as `B^-T tau` (the motors push through the true cables);
 //! - `payload_mass`: mass and inertia added to the link's body when the sim is built;
 //! - `counterweight_error`: the counterweight's mass when the sim is built, its travel per unit
 //!   insertion in the compiled model's kinematics (its cable follows the insertion by that ratio);
@@ -19,6 +22,7 @@
 use crate::error::{Result, SimError};
 use dvrk_kin::effects::{Effect, EffectKind};
 use dvrk_kin::Model;
+use nalgebra::{DMatrix, DVector, DVectorView};
 
 /// Velocity (rad/s, m/s) below which the Coulomb force is smoothed (`tanh(qd / v)`): a stiff
 /// regularisation of stick; kept stable by [`ArmEffects::new`] against the joint's drive inertia.
@@ -94,6 +98,47 @@ impl Delay {
     }
 }
 
+/// A coupling error between the joints read and the true ones: `q_true = B q_read`, efforts by
+/// virtual work (`tau_true = B^-T tau_read`). Matrices and scratch sized at build.
+#[derive(Debug, Clone)]
+pub struct CouplingMap {
+    /// `B`
+    pub to_link: DMatrix<f64>,
+    /// `B^-1`
+    to_read: DMatrix<f64>,
+    /// `B^-T`
+    torque_to_link: DMatrix<f64>,
+    scratch: DVector<f64>,
+}
+
+impl CouplingMap {
+    fn new(b: DMatrix<f64>) -> Option<CouplingMap> {
+        let inv = b.clone().try_inverse()?;
+        let n = b.nrows();
+        Some(CouplingMap { torque_to_link: inv.transpose(), to_read: inv, to_link: b, scratch: DVector::zeros(n) })
+    }
+
+    fn apply(m: &DMatrix<f64>, scratch: &mut DVector<f64>, x: &mut [f64]) {
+        scratch.gemv(1.0, m, &DVectorView::from_slice(x, x.len()), 0.0);
+        x.copy_from_slice(scratch.as_slice());
+    }
+
+    /// True joint positions or velocities `x` to what the controller reads, in place.
+    pub fn read(&mut self, x: &mut [f64]) {
+        Self::apply(&self.to_read, &mut self.scratch, x);
+    }
+
+    /// The controller's efforts `x` to the true joints' efforts, in place.
+    pub fn torque_to_link(&mut self, x: &mut [f64]) {
+        Self::apply(&self.torque_to_link, &mut self.scratch, x);
+    }
+
+    /// Positions read `x` to the true joints'.
+    pub fn link(&self, x: &[f64]) -> Vec<f64> {
+        (&self.to_link * DVector::from_column_slice(x)).as_slice().to_vec()
+    }
+}
+
 /// The effects of one arm, ready to step.
 #[derive(Debug, Clone)]
 pub struct ArmEffects {
@@ -102,18 +147,28 @@ pub struct ArmEffects {
     /// Per joint: the drive's transmission, if compliant or with play.
     pub transmissions: Vec<Option<Transmission>>,
     pub delay: Option<Delay>,
+    pub coupling: Option<CouplingMap>,
     /// Scratch: joint forces of the friction and spring effects (N·m, N).
     pub force: Vec<f64>,
+    /// Scratch: the actuators' efforts on their way to the joints (N·m, N).
+    pub drive: Vec<f64>,
     velocity_scale: f64,
 }
 
 impl ArmEffects {
     /// The effects of `model` for a sim stepping `dt` with drive inertias `armature` (per joint).
-    /// `start`: the joint positions the arm starts at.
+    /// `start`: the joint positions (as read) the arm starts at.
     pub fn new(name: &str, model: &Model, armature: &[f64], start: &[f64], dt: f64) -> Result<ArmEffects> {
         let n = model.nq();
-        let mut out = ArmEffects { forces: Vec::new(), transmissions: vec![None; n], delay: None, force: vec![0.0; n], velocity_scale: COULOMB_VELOCITY };
-        let home = start;
+        let coupling = match model.coupling_error_map() {
+            Some(b) => Some(CouplingMap::new(b).ok_or_else(|| SimError::Build(format!("{name} effect coupling_error: the map to the true joints is singular")))?),
+            None => None,
+        };
+        let link_start = coupling.as_ref().map(|c| c.link(start));
+        let mut out =
+            ArmEffects { forces: Vec::new(), transmissions: vec![None; n], delay: None, coupling, force: vec![0.0; n], drive: vec![0.0; n], velocity_scale: COULOMB_VELOCITY };
+        // The motors of two-mass drives sit on the true joints.
+        let home = link_start.as_deref().unwrap_or(start);
         for e in &model.effects {
             let what = |j: Option<usize>| format!("{name} effect {}{}", e.kind.name(), j.map(|j| format!(" on {}", model.joints[j].name)).unwrap_or_default());
             match e.kind {
@@ -142,13 +197,15 @@ impl ArmEffects {
                 EffectKind::Latency => {
                     let steps = (e.get("seconds") / dt).round() as usize;
                     if steps > 0 {
-                        out.delay = Some(Delay::new(steps, home));
+                        out.delay = Some(Delay::new(steps, start));
                     }
                 }
-                EffectKind::PayloadMass | EffectKind::CounterweightError | EffectKind::JointOffset | EffectKind::LinkLength | EffectKind::BaseRegistration => {}
-                EffectKind::CouplingError => {
-                    return Err(SimError::Build(format!("{}: not simulated yet (the model has it; dvrk-sim refuses rather than ignore it)", what(None))));
-                }
+                EffectKind::PayloadMass
+                | EffectKind::CounterweightError
+                | EffectKind::CouplingError
+                | EffectKind::JointOffset
+                | EffectKind::LinkLength
+                | EffectKind::BaseRegistration => {}
             }
         }
         for (j, t) in out.transmissions.iter_mut().enumerate() {

@@ -285,7 +285,8 @@ pub struct Sim {
     q: Vec<f64>,
     qd: Vec<f64>,
     /// The links' own joint positions and velocities (rad, m; /s): equal to `q`, `qd` unless an
-    /// effect (a compliant drive, play, latency) separates what is measured from the link.
+    /// effect (a compliant drive, play, latency, a coupling error: then the true joints)
+    /// separates what is measured from the link.
     q_link: Vec<f64>,
     qd_link: Vec<f64>,
 }
@@ -341,9 +342,15 @@ impl Sim {
             wp.num_internal_pgs_iterations = if arm.parent.is_some() { wp.num_internal_pgs_iterations.max(pgs) } else { pgs };
             let World { bodies, colliders, impulse_joints, multibody_joints, ground, .. } = &mut worlds[world];
             let ground = *ground;
-            let model = &arm.model;
+            // The mechanism is built on the true joints: those of a coupling error's map
+            // (`q_true = B q`), which the controller reads through (crate::effects).
+            let link_model = arm.model.without_coupling_error();
+            let model = &link_model;
             // Built at the arm's start configuration (home unless the scene says otherwise).
-            let home = arm.start.clone();
+            let home = match arm.model.coupling_error_map() {
+                Some(b) => (b * nalgebra::DVector::from_column_slice(&arm.start)).as_slice().to_vec(),
+                None => arm.start.clone(),
+            };
             let fk = model.fk(&home)?;
             // One rigid body per dvrk-kin body, placed at its first frame.
             let body_pose: Vec<Pose> = model.bodies.iter().map(|b| fk[b.frames[0]]).collect();
@@ -525,9 +532,9 @@ impl Sim {
                 .joints
                 .iter()
                 .enumerate()
-                .map(|(k, j)| Actuator::new(arm.gains[k], j.effort_limit, home[k]))
+                .map(|(k, j)| Actuator::new(arm.gains[k], j.effort_limit, arm.start[k]))
                 .collect();
-            let effects = crate::effects::ArmEffects::new(&arm.name, model, &arm.armature, &home, scene.dt)?;
+            let effects = crate::effects::ArmEffects::new(&arm.name, &arm.model, &arm.armature, &arm.start, scene.dt)?;
             {
                 let mb = multibody_joints.get_multibody_mut(mb_index).ok_or_else(|| SimError::Build("multibody vanished".into()))?;
                 for (k, t) in effects.transmissions.iter().enumerate() {
@@ -541,15 +548,16 @@ impl Sim {
             let gravity_compensation = if arm.gravity_compensation {
                 let g = if options.no_gravity { [0.0; 3] } else { scene.gravity };
                 Some(GravityCompensation {
-                    dynamics: dvrk_kin::DynamicsModel::new(model, inertias.clone())?,
-                    data: dvrk_kin::DynamicsData::new(model),
+                    // On the joints read: the model with its coupling error.
+                    dynamics: dvrk_kin::DynamicsModel::new(&arm.model, inertias.clone())?,
+                    data: dvrk_kin::DynamicsData::new(&arm.model),
                     gravity: Vector3::from(g),
                     torque: vec![0.0; model.nq()],
                 })
             } else {
                 None
             };
-            arms.push(ArmState { name: arm.name.clone(), model: model.clone(), q_offset, bodies: handles, dofs, drives, closures, cables, actuators, tracking: arm.tracking, parent: arm.parent, world, effects, gravity_compensation });
+            arms.push(ArmState { name: arm.name.clone(), model: arm.model.clone(), q_offset, bodies: handles, dofs, drives, closures, cables, actuators, tracking: arm.tracking, parent: arm.parent, world, effects, gravity_compensation });
             q_offset += model.nq();
         }
         let g = if options.no_gravity { [0.0; 3] } else { scene.gravity };
@@ -639,8 +647,12 @@ impl Sim {
         let act = &mut self.arms[a].actuators[k];
         act.target = position.clamp(lower, upper);
         act.target_velocity = velocity;
-        if act.mode == Mode::Position {
-            self.apply_position_motor(a, k);
+        // A coupling error: every drive's true target moves with this one.
+        let coupled = self.arms[a].effects.coupling.is_some();
+        for m in 0..self.arms[a].actuators.len() {
+            if (m == k || coupled) && self.arms[a].actuators[m].mode == Mode::Position {
+                self.apply_position_motor(a, m);
+            }
         }
         Ok(())
     }
@@ -713,9 +725,13 @@ impl Sim {
         let Some((mb, link)) = self.worlds[arm.world].multibody_joints.get_mut(dof.handle) else { return };
         let Some(l) = mb.link_mut(link) else { return };
         if act.mode == Mode::Position {
-            let target = dr.c * act.target + dr.b;
+            // Under a coupling error the drive holds the true joint the targets read as.
+            let (position, velocity) = match &arm.effects.coupling {
+                Some(c) => arm.actuators.iter().enumerate().fold((0.0, 0.0), |(p, v), (j, a)| (p + c.to_link[(k, j)] * a.target, v + c.to_link[(k, j)] * a.target_velocity)),
+                None => (act.target, act.target_velocity),
+            };
             l.joint.data.set_motor_model(axis, MotorModel::AccelerationBased);
-            l.joint.data.set_motor(axis, target, dr.c * act.target_velocity, POSITION_STIFFNESS, POSITION_DAMPING);
+            l.joint.data.set_motor(axis, dr.c * position + dr.b, dr.c * velocity, POSITION_STIFFNESS, POSITION_DAMPING);
             l.joint.data.set_motor_max_force(axis, Real::MAX);
         } else {
             l.joint.data.set_motor(axis, 0.0, 0.0, 0.0, 0.0);
@@ -745,15 +761,19 @@ impl Sim {
                     None => (q, self.qd_link[i]),
                 };
             }
+            let (off, n) = (arm.q_offset, arm.drives.len());
+            if let Some(c) = arm.effects.coupling.as_mut() {
+                c.read(&mut self.q[off..off + n]);
+                c.read(&mut self.qd[off..off + n]);
+            }
             if let Some(d) = arm.effects.delay.as_mut() {
-                let (off, n) = (arm.q_offset, arm.drives.len());
                 d.push(&mut self.q[off..off + n], &mut self.qd[off..off + n]);
             }
         }
     }
 
     /// The links' own joint positions (rad, m), which the measured [`Sim::q`] differs from
-    /// under a compliant drive, play or latency.
+    /// under a compliant drive, play, latency or a coupling error (the true joints, `B q`).
     pub fn q_link(&self) -> &[f64] {
         &self.q_link
     }
@@ -776,12 +796,19 @@ impl Sim {
                     gc.torque.fill(0.0);
                 }
             }
-            for (k, dr) in arm.drives.iter().enumerate() {
-                let i = arm.q_offset + k;
+            for k in 0..n {
+                let i = off + k;
                 if let Some(gc) = &arm.gravity_compensation {
                     arm.actuators[k].feedforward = gc.torque[k];
                 }
-                let mut tau = arm.actuators[k].update(self.q[i], self.qd[i], self.dt);
+                arm.effects.drive[k] = arm.actuators[k].update(self.q[i], self.qd[i], self.dt);
+            }
+            if let Some(c) = arm.effects.coupling.as_mut() {
+                c.torque_to_link(&mut arm.effects.drive);
+            }
+            for (k, dr) in arm.drives.iter().enumerate() {
+                let i = off + k;
+                let mut tau = arm.effects.drive[k];
                 if let Some(t) = arm.effects.transmissions[k].as_mut() {
                     tau = t.step(tau, self.q_link[i], self.qd_link[i], self.dt);
                 }

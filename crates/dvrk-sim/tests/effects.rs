@@ -145,6 +145,15 @@ fn a_joint_spring_needs_effort_in_proportion_to_the_displacement() {
 /// gain raised so the hold settles), and dvrk-kin's Newton-Euler gravity torque there with the
 /// model's effect inertias.
 fn held_against_gravity(scene: &Scene) -> ([f64; 3], [f64; 3]) {
+    let (pid, ne, _) = hold_pose(scene);
+    (std::array::from_fn(|k| pid[k]), std::array::from_fn(|k| ne[k]))
+}
+
+/// The pose the gravity tests hold (rad, m).
+const HOLD: [f64; 7] = [0.3, -0.2, 0.15, 0.0, 0.4, 0.0, 0.3];
+
+/// [`held_against_gravity`] on every joint, with the true joints (`Sim::q_link`) held at.
+fn hold_pose(scene: &Scene) -> ([f64; 7], [f64; 7], [f64; 7]) {
     use dvrk_sim::dvrk_kin::{gravity_torque, DynamicsData, DynamicsModel};
     let arm = &scene.arms[0];
     let model = &arm.model;
@@ -152,8 +161,7 @@ fn held_against_gravity(scene: &Scene) -> ([f64; 3], [f64; 3]) {
     let dm = DynamicsModel::new(model, inertias).unwrap();
     let mut data = DynamicsData::new(model);
     let mut sim = Sim::new(scene, &SimOptions::default()).unwrap();
-    let target = [0.3, -0.2, 0.15, 0.0, 0.0, 0.0, 0.3];
-    for (i, x) in target.iter().enumerate() {
+    for (i, x) in HOLD.iter().enumerate() {
         sim.set_target(i, *x, 0.0).unwrap();
         let g = sim.actuator(i).unwrap().gains;
         sim.set_gains(i, Gains { ki: g.kp * 2.0, ..g }).unwrap();
@@ -163,7 +171,7 @@ fn held_against_gravity(scene: &Scene) -> ([f64; 3], [f64; 3]) {
     }
     let mut g = vec![0.0; model.nq()];
     gravity_torque(model, &dm, &mut data, sim.q(), &nalgebra::Vector3::from(scene.gravity), &mut g).unwrap();
-    (std::array::from_fn(|k| sim.effort(k).unwrap()), std::array::from_fn(|k| g[k]))
+    (std::array::from_fn(|k| sim.effort(k).unwrap()), std::array::from_fn(|k| g[k]), std::array::from_fn(|k| sim.q_link()[k]))
 }
 
 #[test]
@@ -193,8 +201,31 @@ fn a_counterweight_error_moves_the_gravity_efforts_by_its_mass_and_travel() {
     let model = &nominal.arms[0].model;
     let cw = model.frame_id(&dvrk_sim::dvrk_kin::FrameRef::Index(11)).unwrap();
     let m0 = nominal.arms[0].inertials.body_inertias(model).unwrap()[model.frames[cw].body].mass;
-    let z = model.fk(&[0.3, -0.2, 0.15, 0.0, 0.0, 0.0, 0.3]).unwrap()[cw].rotation * nalgebra::Vector3::z();
+    let z = model.fk(&HOLD).unwrap()[cw].rotation * nalgebra::Vector3::z();
     let expect = -(mass * mu - m0 * model.spec.parameters["mu"].value) * nalgebra::Vector3::from(nominal.gravity).dot(&z);
     eprintln!("insertion: {:.5} N more (closed form {expect:.5})", pid[2] - pid0[2]);
     assert!(expect.abs() > 0.3 && (pid[2] - pid0[2] - expect).abs() < 0.01 * expect.abs(), "{} vs {expect}", pid[2] - pid0[2]);
+}
+
+/// A coupling error (the wrist yaw's cable pulls 0.05 more per radian of the pitch actuator): the
+/// controller holds the joints it reads while the true ones sit at `B q` (dvrk-kin's map), and
+/// the efforts it needs are the true joints' gravity efforts through `B^T`, which dvrk-kin's
+/// inverse dynamics of the model with the error gives. A 0.2 kg payload on the jaw's link
+/// makes the wrist's gravity efforts large enough to show it.
+#[test]
+fn a_coupling_error_moves_the_true_joints_and_maps_the_efforts() {
+    let payload = "[[effects]]\nname = \"payload_mass\"\nlink = 16\nparameters = { mass = 0.2, x = 0.03 }\n";
+    let (pid0, _, link0) = hold_pose(&psm_with(payload));
+    let scene = psm_with(&format!("{payload}[[effects]]\nname = \"coupling_error\"\nparameters = {{ d65 = 0.05 }}\n"));
+    let (pid, ne, link) = hold_pose(&scene);
+    let b = scene.arms[0].model.coupling_error_map().unwrap();
+    for k in 0..7 {
+        let expect: f64 = (0..7).map(|j| b[(k, j)] * HOLD[j]).sum();
+        eprintln!(
+            "coupling error: joint {k}: true {:.6} (B q {expect:.6}, without {:.6}); PID {:.6} (without {:.6}), Newton-Euler {:.6}",
+            link[k], link0[k], pid[k], pid0[k], ne[k]
+        );
+        assert!((link[k] - expect).abs() < 1e-4, "joint {k}: {} vs {expect}", link[k]);
+        assert!((pid[k] - ne[k]).abs() < 0.01 * ne[k].abs() + 2e-4, "joint {k}: {} vs {}", pid[k], ne[k]);
+    }
 }
