@@ -29,7 +29,8 @@ pub struct HiddenEffectArgs {
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// none, random, random-pair, an effect (coulomb_friction, viscous_friction, spring,
-    /// joint_compliance, backlash, latency, joint_offset, payload_mass) or two joined by `+`.
+    /// joint_compliance, backlash, latency, joint_offset, payload_mass, coupling_error;
+    /// counterweight_error by name only) or two joined by `+`.
     #[arg(long, default_value = "random")]
     pub effect: String,
     /// Effort noise per joint (N·m, N), comma-separated; about 1% of each joint's effort when absent.

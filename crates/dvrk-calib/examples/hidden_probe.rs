@@ -1,4 +1,4 @@
-//! One hidden-effect trial, printed: `[DVRK_PERTURB=0.03] [DVRK_NOISE=1] [DVRK_POS_NOISE=1] [DVRK_TRUTH_DT=1.25e-4] [DVRK_DUMP=residual.csv] cargo run --release -p dvrk-calib --example hidden_probe -- KIND SEED [ENR]`.
+//! One hidden-effect trial, printed: `[DVRK_PERTURB=0.03] [DVRK_NOISE=1] [DVRK_POS_NOISE=1] [DVRK_TRUTH_DT=1.25e-4] [DVRK_DURATION=30] [DVRK_DUMP=residual.csv] cargo run --release -p dvrk-calib --example hidden_probe -- KIND SEED [ENR]`.
 //! DVRK_DUMP writes the band-limited residual before and after, with each joint's position,
 //! velocity and load, one row per analysed sample.
 use dvrk_calib::discrepancy::*;
@@ -11,6 +11,10 @@ fn main() {
     // DVRK_PERTURB: the truth's relative inertia perturbation (default 0.03).
     let inertia_perturbation = std::env::var("DVRK_PERTURB").ok().and_then(|s| s.parse().ok()).unwrap_or(0.03);
     let mut o = HiddenOptions { hidden, seed, enr, inertia_perturbation, ..Default::default() };
+    // DVRK_DURATION: the recording's length (s).
+    if let Some(d) = std::env::var("DVRK_DURATION").ok().and_then(|s| s.parse().ok()) {
+        o.duration = d;
+    }
     // DVRK_TRUTH_DT: the truth's time step (s).
     if let Some(dt) = std::env::var("DVRK_TRUTH_DT").ok().and_then(|s| s.parse().ok()) {
         o.truth_dt = dt;

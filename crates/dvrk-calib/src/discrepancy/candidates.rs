@@ -1,7 +1,8 @@
 //! The candidate effects of the torque channel and their signatures, taken from the model itself:
 //! the change of the model's predicted effort when the effect is added (finite differences of
 //! dvrk-kin's inverse dynamics on a model compiled with the effect), per unit of each parameter.
-//! Every signature is linear in its parameters here except latency, whose 1-D profile (the
+//! Every signature is linear in its parameters here (a coupling entry's to first order: the
+//! workflow re-takes it as a secant, [`secant`]) except latency, whose 1-D profile (the
 //! prediction shifted in time) is scanned in [`super::workflow`].
 
 use super::generate::with_effect;
@@ -22,9 +23,12 @@ pub struct Candidate {
     /// Frame name of a link effect.
     pub link: Option<String>,
     /// Fitted parameters (their names), each with its signature column and lower bound.
-    pub names: Vec<&'static str>,
+    pub names: Vec<String>,
     pub columns: Vec<Table>,
     pub lower: Vec<Option<f64>>,
+    /// The model's own value of each parameter (0: the effect is absent): a fit is a change
+    /// from it, reported as the new value.
+    pub at: Vec<f64>,
     /// The joint whose effort the effect changes most (for the effect size).
     pub focus: usize,
     /// A nonlinear parameter profiled on a grid: its name and, per grid value, the columns that
@@ -33,11 +37,13 @@ pub struct Candidate {
 }
 
 impl Candidate {
-    /// `kind on joint` or `kind on link`.
+    /// `kind on joint`, `kind on link`, or `coupling_error dRC`.
     pub fn label(&self, model: &dvrk_kin::Model) -> String {
         match (&self.joint, &self.link) {
             (Some(j), _) => format!("{} on {}", self.kind.name(), model.joints[*j].name),
             (_, Some(l)) => format!("{} on {l}", self.kind.name()),
+            // One candidate per entry of the coupling matrix.
+            _ if self.kind == EffectKind::CouplingError => format!("{} {}", self.kind.name(), self.names.join(" ")),
             _ => self.kind.name().to_string(),
         }
     }
@@ -66,8 +72,8 @@ impl Candidate {
                 }
             }
             _ => {
-                for (n, v) in self.names.iter().zip(x) {
-                    p.insert((*n).into(), *v);
+                for ((n, v), a) in self.names.iter().zip(x).zip(&self.at) {
+                    p.insert(n.clone(), a + v);
                 }
             }
         }
@@ -84,6 +90,10 @@ impl Candidate {
             source: source.into(),
         }
     }
+}
+
+fn names(n: &[&str]) -> Vec<String> {
+    n.iter().map(|s| s.to_string()).collect()
 }
 
 /// A joint-local column: `f(sample)` on joint `j`, 0 elsewhere.
@@ -121,7 +131,13 @@ pub fn offset_sensitivities(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, g
     let mut out = Vec::new();
     for &j in &prep.active {
         let h = 1e-4;
-        let spec = EffectSpec { name: "joint_offset".into(), joint: Some(model.joints[j].name.clone()), link: None, parameters: BTreeMap::from([("offset".into(), h)]), source: String::new() };
+        let spec = EffectSpec {
+            name: "joint_offset".into(),
+            joint: Some(model.joints[j].name.clone()),
+            link: None,
+            parameters: BTreeMap::from([("offset".into(), h)]),
+            source: String::new(),
+        };
         let shifted = Predictor::new(&with_effect(model, &spec)?, arm, gravity)?.series(prep)?;
         let d = diff(&shifted, base, h);
         if rms_joint(&d, j) > 1e-6 {
@@ -146,7 +162,8 @@ pub fn rate_sensitivities(predictor: &mut Predictor, prep: &Prepared, base: &Tab
     Ok(out)
 }
 
-/// The linear candidates (friction, springs, offsets, payloads) for the joints `prep.active`,
+/// The linear candidates (friction, springs, offsets, payloads, the counterweight, the coupling's
+/// entries) for the joints `prep.active`,
 /// with `base` the nominal prediction and `offsets` from [`offset_sensitivities`]. The drives'
 /// compliance and play are profiles ([`super::drive`]), latency too.
 pub fn build(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f64; 3], prep: &Prepared, base: &Table, offsets: &[(usize, Table)]) -> Result<Vec<Candidate>> {
@@ -164,21 +181,52 @@ pub fn build(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f64; 3
             vec![local(prep, nq, j, |i| s[i])]
         };
         let grid: Vec<(f64, Vec<Table>)> = COULOMB_SMOOTHING.iter().map(|&v| (v, sign(v))).collect();
-        out.push(Candidate { kind: EffectKind::CoulombFriction, joint: Some(j), link: None, names: vec!["fc"], columns: sign(v), lower: vec![Some(0.0)], focus: j, profile: Some(("smoothing", grid)) });
-        out.push(Candidate { kind: EffectKind::ViscousFriction, joint: Some(j), link: None, names: vec!["fv"], columns: vec![local(prep, nq, j, |i| prep.qd[i][j])], lower: vec![Some(0.0)], focus: j, profile: None });
+        out.push(Candidate {
+            kind: EffectKind::CoulombFriction,
+            joint: Some(j),
+            link: None,
+            names: names(&["fc"]),
+            columns: sign(v),
+            lower: vec![Some(0.0)],
+            at: vec![0.0],
+            focus: j,
+            profile: Some(("smoothing", grid)),
+        });
+        out.push(Candidate {
+            kind: EffectKind::ViscousFriction,
+            joint: Some(j),
+            link: None,
+            names: names(&["fv"]),
+            columns: vec![local(prep, nq, j, |i| prep.qd[i][j])],
+            lower: vec![Some(0.0)],
+            at: vec![0.0],
+            focus: j,
+            profile: None,
+        });
         // k (q - rest) = k q - (k rest): linear in (k, k rest).
         out.push(Candidate {
             kind: EffectKind::Spring,
             joint: Some(j),
             link: None,
-            names: vec!["k", "k_rest"],
+            names: names(&["k", "k_rest"]),
             columns: vec![local(prep, nq, j, |i| prep.q[i][j]), local(prep, nq, j, |_| -1.0)],
             lower: vec![Some(0.0), None],
+            at: vec![0.0; 2],
             focus: j,
             profile: None,
         });
         if let Some((_, d)) = offsets.iter().find(|(k, _)| *k == j) {
-            out.push(Candidate { kind: EffectKind::JointOffset, joint: Some(j), link: None, names: vec!["offset"], columns: vec![d.clone()], lower: vec![None], focus: j, profile: None });
+            out.push(Candidate {
+                kind: EffectKind::JointOffset,
+                joint: Some(j),
+                link: None,
+                names: names(&["offset"]),
+                columns: vec![d.clone()],
+                lower: vec![None],
+                at: vec![0.0],
+                focus: j,
+                profile: None,
+            });
         }
     }
     // Payloads: a point mass m at (x, y, z) in the link's frame is linear in (m, m x, m y, m z)
@@ -202,7 +250,108 @@ pub fn build(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f64; 3
         let cm = diff(&p0, base, m);
         let cols = vec![cm.clone(), diff(&at(s, 0.0, 0.0)?, &p0, m * s), diff(&at(0.0, s, 0.0)?, &p0, m * s), diff(&at(0.0, 0.0, s)?, &p0, m * s)];
         let focus = prep.active.iter().copied().max_by(|a, b| (rms_joint(&cm, *a) / prep.noise[*a]).total_cmp(&(rms_joint(&cm, *b) / prep.noise[*b]))).unwrap_or(0);
-        out.push(Candidate { kind: EffectKind::PayloadMass, joint: None, link: Some(name.into()), names: vec!["mass", "mx", "my", "mz"], columns: cols, lower: vec![Some(0.0), None, None, None], focus, profile: None });
+        out.push(Candidate {
+            kind: EffectKind::PayloadMass,
+            joint: None,
+            link: Some(name.into()),
+            names: names(&["mass", "mx", "my", "mz"]),
+            columns: cols,
+            lower: vec![Some(0.0), None, None, None],
+            at: vec![0.0; 4],
+            focus,
+            profile: None,
+        });
+    }
+    out.extend(counterweight(predictor, arm, gravity, prep, base)?);
+    out.extend(coupling(predictor, arm, gravity, prep, base)?);
+    Ok(out)
+}
+
+/// The joint whose effort `column` moves most against its noise.
+fn focus_of(prep: &Prepared, column: &Table) -> usize {
+    prep.active.iter().copied().max_by(|a, b| (rms_joint(column, *a) / prep.noise[*a]).total_cmp(&(rms_joint(column, *b) / prep.noise[*b]))).unwrap_or(0)
+}
+
+/// The signature of `effect` with parameters `at + h e_k` against `base`, per unit of each.
+fn finite_differences(
+    predictor: &Predictor,
+    arm: &dvrk_sim::scene::Arm,
+    gravity: [f64; 3],
+    prep: &Prepared,
+    base: &Table,
+    effect: &EffectSpec,
+    steps: &[(String, f64)],
+) -> Result<Vec<Table>> {
+    steps
+        .iter()
+        .map(|(name, h)| {
+            let mut e = effect.clone();
+            *e.parameters.entry(name.clone()).or_insert(0.0) += h;
+            Ok(diff(&Predictor::new(&with_effect(&predictor.model, &e)?, arm, gravity)?.series(prep)?, base, *h))
+        })
+        .collect()
+}
+
+/// A counterweight's travel per unit insertion `mu` and mass (kg), changed from the model's
+/// (a model without a counterweight has no candidate). Linear in the two changes to first order.
+fn counterweight(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f64; 3], prep: &Prepared, base: &Table) -> Result<Vec<Candidate>> {
+    let model = &predictor.model;
+    let kind = EffectKind::CounterweightError;
+    // The model's own: its counterweight_error if it has one, else its mu and the inertials' mass.
+    // The model's own: its counterweight_error if it has one, else its mu and the inertials' mass.
+    let at = match model.effects.iter().rfind(|e| e.kind == kind) {
+        Some(e) => [e.get("mu"), e.get("mass")],
+        None => match super::generate::counterweight_at(model, &arm.inertials) {
+            Some(at) => at,
+            None => return Ok(vec![]),
+        },
+    };
+    let effect =
+        EffectSpec { name: kind.name().into(), joint: None, link: None, parameters: BTreeMap::from([("mu".into(), at[0]), ("mass".into(), at[1])]), source: String::new() };
+    let columns = finite_differences(predictor, arm, gravity, prep, base, &effect, &[("mu".into(), 1e-3), ("mass".into(), 1e-3)])?;
+    let focus = focus_of(prep, &columns[1]);
+    Ok(vec![Candidate { kind, joint: None, link: None, names: names(&["mu", "mass"]), columns, lower: vec![Some(-at[0]), Some(-at[1])], at: at.to_vec(), focus, profile: None }])
+}
+
+/// The coupling entries a recording can show: non-zero, in a row that couples (not the
+/// identity's), between joints that move (a held joint's actuator moves with the others, so its
+/// entries read as theirs: the jaw's, when only the wrist moves). 0-based (row, column).
+pub fn coupling_entries(c: &nalgebra::DMatrix<f64>, moving: &[usize]) -> Vec<(usize, usize)> {
+    (0..c.nrows())
+        .filter(|&r| moving.contains(&r) && (0..c.ncols()).any(|k| c[(r, k)] != if k == r { 1.0 } else { 0.0 }))
+        .flat_map(|r| (0..c.ncols()).map(move |k| (r, k)))
+        .filter(|&(r, k)| moving.contains(&k) && c[(r, k)] != 0.0)
+        .collect()
+}
+
+/// A one-parameter finite-difference candidate (a coupling error) re-linearised through its
+/// estimate `value`: the secant `(f(value) - f(0)) / value`, so that a refit is exact for the
+/// signature's curvature (`B^T A B` is quadratic in the entry: the tangent alone under-reads a
+/// 5% error by 2.4%).
+pub fn secant(c: &Candidate, value: f64, predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f64; 3], prep: &Prepared, base: &Table) -> Result<Candidate> {
+    let effect = EffectSpec { name: c.kind.name().into(), joint: None, link: None, parameters: BTreeMap::new(), source: String::new() };
+    let mut out = c.clone();
+    out.columns = finite_differences(predictor, arm, gravity, prep, base, &effect, &[(c.names[0].clone(), value)])?;
+    Ok(out)
+}
+
+/// Each entry of [`coupling_entries`]: its error `dRC`, from the model's (a model without a
+/// coupling has none).
+fn coupling(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f64; 3], prep: &Prepared, base: &Table) -> Result<Vec<Candidate>> {
+    let model = &predictor.model;
+    let kind = EffectKind::CouplingError;
+    let Some(c) = model.coupling_matrix() else { return Ok(vec![]) };
+    let mut out = Vec::new();
+    for (r, k) in coupling_entries(&c, &prep.active) {
+        let name = format!("d{}{}", r + 1, k + 1);
+        let at: f64 = model.effects.iter().filter(|e| e.kind == kind).map(|e| e.get(&name)).sum();
+        let effect = EffectSpec { name: kind.name().into(), joint: None, link: None, parameters: BTreeMap::new(), source: String::new() };
+        let columns = finite_differences(predictor, arm, gravity, prep, base, &effect, &[(name.clone(), 1e-3 * c[(r, k)].abs())])?;
+        if columns[0].iter().flatten().all(|x| x.abs() < 1e-12) {
+            continue;
+        }
+        let focus = focus_of(prep, &columns[0]);
+        out.push(Candidate { kind, joint: None, link: None, names: vec![name], columns, lower: vec![None], at: vec![at], focus, profile: None });
     }
     Ok(out)
 }

@@ -20,8 +20,9 @@ use rand_distr::{Distribution, Normal};
 use serde::Serialize;
 use std::collections::BTreeMap;
 
-/// The effects the generator can hide (those dvrk-sim simulates on a joint or link, and latency).
-pub const HIDDEN_KINDS: [EffectKind; 8] = [
+/// The effects the generator draws at random (those dvrk-sim simulates that the torque channel
+/// can tell from the inertias the workflow refits).
+pub const HIDDEN_KINDS: [EffectKind; 9] = [
     EffectKind::CoulombFriction,
     EffectKind::ViscousFriction,
     EffectKind::Spring,
@@ -30,10 +31,17 @@ pub const HIDDEN_KINDS: [EffectKind; 8] = [
     EffectKind::Latency,
     EffectKind::JointOffset,
     EffectKind::PayloadMass,
+    EffectKind::CouplingError,
 ];
 
 /// Effects only a tracker on the link sees (hidden only with [`HiddenOptions::marker`]).
 pub const TRACKED_KINDS: [EffectKind; 1] = [EffectKind::LinkLength];
+
+/// Effects hidden only by name: the inertias the workflow refits take most of them. A
+/// counterweight's mass is itself an inertial parameter, and its travel ratio moves the
+/// insertion's load as a change of that mass does (seeds 1000, 1001: `none`, the refitted
+/// inertias leaving 0.99-1.01 of the noise floor).
+pub const ABSORBED_KINDS: [EffectKind; 1] = [EffectKind::CounterweightError];
 
 /// Which effect(s) to hide.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -54,10 +62,11 @@ impl std::str::FromStr for Hidden {
     /// (`coulomb_friction+payload_mass`).
     fn from_str(s: &str) -> std::result::Result<Hidden, String> {
         let kind = |name: &str| match EffectKind::from_name(name) {
-            Some(k) if HIDDEN_KINDS.contains(&k) || TRACKED_KINDS.contains(&k) => Ok(k),
+            Some(k) if HIDDEN_KINDS.contains(&k) || TRACKED_KINDS.contains(&k) || ABSORBED_KINDS.contains(&k) => Ok(k),
             _ => Err(format!(
-                "`{name}` is not an effect the generator hides (valid: none, random, random-pair, {}, {} (with a marker), or two joined by +)",
+                "`{name}` is not an effect the generator hides (valid: none, random, random-pair, {}, {}, {} (with a marker), or two joined by +)",
                 HIDDEN_KINDS.map(|k| k.name()).join(", "),
+                ABSORBED_KINDS.map(|k| k.name()).join(", "),
                 TRACKED_KINDS.map(|k| k.name()).join(", ")
             )),
         };
@@ -199,9 +208,18 @@ fn joints_for(kind: EffectKind) -> &'static [usize] {
     }
 }
 
+/// The model's counterweight travel ratio `mu` and the counterweight's mass (kg) in `inertials`
+/// (`None`: the model has no counterweight).
+pub(crate) fn counterweight_at(model: &Model, inertials: &dvrk_sim::inertials::Inertials) -> Option<[f64; 2]> {
+    let mu = model.spec.parameters.get("mu")?.value;
+    let probe = EffectSpec { name: "counterweight_error".into(), joint: None, link: None, parameters: BTreeMap::from([("mu".into(), mu), ("mass".into(), 1.0)]), source: String::new() };
+    let frame = with_effect(model, &probe).ok()?.effects.last()?.frame?;
+    Some([mu, inertials.body_inertias(model).ok()?[model.frames[frame].body].mass])
+}
+
 /// Draw `kind` with realistic magnitudes (times `scale`); a DH length on a link the tracker on
 /// frame `marker` can see.
-fn draw(kind: EffectKind, model: &Model, rng: &mut ChaCha8Rng, scale: f64, marker: Option<usize>) -> Result<EffectSpec> {
+fn draw(kind: EffectKind, model: &Model, inertials: &dvrk_sim::inertials::Inertials, rng: &mut ChaCha8Rng, scale: f64, marker: Option<usize>) -> Result<EffectSpec> {
     if kind == EffectKind::LinkLength {
         let frames: Vec<usize> = marker.map(|f| super::kinematic::observable_lengths(model, f)).unwrap_or_default().into_iter().map(|(k, _)| k).collect();
         if frames.is_empty() {
@@ -253,6 +271,25 @@ fn draw(kind: EffectKind, model: &Model, rng: &mut ChaCha8Rng, scale: f64, marke
         EffectKind::Latency => {
             // Whole milliseconds: the sim delays by whole steps.
             p.insert("seconds".into(), (scale * rng.random_range(3.0..12.0_f64)).round().max(1.0) * 1e-3);
+            (None, None)
+        }
+        EffectKind::CounterweightError => {
+            // Its travel ratio off by a few percent (pulley radii), its mass by up to a fifth
+            // (the CAD has no counterweight: balance is what sets it).
+            let at = counterweight_at(model, inertials).ok_or_else(|| CalibError::field("effect", "counterweight_error needs a model with a counterweight (a frame moving by its parameter mu)"))?;
+            let sign = |rng: &mut ChaCha8Rng| if rng.random::<bool>() { 1.0 } else { -1.0 };
+            p.insert("mu".into(), at[0] * (1.0 + sign(rng) * scale * rng.random_range(0.03..0.1)));
+            p.insert("mass".into(), at[1] * (1.0 + sign(rng) * scale * rng.random_range(0.05..0.2)));
+            (None, None)
+        }
+        EffectKind::CouplingError => {
+            // One coupling entry of the wrist off by 2-8% (a cable's pulley or pretension), among
+            // the joints the excitation moves (not the jaw).
+            let c = model.coupling_matrix().ok_or_else(|| CalibError::field("effect", "coupling_error needs a model with an actuator coupling"))?;
+            let entries = super::candidates::coupling_entries(&c, joints_for(kind));
+            let (r, k) = entries[rng.random_range(0..entries.len())];
+            let s: f64 = if rng.random::<bool>() { 1.0 } else { -1.0 };
+            p.insert(format!("d{}{}", r + 1, k + 1), s * scale * rng.random_range(0.02..0.08) * c[(r, k)].abs());
             (None, None)
         }
         EffectKind::PayloadMass => {
@@ -435,7 +472,7 @@ pub fn hidden_effect(scene_name: &str, o: &HiddenOptions) -> Result<HiddenRecord
         }
     };
     let marker_frame = o.marker.as_ref().map(|m| super::markers::marker_frame(&nominal, &m.link)).transpose()?;
-    let specs: Vec<EffectSpec> = kinds.iter().map(|&k| draw(k, &nominal, &mut rng, o.magnitude, marker_frame)).collect::<Result<_>>()?;
+    let specs: Vec<EffectSpec> = kinds.iter().map(|&k| draw(k, &nominal, &scene.arms[0].inertials, &mut rng, o.magnitude, marker_frame)).collect::<Result<_>>()?;
     let mut excitation = MultiSine::new(&nominal, o.seed);
     let limits: Vec<f64> = nominal.joints.iter().map(|j| j.effort_limit).collect();
     let mut predictor = super::signals::Predictor::new(&scene.arms[0].model, &scene.arms[0], scene.gravity)?;

@@ -255,7 +255,9 @@ pub struct Predictor {
     pub model: Model,
     dm: DynamicsModel,
     data: DynamicsData,
-    armature: Vec<f64>,
+    /// The drives' reflected motor inertia on the joints read: `diag(a)`, or `B^T diag(a) B`
+    /// under a coupling error (the motors sit on the true joints `B q`).
+    armature: DMatrix<f64>,
     damping: DMatrix<f64>,
     gravity: Vector3<f64>,
     velocity_scale: f64,
@@ -277,11 +279,16 @@ impl Predictor {
                 damping += arm.damping * &c * c.transpose();
             }
         }
+        // The tree joints' damping above follows the frames, which a coupling error already maps.
+        let mut armature = DMatrix::from_diagonal(&nalgebra::DVector::from_column_slice(&arm.armature));
+        if let Some(b) = model.coupling_error_map() {
+            armature = b.transpose() * armature * b;
+        }
         Ok(Predictor {
             model: model.clone(),
             data: DynamicsData::new(model),
             dm,
-            armature: arm.armature.clone(),
+            armature,
             damping,
             gravity: Vector3::from(gravity),
             velocity_scale: 2.0 * dvrk_sim::effects::COULOMB_VELOCITY,
@@ -310,8 +317,8 @@ impl Predictor {
         let mut tau = vec![0.0; nq];
         for i in 0..q.len() {
             dvrk_kin::dynamics::actuator_effort(&self.model, &self.dm, &mut self.data, &q[i], &qd[i], &qdd[i], &self.gravity, self.velocity_scale, &mut tau)?;
-            let d = &self.damping * nalgebra::DVector::from_column_slice(&qd[i]);
-            out.push((0..nq).map(|k| tau[k] + self.armature[k] * qdd[i][k] + d[k]).collect());
+            let d = &self.damping * nalgebra::DVector::from_column_slice(&qd[i]) + &self.armature * nalgebra::DVector::from_column_slice(&qdd[i]);
+            out.push((0..nq).map(|k| tau[k] + d[k]).collect());
         }
         Ok(out)
     }
