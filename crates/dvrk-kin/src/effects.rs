@@ -277,7 +277,7 @@ pub fn check_effects(model: &Model) -> Result<Vec<Effect>> {
             }
         }
         let frame = match kind {
-            EffectKind::CounterweightError => Some(counterweight_frame(model).ok_or_else(|| {
+            EffectKind::CounterweightError => Some(model.counterweight_frame().ok_or_else(|| {
                 KinError::field(field("name"), format!("model `{}` has no counterweight (no frame moves by the parameter `{COUNTERWEIGHT_TRAVEL}`)", model.name))
             })?),
             _ => frame,
@@ -285,6 +285,11 @@ pub fn check_effects(model: &Model) -> Result<Vec<Effect>> {
         out.push(Effect { kind, joint, frame, parameters });
     }
     Ok(out)
+}
+
+/// The `coupling_error` parameter `dRC` of 0-based coupling entry (`row`, `col`).
+pub fn coupling_entry_name(row: usize, col: usize) -> String {
+    format!("d{}{}", row + 1, col + 1)
 }
 
 /// The 1-based (row, column) a `coupling_error` parameter `dRC` names.
@@ -302,9 +307,12 @@ fn names(e: &crate::spec::Value, name: &str) -> bool {
     matches!(e, crate::spec::Value::Expr(x) if x.split(|c: char| !(c.is_alphanumeric() || c == '_')).any(|w| w == name))
 }
 
-/// The counterweight's frame: the first whose DH figures move by [`COUNTERWEIGHT_TRAVEL`].
-fn counterweight_frame(model: &Model) -> Option<usize> {
-    (0..model.frames.len()).find(|&i| model.spec_frame(i).is_some_and(|f| [&f.a, &f.alpha, &f.d, &f.theta].into_iter().any(|v| names(v, COUNTERWEIGHT_TRAVEL))))
+impl Model {
+    /// The counterweight's frame (position in [`Model::frames`]): the first whose DH figures move
+    /// by the parameter `mu` (Table 4's counterweight travel); `None` without one.
+    pub fn counterweight_frame(&self) -> Option<usize> {
+        (0..self.frames.len()).find(|&i| self.spec_frame(i).is_some_and(|f| [&f.a, &f.alpha, &f.d, &f.theta].into_iter().any(|v| names(v, COUNTERWEIGHT_TRAVEL))))
+    }
 }
 
 /// The spec with a `counterweight_error`'s `mu` in place of the model's parameter (before

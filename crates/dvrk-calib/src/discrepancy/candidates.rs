@@ -249,7 +249,7 @@ pub fn build(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f64; 3
         let p0 = at(0.0, 0.0, 0.0)?;
         let cm = diff(&p0, base, m);
         let cols = vec![cm.clone(), diff(&at(s, 0.0, 0.0)?, &p0, m * s), diff(&at(0.0, s, 0.0)?, &p0, m * s), diff(&at(0.0, 0.0, s)?, &p0, m * s)];
-        let focus = prep.active.iter().copied().max_by(|a, b| (rms_joint(&cm, *a) / prep.noise[*a]).total_cmp(&(rms_joint(&cm, *b) / prep.noise[*b]))).unwrap_or(0);
+        let focus = focus_of(prep, &cm);
         out.push(Candidate {
             kind: EffectKind::PayloadMass,
             joint: None,
@@ -265,6 +265,11 @@ pub fn build(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f64; 3
     out.extend(counterweight(predictor, arm, gravity, prep, base)?);
     out.extend(coupling(predictor, arm, gravity, prep, base)?);
     Ok(out)
+}
+
+/// An effect on the whole model (no joint, no link) with `parameters`.
+fn model_effect(kind: EffectKind, parameters: BTreeMap<String, f64>) -> EffectSpec {
+    EffectSpec { name: kind.name().into(), joint: None, link: None, parameters, source: String::new() }
 }
 
 /// The joint whose effort `column` moves most against its noise.
@@ -298,7 +303,6 @@ fn counterweight(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f6
     let model = &predictor.model;
     let kind = EffectKind::CounterweightError;
     // The model's own: its counterweight_error if it has one, else its mu and the inertials' mass.
-    // The model's own: its counterweight_error if it has one, else its mu and the inertials' mass.
     let at = match model.effects.iter().rfind(|e| e.kind == kind) {
         Some(e) => [e.get("mu"), e.get("mass")],
         None => match super::generate::counterweight_at(model, &arm.inertials) {
@@ -306,8 +310,7 @@ fn counterweight(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f6
             None => return Ok(vec![]),
         },
     };
-    let effect =
-        EffectSpec { name: kind.name().into(), joint: None, link: None, parameters: BTreeMap::from([("mu".into(), at[0]), ("mass".into(), at[1])]), source: String::new() };
+    let effect = model_effect(kind, BTreeMap::from([("mu".into(), at[0]), ("mass".into(), at[1])]));
     let columns = finite_differences(predictor, arm, gravity, prep, base, &effect, &[("mu".into(), 1e-3), ("mass".into(), 1e-3)])?;
     let focus = focus_of(prep, &columns[1]);
     Ok(vec![Candidate { kind, joint: None, link: None, names: names(&["mu", "mass"]), columns, lower: vec![Some(-at[0]), Some(-at[1])], at: at.to_vec(), focus, profile: None }])
@@ -329,9 +332,8 @@ pub fn coupling_entries(c: &nalgebra::DMatrix<f64>, moving: &[usize]) -> Vec<(us
 /// signature's curvature (`B^T A B` is quadratic in the entry: the tangent alone under-reads a
 /// 5% error by 2.4%).
 pub fn secant(c: &Candidate, value: f64, predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f64; 3], prep: &Prepared, base: &Table) -> Result<Candidate> {
-    let effect = EffectSpec { name: c.kind.name().into(), joint: None, link: None, parameters: BTreeMap::new(), source: String::new() };
     let mut out = c.clone();
-    out.columns = finite_differences(predictor, arm, gravity, prep, base, &effect, &[(c.names[0].clone(), value)])?;
+    out.columns = finite_differences(predictor, arm, gravity, prep, base, &model_effect(c.kind, BTreeMap::new()), &[(c.names[0].clone(), value)])?;
     Ok(out)
 }
 
@@ -343,10 +345,9 @@ fn coupling(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f64; 3]
     let Some(c) = model.coupling_matrix() else { return Ok(vec![]) };
     let mut out = Vec::new();
     for (r, k) in coupling_entries(&c, &prep.active) {
-        let name = format!("d{}{}", r + 1, k + 1);
+        let name = dvrk_kin::effects::coupling_entry_name(r, k);
         let at: f64 = model.effects.iter().filter(|e| e.kind == kind).map(|e| e.get(&name)).sum();
-        let effect = EffectSpec { name: kind.name().into(), joint: None, link: None, parameters: BTreeMap::new(), source: String::new() };
-        let columns = finite_differences(predictor, arm, gravity, prep, base, &effect, &[(name.clone(), 1e-3 * c[(r, k)].abs())])?;
+        let columns = finite_differences(predictor, arm, gravity, prep, base, &model_effect(kind, BTreeMap::new()), &[(name.clone(), 1e-3 * c[(r, k)].abs())])?;
         if columns[0].iter().flatten().all(|x| x.abs() < 1e-12) {
             continue;
         }

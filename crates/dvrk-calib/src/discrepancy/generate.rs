@@ -212,8 +212,7 @@ fn joints_for(kind: EffectKind) -> &'static [usize] {
 /// (`None`: the model has no counterweight).
 pub(crate) fn counterweight_at(model: &Model, inertials: &dvrk_sim::inertials::Inertials) -> Option<[f64; 2]> {
     let mu = model.spec.parameters.get("mu")?.value;
-    let probe = EffectSpec { name: "counterweight_error".into(), joint: None, link: None, parameters: BTreeMap::from([("mu".into(), mu), ("mass".into(), 1.0)]), source: String::new() };
-    let frame = with_effect(model, &probe).ok()?.effects.last()?.frame?;
+    let frame = model.counterweight_frame()?;
     Some([mu, inertials.body_inertias(model).ok()?[model.frames[frame].body].mass])
 }
 
@@ -289,7 +288,7 @@ fn draw(kind: EffectKind, model: &Model, inertials: &dvrk_sim::inertials::Inerti
             let entries = super::candidates::coupling_entries(&c, joints_for(kind));
             let (r, k) = entries[rng.random_range(0..entries.len())];
             let s: f64 = if rng.random::<bool>() { 1.0 } else { -1.0 };
-            p.insert(format!("d{}{}", r + 1, k + 1), s * scale * rng.random_range(0.02..0.08) * c[(r, k)].abs());
+            p.insert(dvrk_kin::effects::coupling_entry_name(r, k), s * scale * rng.random_range(0.02..0.08) * c[(r, k)].abs());
             (None, None)
         }
         EffectKind::PayloadMass => {
