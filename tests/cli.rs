@@ -264,9 +264,11 @@ fn sim_full_camera_writes_the_frames_as_png_files() {
 fn discrepancy_reads_the_wpi_recording() {
     let Some(rec) = crate::util::external("wpi-dvrk-dynamics/psm_one_results.csv") else { return };
     let dir = tempdir();
-    let report = dir.path().join("r.json");
+    let (report, updated) = (dir.path().join("r.json"), dir.path().join("m.toml"));
     let rec = rec.to_str().unwrap();
-    dvrk_ok(&["discrepancy", "--model", "psm", "--recording", rec, "--format", "wpi-csv", "--report", report.to_str().unwrap(), "--no-tracking", "--max-rounds", "2"]);
+    // The updated model must load: an unbounded fit once named a coupling error (d44 = 0.74)
+    // beyond the model file's range.
+    dvrk_ok(&["discrepancy", "--model", "psm", "--recording", rec, "--format", "wpi-csv", "--report", report.to_str().unwrap(), "--no-tracking", "--max-rounds", "2", "-o", updated.to_str().unwrap()]);
     let r: Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
     for key in ["verdict", "channel", "effects", "candidates", "rms_before", "rms_after", "rms_heldout_before", "rms_heldout_after", "noise_floor", "steps"] {
         assert!(r.get(key).is_some(), "{key} missing");
@@ -275,6 +277,9 @@ fn discrepancy_reads_the_wpi_recording() {
     assert!(!steps.is_empty() && steps.len() <= 2);
     // The CAD model misses the real robot by far more than the sensor noise.
     assert!(r["rms_heldout_before"].as_f64().unwrap() > 10.0);
+    if r["verdict"] == "named" {
+        dvrk_kin::load(updated.to_str().unwrap(), None).unwrap();
+    }
     let e = crate::util::dvrk_err(&["discrepancy", "--model", "psm", "--recording", rec, "--format", "wpi-csv", "--report", report.to_str().unwrap(), "--inertia-prior", "x"]);
     assert!(e.contains("--inertia-prior x"), "{e}");
 }

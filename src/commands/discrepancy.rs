@@ -102,7 +102,7 @@ pub fn run(a: &DiscrepancyArgs) -> Result<()> {
     if let (Some(p), Some(image)) = (&a.plot, &image) {
         crate::io::write_atomic(p, image).with_context(|| format!("--plot {}", p.display()))?;
     }
-    let named = r.effects.iter().map(|e| format!("{} {}", e.name, e.joint.clone().or(e.link.clone()).unwrap_or_default())).collect::<Vec<_>>().join(", ");
+    let named = r.effects.iter().map(|e| e.label()).collect::<Vec<_>>().join(", ");
     outln!(
         "{}: {}{} (torque residual {:.2} -> {:.2} of the noise floor on held-out data); report in {}",
         a.recording.display(),

@@ -167,7 +167,20 @@ impl EffectKind {
             EffectKind::Spring => SPRING,
         }
     }
+
+    /// The physical range `[lower, upper]` of parameter `name` (a coupling error's `dRC`: any
+    /// entry), `None` for a name that is not one of this effect's parameters.
+    pub fn range(self, name: &str) -> Option<[f64; 2]> {
+        match self {
+            EffectKind::CouplingError => coupling_entry(name).map(|_| [-COUPLING_ERROR_LIMIT, COUPLING_ERROR_LIMIT]),
+            _ => self.parameters().iter().find(|p| p.name == name).map(|p| [p.lower, p.upper]),
+        }
+    }
 }
+
+/// The largest error of a coupling entry a model file accepts (dimensionless, as the entry):
+/// beyond it the instrument is another one, not an error of this one's cables.
+pub const COUPLING_ERROR_LIMIT: f64 = 0.5;
 
 const PI: f64 = std::f64::consts::PI;
 const JOINT_OFFSET: &[ParameterInfo] = &[p("offset", "rad", "m", -PI, PI, None)];
@@ -243,13 +256,13 @@ pub fn check_effects(model: &Model) -> Result<Vec<Effect>> {
             let c = model.coupling_matrix().ok_or_else(|| KinError::field(field("name"), format!("model `{}` has no actuator coupling to be in error", model.name)))?;
             for (name, v) in &e.parameters {
                 match coupling_entry(name) {
-                    Some((r, col)) if (1..=c.nrows()).contains(&r) && (1..=c.ncols()).contains(&col) && v.is_finite() && v.abs() <= 0.5 => {
+                    Some((r, col)) if (1..=c.nrows()).contains(&r) && (1..=c.ncols()).contains(&col) && v.is_finite() && v.abs() <= COUPLING_ERROR_LIMIT => {
                         parameters.insert(name.clone(), *v);
                     }
                     _ => {
                         return Err(KinError::field(
                             field(&format!("parameters.{name}")),
-                            format!("{v}: expected dRC (1-based row, column of the {}x{} coupling) with |value| <= 0.5", c.nrows(), c.ncols()),
+                            format!("{v}: expected dRC (1-based row, column of the {}x{} coupling) with |value| <= {COUPLING_ERROR_LIMIT}", c.nrows(), c.ncols()),
                         ))
                     }
                 }

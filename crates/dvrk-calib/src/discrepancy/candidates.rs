@@ -7,6 +7,7 @@
 
 use super::generate::with_effect;
 use super::signals::{Predictor, Prepared};
+use super::stats::Bounds;
 use crate::error::Result;
 use dvrk_kin::effects::{EffectKind, EffectSpec};
 use dvrk_kin::spec::FrameRef;
@@ -22,10 +23,9 @@ pub struct Candidate {
     pub joint: Option<usize>,
     /// Frame name of a link effect.
     pub link: Option<String>,
-    /// Fitted parameters (their names), each with its signature column and lower bound.
+    /// Fitted parameters (their names), each with its signature column.
     pub names: Vec<String>,
     pub columns: Vec<Table>,
-    pub lower: Vec<Option<f64>>,
     /// The model's own value of each parameter (0: the effect is absent): a fit is a change
     /// from it, reported as the new value.
     pub at: Vec<f64>,
@@ -46,6 +46,13 @@ impl Candidate {
             _ if self.kind == EffectKind::CouplingError => format!("{} {}", self.kind.name(), self.names.join(" ")),
             _ => self.kind.name().to_string(),
         }
+    }
+
+    /// The bounds of each fitted change from [`Candidate::at`]: the vocabulary's physical range
+    /// of the parameter (a product such as a payload's `mx` or a spring's `k_rest` is free).
+    pub fn bounds(&self) -> Vec<Bounds> {
+        let range = |name: &str, at: f64| self.kind.range(name).map_or(Bounds::FREE, |[lo, hi]| Bounds::within(lo - at, hi - at));
+        self.names.iter().zip(&self.at).map(|(n, at)| range(n, *at)).collect()
     }
 
     /// The model-file parameters of fitted values `x` (in [`Candidate::names`] order) and the
@@ -187,7 +194,6 @@ pub fn build(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f64; 3
             link: None,
             names: names(&["fc"]),
             columns: sign(v),
-            lower: vec![Some(0.0)],
             at: vec![0.0],
             focus: j,
             profile: Some(("smoothing", grid)),
@@ -198,7 +204,6 @@ pub fn build(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f64; 3
             link: None,
             names: names(&["fv"]),
             columns: vec![local(prep, nq, j, |i| prep.qd[i][j])],
-            lower: vec![Some(0.0)],
             at: vec![0.0],
             focus: j,
             profile: None,
@@ -210,7 +215,6 @@ pub fn build(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f64; 3
             link: None,
             names: names(&["k", "k_rest"]),
             columns: vec![local(prep, nq, j, |i| prep.q[i][j]), local(prep, nq, j, |_| -1.0)],
-            lower: vec![Some(0.0), None],
             at: vec![0.0; 2],
             focus: j,
             profile: None,
@@ -222,7 +226,6 @@ pub fn build(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f64; 3
                 link: None,
                 names: names(&["offset"]),
                 columns: vec![d.clone()],
-                lower: vec![None],
                 at: vec![0.0],
                 focus: j,
                 profile: None,
@@ -256,7 +259,6 @@ pub fn build(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f64; 3
             link: Some(name.into()),
             names: names(&["mass", "mx", "my", "mz"]),
             columns: cols,
-            lower: vec![Some(0.0), None, None, None],
             at: vec![0.0; 4],
             focus,
             profile: None,
@@ -313,7 +315,7 @@ fn counterweight(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f6
     let effect = model_effect(kind, BTreeMap::from([("mu".into(), at[0]), ("mass".into(), at[1])]));
     let columns = finite_differences(predictor, arm, gravity, prep, base, &effect, &[("mu".into(), 1e-3), ("mass".into(), 1e-3)])?;
     let focus = focus_of(prep, &columns[1]);
-    Ok(vec![Candidate { kind, joint: None, link: None, names: names(&["mu", "mass"]), columns, lower: vec![Some(-at[0]), Some(-at[1])], at: at.to_vec(), focus, profile: None }])
+    Ok(vec![Candidate { kind, joint: None, link: None, names: names(&["mu", "mass"]), columns, at: at.to_vec(), focus, profile: None }])
 }
 
 /// The coupling entries a recording can show: non-zero, in a row that couples (not the
@@ -352,7 +354,31 @@ fn coupling(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f64; 3]
             continue;
         }
         let focus = focus_of(prep, &columns[0]);
-        out.push(Candidate { kind, joint: None, link: None, names: vec![name], columns, lower: vec![None], at: vec![at], focus, profile: None });
+        out.push(Candidate { kind, joint: None, link: None, names: vec![name], columns, at: vec![at], focus, profile: None });
     }
     Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn candidate(kind: EffectKind, names: &[&str], at: &[f64]) -> Candidate {
+        Candidate { kind, joint: None, link: None, names: super::names(names), columns: vec![], at: at.to_vec(), focus: 0, profile: None }
+    }
+
+    /// A fit's bounds are the vocabulary's ranges less the model's own value: a coupling entry
+    /// within the model file's +-0.5 (the WPI recording once fitted d44 = 0.74, a model that
+    /// then did not load), a spring's stiffness in [0, 1e5] N·m/rad with its `k rest` free.
+    #[test]
+    fn fits_are_bounded_by_the_vocabulary() {
+        let c = candidate(EffectKind::CouplingError, &["d55"], &[0.1]);
+        let [b] = c.bounds()[..] else { panic!() };
+        assert!((b.lower.unwrap() + 0.6).abs() < 1e-15 && (b.upper.unwrap() - 0.4).abs() < 1e-15, "{b:?}");
+        let s = candidate(EffectKind::Spring, &["k", "k_rest"], &[0.0, 0.0]);
+        assert_eq!(s.bounds(), vec![Bounds::within(0.0, 1e5), Bounds::FREE]);
+        let cw = candidate(EffectKind::CounterweightError, &["mu", "mass"], &[0.7, 1.5]);
+        let b = cw.bounds();
+        assert!((b[0].lower.unwrap() + 0.7).abs() < 1e-15 && (b[1].upper.unwrap() - 8.5).abs() < 1e-15, "{b:?}");
+    }
 }

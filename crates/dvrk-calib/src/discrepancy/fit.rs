@@ -4,7 +4,7 @@
 use super::candidates::Table;
 use super::nuisance::Nuisance;
 use super::signals::Prepared;
-use super::stats::bounded_least_squares;
+use super::stats::{bounded_least_squares, Bounds};
 use crate::error::Result;
 use nalgebra::{DMatrix, DVector};
 
@@ -64,10 +64,10 @@ impl Fitter<'_> {
         }
     }
 
-    /// `min |y - C x|` with lower bounds on `x`, the nuisance refitted.
-    pub fn solve(&self, c: &DMatrix<f64>, y: &DVector<f64>, lower: &[Option<f64>]) -> Result<DVector<f64>> {
+    /// `min |y - C x|` with `bounds` on `x`, the nuisance refitted.
+    pub fn solve(&self, c: &DMatrix<f64>, y: &DVector<f64>, bounds: &[Bounds]) -> Result<DVector<f64>> {
         if self.nuisance.is_none() {
-            return bounded_least_squares(c, y, lower);
+            return bounded_least_squares(c, y, bounds);
         }
         let (mut g, b) = self.normal_equations(c, y);
         // The same problem as a small least squares: |L^T x - L^-1 b|^2 = x^T G x - 2 b^T x + const.
@@ -76,11 +76,11 @@ impl Fitter<'_> {
             g[(d, d)] += jitter;
         }
         let Some(ch) = g.clone().cholesky() else {
-            return bounded_least_squares(c, y, lower);
+            return bounded_least_squares(c, y, bounds);
         };
         let l = ch.l();
         let r = l.solve_lower_triangular(&b).unwrap_or(b);
-        bounded_least_squares(&l.transpose(), &r, lower)
+        bounded_least_squares(&l.transpose(), &r, bounds)
     }
 
     /// The training residual with the nuisance's fit taken out (what is left to look white).

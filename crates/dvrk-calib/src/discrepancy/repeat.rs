@@ -39,10 +39,7 @@ pub fn discrepancy_repeated(model: &Model, scene: &Scene, arm: &str, log: &Joint
         steps.push(StepReport {
             round,
             verdict: r.verdict.clone(),
-            named: r.effects.first().map(|e| match e.joint.clone().or(e.link.clone()) {
-                Some(at) => format!("{} on {at}", e.name),
-                None => e.name.clone(),
-            }),
+            named: r.effects.first().map(|e| e.label()),
             rms_before: r.rms_before,
             rms_after: r.rms_after,
             rms_heldout_before: r.rms_heldout_before,
@@ -51,7 +48,11 @@ pub fn discrepancy_repeated(model: &Model, scene: &Scene, arm: &str, log: &Joint
         });
         // The same effect on the same joint or link again: its linearised fit has not converged
         // in one step, or it stands in for something the vocabulary lacks; stop rather than stack.
-        if out.named.as_ref().is_some_and(|e| named.iter().any(|n| n.name == e.name && n.joint == e.joint && n.link == e.link)) {
+        // (A coupling error's entries are its parameters: another entry is another effect.)
+        let same = |n: &EffectSpec, e: &EffectSpec| {
+            n.name == e.name && n.joint == e.joint && n.link == e.link && (n.joint.is_some() || n.link.is_some() || n.parameters.keys().eq(e.parameters.keys()))
+        };
+        if out.named.as_ref().is_some_and(|e| named.iter().any(|n| same(n, e))) {
             if let Some(s) = steps.last_mut() {
                 s.verdict = "repeated".into();
             }

@@ -18,6 +18,20 @@ pub struct EffectReport {
     pub p_value: f64,
 }
 
+impl EffectReport {
+    /// `name on joint`, `name on link`, `name`, or a coupling error with its entries:
+    /// `coupling_error d55` (as the candidates' labels).
+    pub fn label(&self) -> String {
+        match self.joint.as_ref().or(self.link.as_ref()) {
+            Some(at) => format!("{} on {at}", self.name),
+            None if self.name == dvrk_kin::effects::EffectKind::CouplingError.name() => {
+                std::iter::once(self.name.as_str()).chain(self.parameters.keys().map(String::as_str)).collect::<Vec<_>>().join(" ")
+            }
+            None => self.name.clone(),
+        }
+    }
+}
+
 /// One ranked candidate: its effect and evidence (the same fields as a named effect's), and
 /// what decided whether it is supported.
 #[derive(Debug, Clone, Serialize)]

@@ -1,4 +1,4 @@
-//! The statistics of the workflow: a least-squares fit with lower bounds (clarabel), the
+//! The statistics of the workflow: a least-squares fit with bounds (clarabel), the
 //! effective sample size of autocorrelated residuals, and the chi-square tail.
 
 use crate::error::{CalibError, Result};
@@ -6,9 +6,50 @@ use clarabel::algebra::CscMatrix;
 use clarabel::solver::{DefaultSettingsBuilder, DefaultSolver, IPSolver, NonnegativeConeT, SolverStatus};
 use nalgebra::{DMatrix, DVector};
 
-/// `min |A x - r|^2` subject to `x_i >= lower_i` where `lower_i` is given. The columns are
-/// scaled to unit norm first (clarabel's tolerances are absolute). Returns `x`.
-pub fn bounded_least_squares(a: &DMatrix<f64>, r: &DVector<f64>, lower: &[Option<f64>]) -> Result<DVector<f64>> {
+/// A parameter's physical bounds (`None`: free on that side), in the parameter's own unit.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Bounds {
+    pub lower: Option<f64>,
+    pub upper: Option<f64>,
+}
+
+impl Bounds {
+    /// No bound.
+    pub const FREE: Bounds = Bounds { lower: None, upper: None };
+
+    /// `x >= lower`.
+    pub fn at_least(lower: f64) -> Bounds {
+        Bounds { lower: Some(lower), upper: None }
+    }
+
+    /// `lower <= x <= upper`.
+    pub fn within(lower: f64, upper: f64) -> Bounds {
+        Bounds { lower: Some(lower), upper: Some(upper) }
+    }
+
+    /// Whether `x` satisfies both bounds.
+    pub fn holds(&self, x: f64) -> bool {
+        self.lower.is_none_or(|lo| x >= lo) && self.upper.is_none_or(|hi| x <= hi)
+    }
+
+    /// `x` moved inside the bounds (a solver's round-off outside them).
+    pub fn clamp(&self, x: f64) -> f64 {
+        x.max(self.lower.unwrap_or(f64::NEG_INFINITY)).min(self.upper.unwrap_or(f64::INFINITY))
+    }
+
+    /// Whether `x` sits on either bound (to round-off).
+    pub fn active(&self, x: f64) -> bool {
+        let near = |b: f64| (x - b).abs() <= 1e-12 * (1.0 + b.abs());
+        self.lower.is_some_and(|lo| x <= lo || near(lo)) || self.upper.is_some_and(|hi| x >= hi || near(hi))
+    }
+}
+
+/// `min |A x - r|^2` subject to `bounds` on each `x_i`. The columns are scaled to unit norm first
+/// (clarabel's tolerances are absolute). Only the bounds a fit crosses are given to the solver,
+/// side by side, added until none is crossed (a relaxation whose optimum is feasible is the optimum): a far
+/// bound (a spring's 1e5 N·m/rad) would otherwise stall the interior point. Returns `x`, inside
+/// its bounds.
+pub fn bounded_least_squares(a: &DMatrix<f64>, r: &DVector<f64>, bounds: &[Bounds]) -> Result<DVector<f64>> {
     let p = a.ncols();
     let scale: Vec<f64> = (0..p).map(|j| a.column(j).norm().max(1e-300)).collect();
     let mut s = a.clone();
@@ -17,12 +58,62 @@ pub fn bounded_least_squares(a: &DMatrix<f64>, r: &DVector<f64>, lower: &[Option
     }
     let h = s.transpose() * &s;
     let g = s.transpose() * r;
-    // The unconstrained solution, used as is when it satisfies the bounds.
-    if let Some(z) = h.clone().cholesky().map(|c| c.solve(&g)) {
-        if lower.iter().enumerate().all(|(j, lo)| lo.is_none_or(|lo| z[j] / scale[j] >= lo)) {
-            return Ok(DVector::from_iterator(p, (0..p).map(|j| z[j] / scale[j])));
+    let free = h.clone().cholesky().map(|c| c.solve(&g));
+    // A singular problem: every bound at once.
+    let mut given: Vec<Bounds> = if free.is_some() { vec![Bounds::FREE; p] } else { bounds.to_vec() };
+    let mut z = match free {
+        Some(z) => z,
+        None => scaled_fit(&h, &g, &given, &scale)?,
+    };
+    loop {
+        let mut crossed = false;
+        for (j, (b, gv)) in bounds.iter().zip(given.iter_mut()).enumerate() {
+            let x = z[j] / scale[j];
+            if gv.lower.is_none() && b.lower.is_some_and(|lo| x < lo) {
+                (gv.lower, crossed) = (b.lower, true);
+            }
+            if gv.upper.is_none() && b.upper.is_some_and(|hi| x > hi) {
+                (gv.upper, crossed) = (b.upper, true);
+            }
+        }
+        if !crossed {
+            let z = polish(&h, &g, z, &given, &scale);
+            return Ok(DVector::from_iterator(p, (0..p).map(|j| bounds[j].clamp(z[j] / scale[j]))));
+        }
+        z = scaled_fit(&h, &g, &given, &scale)?;
+    }
+}
+
+/// The interior point's `z` (which stops short of an active bound by its tolerance) made exact:
+/// the coordinates within 1e-6 of a bound put on it, the others solved for with them held. Kept
+/// only if the others stay inside their bounds.
+fn polish(h: &DMatrix<f64>, g: &DVector<f64>, z: DVector<f64>, bounds: &[Bounds], scale: &[f64]) -> DVector<f64> {
+    let p = z.len();
+    let near = |v: f64, b: f64| (v - b).abs() <= 1e-6 * (1.0 + b.abs());
+    let held: Vec<Option<f64>> = (0..p).map(|j| [bounds[j].lower, bounds[j].upper].into_iter().flatten().map(|b| b * scale[j]).find(|b| near(z[j], *b))).collect();
+    if held.iter().all(Option::is_none) {
+        return z;
+    }
+    let free: Vec<usize> = (0..p).filter(|&j| held[j].is_none()).collect();
+    let mut out = DVector::from_iterator(p, held.iter().zip(z.iter()).map(|(b, v)| b.unwrap_or(*v)));
+    if !free.is_empty() {
+        let hu = DMatrix::from_fn(free.len(), free.len(), |a, b| h[(free[a], free[b])]);
+        let gu = DVector::from_iterator(free.len(), free.iter().map(|&i| g[i] - (0..p).filter_map(|k| held[k].map(|b| h[(i, k)] * b)).sum::<f64>()));
+        let Some(zu) = hu.cholesky().map(|c| c.solve(&gu)) else { return z };
+        for (a, &j) in free.iter().enumerate() {
+            out[j] = zu[a];
         }
     }
+    if free.iter().all(|&j| bounds[j].holds(out[j] / scale[j])) {
+        out
+    } else {
+        z
+    }
+}
+
+/// `min z^T H z / 2 - g^T z` with `bounds` on `x = z / scale` (clarabel). Returns `z`.
+fn scaled_fit(h: &DMatrix<f64>, g: &DVector<f64>, bounds: &[Bounds], scale: &[f64]) -> Result<DVector<f64>> {
+    let p = h.ncols();
     let (mut colptr, mut rowval, mut nzval) = (vec![0], Vec::new(), Vec::new());
     for j in 0..p {
         for i in 0..=j {
@@ -33,20 +124,21 @@ pub fn bounded_least_squares(a: &DMatrix<f64>, r: &DVector<f64>, lower: &[Option
     }
     let pm = CscMatrix::new(p, p, colptr, rowval, nzval);
     let q: Vec<f64> = g.iter().map(|x| -x).collect();
-    // Rows -z_j <= -lo_j scale_j (z = x scale).
-    let rows: Vec<(usize, f64)> = lower.iter().enumerate().filter_map(|(j, lo)| lo.map(|lo| (j, lo * scale[j]))).collect();
+    // Rows `sign z_j <= sign bound_j scale_j`: -z_j <= -lo, z_j <= hi.
+    let rows: Vec<(usize, f64, f64)> =
+        bounds.iter().enumerate().flat_map(|(j, b)| [b.lower.map(|lo| (j, -1.0, -lo * scale[j])), b.upper.map(|hi| (j, 1.0, hi * scale[j]))]).flatten().collect();
     let (mut colptr, mut rowval, mut nzval) = (vec![0], Vec::new(), Vec::new());
     for j in 0..p {
-        for (i, (jj, _)) in rows.iter().enumerate() {
+        for (i, (jj, sign, _)) in rows.iter().enumerate() {
             if *jj == j {
                 rowval.push(i);
-                nzval.push(-1.0);
+                nzval.push(*sign);
             }
         }
         colptr.push(rowval.len());
     }
     let am = CscMatrix::new(rows.len(), p, colptr, rowval, nzval);
-    let b: Vec<f64> = rows.iter().map(|(_, lo)| -lo).collect();
+    let b: Vec<f64> = rows.iter().map(|(_, _, v)| *v).collect();
     let settings = DefaultSettingsBuilder::default().verbose(false).max_iter(100).build().map_err(|e| CalibError::data("bounded fit settings", e.to_string()))?;
     let cones = [NonnegativeConeT(rows.len())];
     let mut solver = DefaultSolver::new(&pm, &q, &am, &b, &cones, settings).map_err(|e| CalibError::data("bounded fit", format!("{e:?}")))?;
@@ -55,7 +147,7 @@ pub fn bounded_least_squares(a: &DMatrix<f64>, r: &DVector<f64>, lower: &[Option
         SolverStatus::Solved | SolverStatus::AlmostSolved => {}
         status => return Err(CalibError::data("bounded fit", format!("clarabel stopped: {status:?}"))),
     }
-    Ok(DVector::from_iterator(p, (0..p).map(|j| solver.solution.x[j] / scale[j])))
+    Ok(DVector::from_column_slice(&solver.solution.x))
 }
 
 /// The fraction `n_eff / n` of a residual made of `series` (each one joint's residual in time
@@ -93,7 +185,17 @@ pub fn effective_fraction(series: &[Vec<f64>]) -> f64 {
 
 /// ln Gamma(x), x > 0 (Lanczos, g = 7).
 fn ln_gamma(x: f64) -> f64 {
-    const C: [f64; 9] = [0.999_999_999_999_809_9, 676.5203681218851, -1259.1392167224028, 771.323_428_777_653_1, -176.615_029_162_140_6, 12.507343278686905, -0.13857109526572012, 9.984_369_578_019_572e-6, 1.5056327351493116e-7];
+    const C: [f64; 9] = [
+        0.999_999_999_999_809_9,
+        676.5203681218851,
+        -1259.1392167224028,
+        771.323_428_777_653_1,
+        -176.615_029_162_140_6,
+        12.507343278686905,
+        -0.13857109526572012,
+        9.984_369_578_019_572e-6,
+        1.5056327351493116e-7,
+    ];
     if x < 0.5 {
         return (std::f64::consts::PI / (std::f64::consts::PI * x).sin()).ln() - ln_gamma(1.0 - x);
     }
@@ -176,12 +278,18 @@ mod tests {
         let a = DMatrix::from_row_slice(4, 2, &[1.0, 0.0, 0.0, 1.0, 1.0, 1.0, 2.0, -1.0]);
         let x = DVector::from_vec(vec![0.5, -0.3]);
         let r = &a * &x;
-        let free = bounded_least_squares(&a, &r, &[None, None]).unwrap();
+        let free = bounded_least_squares(&a, &r, &[Bounds::FREE, Bounds::FREE]).unwrap();
         assert!((free - &x).norm() < 1e-12);
-        let b = bounded_least_squares(&a, &r, &[None, Some(0.0)]).unwrap();
+        let b = bounded_least_squares(&a, &r, &[Bounds::FREE, Bounds::at_least(0.0)]).unwrap();
         assert!(b[1] >= -1e-8 && b[1] < 1e-6, "{b}");
-        // The bound active, the other coordinate is the 1-D least squares: sum(a0 r) / sum(a0^2).
-        let a0 = a.column(0);
-        assert!((b[0] - a0.dot(&r) / a0.dot(&a0)).abs() < 1e-6, "{b}");
+        // The bound active, the other coordinate is the 1-D least squares: sum(a0 (r - a1 x1)) / sum(a0^2).
+        let (a0, a1) = (a.column(0), a.column(1));
+        let rest = |x1: f64| a0.dot(&(&r - a1 * x1)) / a0.dot(&a0);
+        assert!((b[0] - rest(0.0)).abs() < 1e-6, "{b}");
+        // An upper bound below the free value: x0 held at 0.2, x1 the 1-D fit of what is left.
+        let u = bounded_least_squares(&a, &r, &[Bounds::within(-1.0, 0.2), Bounds::FREE]).unwrap();
+        assert!((u[0] - 0.2).abs() < 1e-6, "{u}");
+        assert!((u[1] - a1.dot(&(&r - a0 * 0.2)) / a1.dot(&a1)).abs() < 1e-6, "{u}");
+        assert!(Bounds::within(-1.0, 0.2).active(u[0]) && !Bounds::within(-1.0, 0.2).active(0.0));
     }
 }

@@ -125,6 +125,7 @@ fn score_linear(c: &Candidate, fit: &Fitter, r: &Table, o: &Options, rng: &mut C
     let prep = fit.prep;
     let (train, hold) = (Rows::train(prep), Rows::held_out(prep));
     let y = train.vector(r);
+    let bounds = c.bounds();
     // A profiled parameter: the grid value whose fit leaves the least.
     let (profiled, columns) = match &c.profile {
         None => (None, &c.columns),
@@ -132,7 +133,7 @@ fn score_linear(c: &Candidate, fit: &Fitter, r: &Table, o: &Options, rng: &mut C
             let mut best = (f64::INFINITY, None, &c.columns);
             for (v, cols) in grid {
                 let a = train.matrix(cols);
-                let x = fit.solve(&a, &y, &c.lower)?;
+                let x = fit.solve(&a, &y, &bounds)?;
                 let rss = fit.rss(&(&y - &a * &x));
                 if rss < best.0 {
                     best = (rss, Some(*v), cols);
@@ -143,7 +144,7 @@ fn score_linear(c: &Candidate, fit: &Fitter, r: &Table, o: &Options, rng: &mut C
     };
     let p = columns.len();
     let a = train.matrix(columns);
-    let x = fit.solve(&a, &y, &c.lower)?;
+    let x = fit.solve(&a, &y, &bounds)?;
     let e1 = &y - &a * &x;
     let rss1 = fit.rss(&e1);
     let n = train.len() as f64;
@@ -151,7 +152,7 @@ fn score_linear(c: &Candidate, fit: &Fitter, r: &Table, o: &Options, rng: &mut C
     let frac = effective_fraction(&train.series(&white));
     let (stat, n_eff) = per_joint_ratio(&train, &fit.whitened(&y), &white);
     let delta_bic = stat - (p + profiled.is_some() as usize) as f64 * n_eff.ln();
-    let on_bound = c.lower.iter().zip(x.iter()).any(|(lo, v)| lo.is_some_and(|lo| *v <= lo + 1e-12 * (1.0 + lo.abs())));
+    let on_bound = bounds.iter().zip(x.iter()).any(|(b, v)| b.active(*v));
     let p_value = if on_bound && o.bootstrap > 0 {
         // Block bootstrap under the null: the fitted model's residual resampled in blocks as
         // long as its correlation, refitted.
@@ -171,7 +172,7 @@ fn score_linear(c: &Candidate, fit: &Fitter, r: &Table, o: &Options, rng: &mut C
                 }
                 i += block;
             }
-            let xs = fit.solve(&a, &ys, &c.lower)?;
+            let xs = fit.solve(&a, &ys, &bounds)?;
             if fit.likelihood_ratio(&train, &ys, &(&ys - &a * &xs)).0 >= stat {
                 exceed += 1;
             }
@@ -186,7 +187,7 @@ fn score_linear(c: &Candidate, fit: &Fitter, r: &Table, o: &Options, rng: &mut C
     let cov = g.try_inverse().unwrap_or_else(|| DMatrix::from_element(p, p, f64::INFINITY)) * (s2 / frac);
     // A model error that changes along the recording, or a law that is not the truth's, moves
     // the estimate between parts of the motion more than the noise would: widen by that.
-    let mut cov = cov * block_scale(&train, &a, &(fit.whitened(&e1) + &a * &x), &x, &c.lower, frac, c.focus)?;
+    let mut cov = cov * block_scale(&train, &a, &(fit.whitened(&e1) + &a * &x), &x, &bounds, frac, c.focus)?;
     // Not narrower than the score's scatter ([`consistency::sandwich_variance`]), each parameter
     // through its column less the others' share of it.
     let aw = DMatrix::from_columns(&a.column_iter().map(|col| fit.whitened(&col.into_owned())).collect::<Vec<_>>());
@@ -221,14 +222,14 @@ fn score_linear(c: &Candidate, fit: &Fitter, r: &Table, o: &Options, rng: &mut C
 /// groups of [`consistency::partitions`] (the largest over the partitions): each group of
 /// training rows fitted alone (`y`: the rows with the nuisance's fit taken out), each estimate
 /// with its own noise variance (inflated by `1 / frac` for correlation), against the whole fit `x`.
-fn block_scale(train: &Rows, a: &DMatrix<f64>, y: &DVector<f64>, x: &DVector<f64>, lower: &[Option<f64>], frac: f64, focus: usize) -> Result<f64> {
+fn block_scale(train: &Rows, a: &DMatrix<f64>, y: &DVector<f64>, x: &DVector<f64>, bounds: &[super::stats::Bounds], frac: f64, focus: usize) -> Result<f64> {
     let p = a.ncols();
     let mut worst: f64 = 1.0;
     for partition in consistency::partitions(train.prep, Some(focus), false) {
         let mut estimates = Vec::with_capacity(partition.len());
         for rows in &partition {
             let (ab, yb) = (a.select_rows(rows), y.select_rows(rows));
-            let xb = super::stats::bounded_least_squares(&ab, &yb, lower)?;
+            let xb = super::stats::bounded_least_squares(&ab, &yb, bounds)?;
             let rss = (&yb - &ab * &xb).norm_squared();
             let Some(inv) = ab.tr_mul(&ab).try_inverse() else { continue };
             estimates.push((xb[0], inv[(0, 0)] * rss / (rows.len() as f64 - p as f64).max(1.0) / frac));
@@ -499,8 +500,8 @@ fn pair_choice(scored: &[Scored], winners: &[usize], fit: &Fitter, r: &Table, o:
                 continue;
             }
             let m = DMatrix::from_columns(&mi.column_iter().chain(mj.column_iter()).collect::<Vec<_>>());
-            let lower: Vec<Option<f64>> = ci.lower.iter().chain(&cj.lower).copied().collect();
-            let x = fit.solve(&m, &y, &lower)?;
+            let bounds: Vec<_> = ci.bounds().into_iter().chain(cj.bounds()).collect();
+            let x = fit.solve(&m, &y, &bounds)?;
             let (stat, n_eff) = per_joint_ratio(&train, &y_white, &fit.whitened(&(&y - &m * &x)));
             let dbic = stat - m.ncols() as f64 * n_eff.ln();
             if best.is_none_or(|b| dbic > b.0) {
