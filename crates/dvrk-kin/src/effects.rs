@@ -168,19 +168,25 @@ impl EffectKind {
         }
     }
 
-    /// The physical range `[lower, upper]` of parameter `name` (a coupling error's `dRC`: any
-    /// entry), `None` for a name that is not one of this effect's parameters.
+    /// The physical range `[lower, upper]` of parameter `name`, `None` for a name that is not
+    /// one of this effect's parameters (and for a coupling error's, whose range is the model's:
+    /// [`coupling_error_range`]).
     pub fn range(self, name: &str) -> Option<[f64; 2]> {
-        match self {
-            EffectKind::CouplingError => coupling_entry(name).map(|_| [-COUPLING_ERROR_LIMIT, COUPLING_ERROR_LIMIT]),
-            _ => self.parameters().iter().find(|p| p.name == name).map(|p| [p.lower, p.upper]),
-        }
+        self.parameters().iter().find(|p| p.name == name).map(|p| [p.lower, p.upper])
     }
 }
 
-/// The largest error of a coupling entry a model file accepts (dimensionless, as the entry):
-/// beyond it the instrument is another one, not an error of this one's cables.
-pub const COUPLING_ERROR_LIMIT: f64 = 0.5;
+/// The largest error of a coupling entry, as a fraction of the largest entry of its row: a
+/// coupling is a ratio of capstan and pulley radii, known to a few percent; a fifth off is
+/// another instrument, not this one's cables.
+pub const COUPLING_ERROR_FRACTION: f64 = 0.2;
+
+/// The physical range of the error of entry (`row`, any column) (0-based) of coupling `c`
+/// (dimensionless, as the entries).
+pub fn coupling_error_range(c: &nalgebra::DMatrix<f64>, row: usize) -> [f64; 2] {
+    let limit = COUPLING_ERROR_FRACTION * c.row(row).amax();
+    [-limit, limit]
+}
 
 const PI: f64 = std::f64::consts::PI;
 const JOINT_OFFSET: &[ParameterInfo] = &[p("offset", "rad", "m", -PI, PI, None)];
@@ -256,13 +262,20 @@ pub fn check_effects(model: &Model) -> Result<Vec<Effect>> {
             let c = model.coupling_matrix().ok_or_else(|| KinError::field(field("name"), format!("model `{}` has no actuator coupling to be in error", model.name)))?;
             for (name, v) in &e.parameters {
                 match coupling_entry(name) {
-                    Some((r, col)) if (1..=c.nrows()).contains(&r) && (1..=c.ncols()).contains(&col) && v.is_finite() && v.abs() <= COUPLING_ERROR_LIMIT => {
+                    Some((r, col)) if (1..=c.nrows()).contains(&r) && (1..=c.ncols()).contains(&col) => {
+                        let [lo, hi] = coupling_error_range(&c, r - 1);
+                        if !(v.is_finite() && (lo..=hi).contains(v)) {
+                            return Err(KinError::field(
+                                field(&format!("parameters.{name}")),
+                                format!("{v} is outside [{lo}, {hi}]: {COUPLING_ERROR_FRACTION} of row {r}'s largest coupling entry"),
+                            ));
+                        }
                         parameters.insert(name.clone(), *v);
                     }
                     _ => {
                         return Err(KinError::field(
                             field(&format!("parameters.{name}")),
-                            format!("{v}: expected dRC (1-based row, column of the {}x{} coupling) with |value| <= {COUPLING_ERROR_LIMIT}", c.nrows(), c.ncols()),
+                            format!("{v}: expected dRC (1-based row, column of the {}x{} coupling)", c.nrows(), c.ncols()),
                         ))
                     }
                 }

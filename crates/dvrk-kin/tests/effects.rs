@@ -169,6 +169,10 @@ fn bad_effects_name_the_effect_the_field_and_the_value() {
     assert!(e.contains("effects[0] (counterweight_error).parameters.mu`: the model has no parameter `mu`"), "{e}");
     assert!(err("[[effects]]\nname = \"coupling_error\"\nparameters = { d68 = 0.1 }\n")
         .contains("(coupling_error).parameters.d68`: 0.1: expected dRC (1-based row, column of the 7x7 coupling)"));
+    // Row 6's largest entry is 0.8306 (the wrist pitch's), so its errors stay within 0.2 x 0.8306.
+    let e = err("[[effects]]\nname = \"coupling_error\"\nparameters = { d66 = 0.17 }\n");
+    assert!(e.contains("(coupling_error).parameters.d66`: 0.17 is outside [-0.16612") && e.contains("of row 6's largest coupling entry"), "{e}");
+    assert!(psm_with("[[effects]]\nname = \"coupling_error\"\nparameters = { d66 = 0.166 }\n").is_ok());
 }
 
 /// `[[inertials]]` (what `dvrk identify -o` writes): read back per body, written back by

@@ -29,6 +29,9 @@ pub struct Candidate {
     /// The model's own value of each parameter (0: the effect is absent): a fit is a change
     /// from it, reported as the new value.
     pub at: Vec<f64>,
+    /// The parameters' physical ranges where the model sets them (a coupling entry's:
+    /// [`dvrk_kin::effects::coupling_error_range`]); `None`: the vocabulary's.
+    pub range: Option<Vec<[f64; 2]>>,
     /// The joint whose effort the effect changes most (for the effect size).
     pub focus: usize,
     /// A nonlinear parameter profiled on a grid: its name and, per grid value, the columns that
@@ -48,11 +51,15 @@ impl Candidate {
         }
     }
 
-    /// The bounds of each fitted change from [`Candidate::at`]: the vocabulary's physical range
-    /// of the parameter (a product such as a payload's `mx` or a spring's `k_rest` is free).
+    /// The bounds of each fitted change from [`Candidate::at`]: the parameter's physical range
+    /// ([`Candidate::range`], else the vocabulary's; a product such as a payload's `mx` or a
+    /// spring's `k_rest` is free).
     pub fn bounds(&self) -> Vec<Bounds> {
-        let range = |name: &str, at: f64| self.kind.range(name).map_or(Bounds::FREE, |[lo, hi]| Bounds::within(lo - at, hi - at));
-        self.names.iter().zip(&self.at).map(|(n, at)| range(n, *at)).collect()
+        let within = |r: Option<[f64; 2]>, at: f64| r.map_or(Bounds::FREE, |[lo, hi]| Bounds::within(lo - at, hi - at));
+        match &self.range {
+            Some(ranges) => ranges.iter().zip(&self.at).map(|(r, at)| within(Some(*r), *at)).collect(),
+            None => self.names.iter().zip(&self.at).map(|(n, at)| within(self.kind.range(n), *at)).collect(),
+        }
     }
 
     /// The model-file parameters of fitted values `x` (in [`Candidate::names`] order) and the
@@ -195,6 +202,7 @@ pub fn build(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f64; 3
             names: names(&["fc"]),
             columns: sign(v),
             at: vec![0.0],
+            range: None,
             focus: j,
             profile: Some(("smoothing", grid)),
         });
@@ -205,6 +213,7 @@ pub fn build(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f64; 3
             names: names(&["fv"]),
             columns: vec![local(prep, nq, j, |i| prep.qd[i][j])],
             at: vec![0.0],
+            range: None,
             focus: j,
             profile: None,
         });
@@ -216,6 +225,7 @@ pub fn build(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f64; 3
             names: names(&["k", "k_rest"]),
             columns: vec![local(prep, nq, j, |i| prep.q[i][j]), local(prep, nq, j, |_| -1.0)],
             at: vec![0.0; 2],
+            range: None,
             focus: j,
             profile: None,
         });
@@ -227,6 +237,7 @@ pub fn build(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f64; 3
                 names: names(&["offset"]),
                 columns: vec![d.clone()],
                 at: vec![0.0],
+                range: None,
                 focus: j,
                 profile: None,
             });
@@ -260,6 +271,7 @@ pub fn build(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f64; 3
             names: names(&["mass", "mx", "my", "mz"]),
             columns: cols,
             at: vec![0.0; 4],
+            range: None,
             focus,
             profile: None,
         });
@@ -315,7 +327,7 @@ fn counterweight(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f6
     let effect = model_effect(kind, BTreeMap::from([("mu".into(), at[0]), ("mass".into(), at[1])]));
     let columns = finite_differences(predictor, arm, gravity, prep, base, &effect, &[("mu".into(), 1e-3), ("mass".into(), 1e-3)])?;
     let focus = focus_of(prep, &columns[1]);
-    Ok(vec![Candidate { kind, joint: None, link: None, names: names(&["mu", "mass"]), columns, at: at.to_vec(), focus, profile: None }])
+    Ok(vec![Candidate { kind, joint: None, link: None, names: names(&["mu", "mass"]), columns, at: at.to_vec(), range: None, focus, profile: None }])
 }
 
 /// The coupling entries a recording can show: non-zero, in a row that couples (not the
@@ -354,7 +366,17 @@ fn coupling(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f64; 3]
             continue;
         }
         let focus = focus_of(prep, &columns[0]);
-        out.push(Candidate { kind, joint: None, link: None, names: vec![name], columns, at: vec![at], focus, profile: None });
+        out.push(Candidate {
+            kind,
+            joint: None,
+            link: None,
+            names: vec![name],
+            columns,
+            at: vec![at],
+            range: Some(vec![dvrk_kin::effects::coupling_error_range(&c, r)]),
+            focus,
+            profile: None,
+        });
     }
     Ok(out)
 }
@@ -364,17 +386,20 @@ mod tests {
     use super::*;
 
     fn candidate(kind: EffectKind, names: &[&str], at: &[f64]) -> Candidate {
-        Candidate { kind, joint: None, link: None, names: super::names(names), columns: vec![], at: at.to_vec(), focus: 0, profile: None }
+        Candidate { kind, joint: None, link: None, names: super::names(names), columns: vec![], at: at.to_vec(), range: None, focus: 0, profile: None }
     }
 
-    /// A fit's bounds are the vocabulary's ranges less the model's own value: a coupling entry
-    /// within the model file's +-0.5 (the WPI recording once fitted d44 = 0.74, a model that
-    /// then did not load), a spring's stiffness in [0, 1e5] N·m/rad with its `k rest` free.
+    /// A fit's bounds are the physical ranges less the model's own value: a coupling entry
+    /// within a fifth of its row's largest (the WPI recording once fitted d44 = 0.74, a model
+    /// that then did not load), a spring's stiffness in [0, 1e5] N·m/rad with its `k rest` free.
     #[test]
     fn fits_are_bounded_by_the_vocabulary() {
-        let c = candidate(EffectKind::CouplingError, &["d55"], &[0.1]);
+        let psm = dvrk_kin::load("psm", None).unwrap();
+        let mut c = candidate(EffectKind::CouplingError, &["d55"], &[0.1]);
+        c.range = Some(vec![dvrk_kin::effects::coupling_error_range(&psm.coupling_matrix().unwrap(), 4)]);
         let [b] = c.bounds()[..] else { panic!() };
-        assert!((b.lower.unwrap() + 0.6).abs() < 1e-15 && (b.upper.unwrap() - 0.4).abs() < 1e-15, "{b:?}");
+        // Row 5's largest entry is 1.0186.
+        assert!((b.lower.unwrap() + 0.30372).abs() < 1e-12 && (b.upper.unwrap() - 0.10372).abs() < 1e-12, "{b:?}");
         let s = candidate(EffectKind::Spring, &["k", "k_rest"], &[0.0, 0.0]);
         assert_eq!(s.bounds(), vec![Bounds::within(0.0, 1e5), Bounds::FREE]);
         let cw = candidate(EffectKind::CounterweightError, &["mu", "mass"], &[0.7, 1.5]);

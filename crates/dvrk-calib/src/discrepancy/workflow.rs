@@ -90,8 +90,10 @@ struct Score {
     effect: Table,
     /// The profiled parameter's value, for a candidate that has one.
     profiled: Option<f64>,
-    /// A profile whose best point is the grid's end: the value is not determined (the effect
-    /// stands in for something outside the grid's physical range), so it is never named.
+    /// A profile whose best point is the grid's end, or a fit with a parameter held at a limit
+    /// of its physical range other than the effect's absence (a coupling entry a fifth off): the
+    /// value is not determined (the effect stands in for something outside its physical
+    /// range), so it is never named.
     at_edge: bool,
 }
 
@@ -215,7 +217,9 @@ fn score_linear(c: &Candidate, fit: &Fitter, r: &Table, o: &Options, rng: &mut C
     let mut effect: Table = (0..prep.t.len()).map(|i| (0..r[0].len()).map(|k| columns.iter().zip(x.iter()).map(|(col, v)| col[i][k] * v).sum()).collect()).collect();
     let size = (effect[..prep.split].iter().map(|e| e[c.focus].powi(2)).sum::<f64>() / prep.split as f64).sqrt() / prep.noise[c.focus];
     add(&mut effect, &fit.nuisance_effort(&e1));
-    Ok(Score { x: x.iter().copied().collect(), ci, delta_bic, stat, p_value, heldout_p, effect_to_noise: size, effect, profiled, at_edge: false })
+    // Held at zero change is the effect's absence (friction's lower bound): the bootstrap's case.
+    let at_edge = bounds.iter().zip(x.iter()).any(|(b, v)| b.active(*v) && *v != 0.0);
+    Ok(Score { x: x.iter().copied().collect(), ci, delta_bic, stat, p_value, heldout_p, effect_to_noise: size, effect, profiled, at_edge })
 }
 
 /// The Particle Data Group's scale factor of a linear candidate's first parameter over the
