@@ -46,9 +46,9 @@ impl Bounds {
 
 /// `min |A x - r|^2` subject to `bounds` on each `x_i`. The columns are scaled to unit norm first
 /// (clarabel's tolerances are absolute). Only the bounds a fit crosses are given to the solver,
-/// side by side, added until none is crossed (a relaxation whose optimum is feasible is the optimum): a far
-/// bound (a spring's 1e5 N·m/rad) would otherwise stall the interior point. Returns `x`, inside
-/// its bounds.
+/// side by side, added until none is crossed (a relaxation whose optimum is feasible is the
+/// optimum): a far bound (a spring's 1e5 N·m/rad) would otherwise stall the interior point.
+/// Returns `x`, inside its bounds.
 pub fn bounded_least_squares(a: &DMatrix<f64>, r: &DVector<f64>, bounds: &[Bounds]) -> Result<DVector<f64>> {
     let p = a.ncols();
     let scale: Vec<f64> = (0..p).map(|j| a.column(j).norm().max(1e-300)).collect();
