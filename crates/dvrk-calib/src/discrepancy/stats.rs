@@ -37,10 +37,15 @@ impl Bounds {
         x.max(self.lower.unwrap_or(f64::NEG_INFINITY)).min(self.upper.unwrap_or(f64::INFINITY))
     }
 
+    /// The bound `x` sits on (to round-off), if any.
+    pub fn held_at(&self, x: f64) -> Option<f64> {
+        let near = |b: f64| (x - b).abs() <= 1e-12 * (1.0 + b.abs());
+        self.lower.filter(|&lo| x <= lo || near(lo)).or(self.upper.filter(|&hi| x >= hi || near(hi)))
+    }
+
     /// Whether `x` sits on either bound (to round-off).
     pub fn active(&self, x: f64) -> bool {
-        let near = |b: f64| (x - b).abs() <= 1e-12 * (1.0 + b.abs());
-        self.lower.is_some_and(|lo| x <= lo || near(lo)) || self.upper.is_some_and(|hi| x >= hi || near(hi))
+        self.held_at(x).is_some()
     }
 }
 
@@ -291,5 +296,6 @@ mod tests {
         assert!((u[0] - 0.2).abs() < 1e-6, "{u}");
         assert!((u[1] - a1.dot(&(&r - a0 * 0.2)) / a1.dot(&a1)).abs() < 1e-6, "{u}");
         assert!(Bounds::within(-1.0, 0.2).active(u[0]) && !Bounds::within(-1.0, 0.2).active(0.0));
+        assert_eq!((Bounds::within(-1.0, 0.2).held_at(u[0]), Bounds::at_least(0.0).held_at(1e-14)), (Some(0.2), Some(0.0)));
     }
 }

@@ -218,7 +218,7 @@ fn score_linear(c: &Candidate, fit: &Fitter, r: &Table, o: &Options, rng: &mut C
     let size = (effect[..prep.split].iter().map(|e| e[c.focus].powi(2)).sum::<f64>() / prep.split as f64).sqrt() / prep.noise[c.focus];
     add(&mut effect, &fit.nuisance_effort(&e1));
     // Held at zero change is the effect's absence (friction's lower bound): the bootstrap's case.
-    let at_edge = bounds.iter().zip(x.iter()).any(|(b, v)| b.active(*v) && *v != 0.0);
+    let at_edge = bounds.iter().zip(x.iter()).any(|(b, v)| b.held_at(*v).is_some_and(|b| b != 0.0));
     Ok(Score { x: x.iter().copied().collect(), ci, delta_bic, stat, p_value, heldout_p, effect_to_noise: size, effect, profiled, at_edge })
 }
 
