@@ -1,4 +1,5 @@
 //! One hidden-effect trial, printed: `[DVRK_PERTURB=0.03] [DVRK_NOISE=1] [DVRK_POS_NOISE=1] [DVRK_TRUTH_DT=1.25e-4] [DVRK_DURATION=30] [DVRK_DUMP=residual.csv] cargo run --release -p dvrk-calib --example hidden_probe -- KIND SEED [ENR]`.
+//! DVRK_ROUNDS=4 runs the repeated workflow (KIND `random-pair` for the two-effect trials).
 //! DVRK_DUMP writes the band-limited residual before and after, with each joint's position,
 //! velocity and load, one row per analysed sample.
 use dvrk_calib::discrepancy::*;
@@ -33,7 +34,20 @@ fn main() {
     let t1 = std::time::Instant::now();
     let scene = dvrk_sim::Scene::load("psm").unwrap();
     let model = dvrk_kin::load("psm", None).unwrap();
-    let out = discrepancy(&model, &scene, "PSM1", &h.log, &Options { tracking: args.get(4).is_some(), ..Default::default() }).unwrap();
+    let o = Options { tracking: args.get(4).is_some(), ..Default::default() };
+    // DVRK_ROUNDS: the repeated workflow (step 4), its steps and named effects printed.
+    if let Some(rounds) = std::env::var("DVRK_ROUNDS").ok().and_then(|s| s.parse().ok()) {
+        let rep = discrepancy_repeated(&model, &scene, "PSM1", &h.log, &o, rounds).unwrap();
+        for s in &rep.report.steps {
+            println!("  round {} {} {:?}: {:.3} -> {:.3}, held out {:.3} -> {:.3}", s.round, s.verdict, s.named, s.rms_before, s.rms_after, s.rms_heldout_before, s.rms_heldout_after);
+        }
+        for e in &rep.report.effects {
+            println!("  named {} {:?} {:?} ci {:?} dBIC {:.1}", e.name, e.joint, e.parameters, e.ci95, e.delta_bic);
+        }
+        println!("analyse {:.2} s", t1.elapsed().as_secs_f64());
+        return;
+    }
+    let out = discrepancy(&model, &scene, "PSM1", &h.log, &o).unwrap();
     let r = &out.report;
     println!("analyse {:.2} s: verdict {} {:?}", t1.elapsed().as_secs_f64(), r.verdict, r.experiment);
     for e in &r.effects {

@@ -133,6 +133,19 @@ fn rms_joint(t: &Table, j: usize) -> f64 {
 /// The Coulomb smoothing velocities tried (rad/s, m/s).
 pub const COULOMB_SMOOTHING: [f64; 6] = [5e-4, 1e-3, 2e-3, 4e-3, 8e-3, 1.6e-2];
 
+/// The Coulomb smoothing velocity (rad/s, m/s) of a model's friction that names none.
+pub const COULOMB_SMOOTHING_DEFAULT: f64 = 2.0 * dvrk_sim::effects::COULOMB_VELOCITY;
+
+/// Joint `j`'s Coulomb signature, `tanh(qd_j / v)` (`v`: the smoothing, rad/s or m/s): the sign
+/// taken at the recording's rate, then band-limited as the measured effort was. Inverse dynamics
+/// on the band-limited velocity gives another signal: its sign flips sharply where this one is
+/// spread over the band's impulse response (a Coulomb friction named by one round and evaluated
+/// that way by the next left 3.3x the floor where the fit had left 1.07; seed 7013).
+pub fn friction_sign(prep: &Prepared, nq: usize, j: usize, v: f64) -> Table {
+    let s = prep.band(&prep.fast_qd[j].iter().map(|x| (x / v).tanh()).collect::<Vec<_>>());
+    local(prep, nq, j, |i| s[i])
+}
+
 /// Frames a payload is tried on: the instrument's bodies (what a grasped object or a heavier
 /// tool loads), those the model has.
 pub const PAYLOAD_FRAMES: [&str; 3] = ["main_insertion", "tool_roll", "tool_yaw"];
@@ -184,23 +197,16 @@ pub fn build(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f64; 3
     let model = &predictor.model;
     let nq = model.nq();
     let mut out = Vec::new();
-    // Smoothing of the friction sign (rad/s, m/s) and of the transmission-torque sign (a fraction
-    // of its spread).
-    let v = 2.0 * dvrk_sim::effects::COULOMB_VELOCITY;
     for &j in &prep.active {
-        // The sign taken at the recording's rate, then band-limited like the measured effort;
-        // its smoothing (how soon the force saturates: stick, a Stribeck hump) profiled.
-        let sign = |v: f64| -> Vec<Table> {
-            let s = prep.band(&prep.fast_qd[j].iter().map(|x| (x / v).tanh()).collect::<Vec<_>>());
-            vec![local(prep, nq, j, |i| s[i])]
-        };
+        // Its smoothing (how soon the force saturates: stick, a Stribeck hump) profiled.
+        let sign = |v: f64| vec![friction_sign(prep, nq, j, v)];
         let grid: Vec<(f64, Vec<Table>)> = COULOMB_SMOOTHING.iter().map(|&v| (v, sign(v))).collect();
         out.push(Candidate {
             kind: EffectKind::CoulombFriction,
             joint: Some(j),
             link: None,
             names: names(&["fc"]),
-            columns: sign(v),
+            columns: sign(COULOMB_SMOOTHING_DEFAULT),
             at: vec![0.0],
             range: None,
             focus: j,

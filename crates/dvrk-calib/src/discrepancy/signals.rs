@@ -291,7 +291,7 @@ impl Predictor {
             armature,
             damping,
             gravity: Vector3::from(gravity),
-            velocity_scale: 2.0 * dvrk_sim::effects::COULOMB_VELOCITY,
+            velocity_scale: super::candidates::COULOMB_SMOOTHING_DEFAULT,
         })
     }
 

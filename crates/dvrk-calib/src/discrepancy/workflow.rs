@@ -46,6 +46,9 @@ pub struct Options {
     pub seed: u64,
     /// The inertias re-estimated next to every candidate, within this prior.
     pub inertia_prior: InertiaPrior,
+    /// Analyse only this effect's candidate ([`same_effect`]): the repeated workflow's refit of
+    /// an effect named in an earlier round, the model holding every other.
+    pub only: Option<EffectSpec>,
 }
 
 impl Default for Options {
@@ -61,7 +64,34 @@ impl Default for Options {
             tracking: true,
             seed: 1,
             inertia_prior: InertiaPrior::default(),
+            only: None,
         }
+    }
+}
+
+/// Whether two effects are the same one: a kind on one joint or link (a coupling error, on
+/// neither, by its entry: the parameter it names), whatever their values.
+pub fn same_effect(a: &EffectSpec, b: &EffectSpec) -> bool {
+    a.name == b.name && a.joint == b.joint && a.link == b.link && (a.joint.is_some() || a.link.is_some() || a.parameters.keys().eq(b.parameters.keys()))
+}
+
+/// The profiled effects' one parameter, by kind (latency, a drive's compliance or play).
+fn profiled_name(kind: EffectKind) -> &'static str {
+    match kind {
+        EffectKind::Latency => "seconds",
+        EffectKind::JointCompliance => "stiffness",
+        _ => "b",
+    }
+}
+
+/// A profiled effect at `value` as a model file writes it.
+fn profiled_spec(model: &Model, kind: EffectKind, joint: Option<usize>, value: f64) -> EffectSpec {
+    EffectSpec {
+        name: kind.name().into(),
+        joint: joint.map(|j| model.joints[j].name.clone()),
+        link: None,
+        parameters: BTreeMap::from([(profiled_name(kind).into(), value)]),
+        source: "dvrk discrepancy".into(),
     }
 }
 
@@ -621,6 +651,25 @@ fn rms(r: &Table, k: usize, range: std::ops::Range<usize>) -> f64 {
     (range.map(|i| r[i][k] * r[i][k]).sum::<f64>() / n).sqrt()
 }
 
+/// `base` (the model's prediction, inverse dynamics with its effects) with each of the model's
+/// Coulomb frictions replaced by its candidate's signature: `fc` times
+/// [`candidates::friction_sign`] at its smoothing, plus its offset.
+fn coulomb_as_fitted(base: &mut Table, model: &Model, prep: &Prepared) {
+    let nq = model.nq();
+    let mut kin = vec![0.0; nq];
+    for e in model.effects.iter().filter(|e| e.kind == EffectKind::CoulombFriction) {
+        let Some(j) = e.joint else { continue };
+        let v = if e.get("smoothing") > 0.0 { e.get("smoothing") } else { candidates::COULOMB_SMOOTHING_DEFAULT };
+        let sign = candidates::friction_sign(prep, nq, j, v);
+        for ((row, s), (q, qd)) in base.iter_mut().zip(&sign).zip(prep.q.iter().zip(&prep.qd)) {
+            // dvrk-kin's term (`effort` writes the joint's force on the link: its negative).
+            kin[j] = 0.0;
+            dvrk_kin::effects::effort(std::slice::from_ref(e), q, qd, candidates::COULOMB_SMOOTHING_DEFAULT, &mut kin);
+            row[j] += kin[j] + e.get("fc") * s[j] + e.get("offset");
+        }
+    }
+}
+
 /// Run the workflow: `model` against `log`, for arm `arm` of `scene` (whose inertials, drive and
 /// gains are the rest of the model).
 pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog, o: &Options) -> Result<Outcome> {
@@ -658,8 +707,10 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
         })
     };
     // The model's own drive and stream effects, which inverse dynamics does not hold (a model
-    // from an earlier round of the workflow has them).
+    // from an earlier round of the workflow has them); its Coulomb friction as its candidate
+    // fitted it ([`candidates::friction_sign`]), not as inverse dynamics evaluates it.
     let mut base = rigid.clone();
+    coulomb_as_fitted(&mut base, &arm.model, &prep);
     for e in &arm.model.effects {
         let law = match (e.kind, e.joint) {
             (EffectKind::JointCompliance, Some(j)) => Some((j, super::drive::Law::Compliance(e.get("stiffness")))),
@@ -679,7 +730,10 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
     let gravity = nalgebra::Vector3::from(scene.gravity);
     let nuisance = Nuisance::new(&arm.model, predictor.dynamics(), &gravity, &prep, &o.inertia_prior, 1.0 / prep.noise_fraction)?;
     let fit = Fitter { prep: &prep, nuisance: nuisance.as_ref() };
+    // Whether an effect is analysed (all of them, or [`Options::only`]'s).
+    let wanted = |spec: &EffectSpec| o.only.as_ref().is_none_or(|t| same_effect(spec, t));
     let mut cands = candidates::build(&predictor, arm, scene.gravity, &prep, &rigid, &offsets)?;
+    cands.retain(|c| wanted(&c.spec(&arm.model, &vec![0.0; c.names.len()], None, "")));
     // A coupling error's signature is quadratic in its entry: where one shows, its column is
     // re-taken as the secant through the estimate (a fixed point: the error shrinks by the
     // relative change squared each pass). Its own generator: the bootstrap draws of the
@@ -704,14 +758,16 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
     // Latency: the prediction shifted later, 0-60 ms.
     let shift = |tau: f64| sub(&shifted(&base, prep.dt, tau), &base);
     let lat_grid: Vec<f64> = (0..=60).map(|i| i as f64 * 1e-3).collect();
-    scored.push(Scored {
-        candidate: None,
-        kind: EffectKind::Latency,
-        label: "latency".into(),
-        score: score_profile(&fit, &r, &lat_grid, &shift, None),
-        joint: None,
-        kinematic: None,
-    });
+    if wanted(&profiled_spec(&arm.model, EffectKind::Latency, None, 0.0)) {
+        scored.push(Scored {
+            candidate: None,
+            kind: EffectKind::Latency,
+            label: "latency".into(),
+            score: score_profile(&fit, &r, &lat_grid, &shift, None),
+            joint: None,
+            kinematic: None,
+        });
+    }
     // The drives: compliance and play per moving joint, each a profile of its own simulation;
     // where one shows, profiled again with the link's load, inertia and stiffness as the fit's
     // nuisance inertias correct them ([`DRIVE_PASSES`]).
@@ -737,10 +793,14 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
             continue;
         };
         let name = &arm.model.joints[j].name;
-        let s = drive_profile(&jl, &super::drive::Law::Compliance, &geometric(1.0, 1e5, 26))?;
-        scored.push(Scored { candidate: None, kind: EffectKind::JointCompliance, label: format!("joint_compliance on {name}"), score: s, joint: Some(j), kinematic: None });
-        let s = drive_profile(&jl, &|half| super::drive::Law::Backlash { half }, &geometric(2.5e-4, 0.04, 21))?;
-        scored.push(Scored { candidate: None, kind: EffectKind::Backlash, label: format!("backlash on {name}"), score: s, joint: Some(j), kinematic: None });
+        if wanted(&profiled_spec(&arm.model, EffectKind::JointCompliance, Some(j), 0.0)) {
+            let s = drive_profile(&jl, &super::drive::Law::Compliance, &geometric(1.0, 1e5, 26))?;
+            scored.push(Scored { candidate: None, kind: EffectKind::JointCompliance, label: format!("joint_compliance on {name}"), score: s, joint: Some(j), kinematic: None });
+        }
+        if wanted(&profiled_spec(&arm.model, EffectKind::Backlash, Some(j), 0.0)) {
+            let s = drive_profile(&jl, &|half| super::drive::Law::Backlash { half }, &geometric(2.5e-4, 0.04, 21))?;
+            scored.push(Scored { candidate: None, kind: EffectKind::Backlash, label: format!("backlash on {name}"), score: s, joint: Some(j), kinematic: None });
+        }
     }
     let kin = match &log.markers {
         Some(mk) => Some(super::kinematic::analyse(&super::kinematic::Inputs { model: &arm.model, log, markers: mk, prep: &prep, armature: &arm.armature })?),
@@ -759,22 +819,10 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
         let strong: &dyn Fn(f64, f64, f64, f64) -> bool = if e.kinematic.is_some() { &strong_kinematic } else { &strong };
         !s.at_edge && strong(s.delta_bic, s.p_value, s.heldout_p, s.effect_to_noise)
     };
-    // The profiled effects' one parameter, by kind.
-    let profiled_name = |kind: EffectKind| match kind {
-        EffectKind::Latency => "seconds",
-        EffectKind::JointCompliance => "stiffness",
-        _ => "b",
-    };
     let spec_of = |c: Option<&Candidate>, kind: EffectKind, joint: Option<usize>, s: &Score| -> EffectSpec {
         match c {
             Some(c) => c.spec(&arm.model, &s.x, s.profiled, "dvrk discrepancy"),
-            None => EffectSpec {
-                name: kind.name().into(),
-                joint: joint.map(|j| arm.model.joints[j].name.clone()),
-                link: None,
-                parameters: BTreeMap::from([(profiled_name(kind).into(), s.x[0])]),
-                source: "dvrk discrepancy".into(),
-            },
+            None => profiled_spec(&arm.model, kind, joint, s.x[0]),
         }
     };
     let ci_of = |c: Option<&Candidate>, kind: EffectKind, s: &Score| -> BTreeMap<String, [f64; 2]> {
@@ -815,6 +863,8 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
         };
         (spec, report)
     };
+    // The kinematic channel's own candidates too, when one effect is analysed.
+    scored.retain(|e| wanted(&report_of(e).0));
     let mut winners: Vec<usize> = (0..scored.len()).filter(|&i| supported(&scored[i])).collect();
     if let Some(k) = pair_choice(&scored, &winners, &fit, &r, o)? {
         winners.retain(|&i| i != k);

@@ -310,6 +310,47 @@ fn two_hidden_effects_are_named_one_round_each() {
     assert!(r.steps[1].rms_heldout_after < r.steps[0].rms_heldout_after && r.steps[0].rms_heldout_after < r.steps[0].rms_heldout_before);
 }
 
+/// The repeated workflow on `hidden` (seed 11, 20 s, ENR 5 each), up to 4 rounds.
+fn repeated_pair(a: EffectKind, b: EffectKind) -> (HiddenRecording, dvrk_calib::discrepancy::Report) {
+    use dvrk_calib::discrepancy::discrepancy_repeated;
+    let h = trial(Hidden::Pair(a, b), 11, Some(5.0), 20.0);
+    let scene = dvrk_sim::Scene::load("psm").unwrap();
+    let model = dvrk_kin::load("psm", None).unwrap();
+    let out = discrepancy_repeated(&model, &scene, "PSM1", &h.log, &Options { tracking: false, ..Default::default() }, 4).unwrap();
+    eprintln!("hidden {:?}; steps {:?}; effects {:?}", hidden_set(&h), out.report.steps, out.report.effects);
+    (h, out.report)
+}
+
+/// A Coulomb friction named in one round is in the next round's model as its fit had it: the
+/// next round starts where the last one ended (measured 1.038 and 1.038; with the friction's
+/// sign taken on the band-limited velocity instead, 1.08 -> 3.3 on seed 7013's pair), and the
+/// second effect then brings the held-out residual to the floor (measured 1.045).
+#[test]
+fn a_named_friction_carries_into_the_next_round_as_fitted() {
+    let (h, r) = repeated_pair(EffectKind::CoulombFriction, EffectKind::JointOffset);
+    assert_eq!(named_set(&r), hidden_set(&h));
+    let (first, second) = (&r.steps[0], &r.steps[1]);
+    assert!((second.rms_before - first.rms_after).abs() < 0.01 * first.rms_after, "{} then {}", first.rms_after, second.rms_before);
+    assert!(r.steps.last().unwrap().rms_heldout_after < 1.1);
+}
+
+/// Two effects fitted one round each leave the first fitted with the second's signature in
+/// the residual (a latency named first, the compliance second: held-out 4.13x the floor after
+/// round 2); the refits of every named effect given the others bring both to the truth
+/// (measured -0.6% and +1.2%) and the residual to the floor (measured 1.100).
+#[test]
+fn named_effects_are_refitted_given_each_other() {
+    let (h, r) = repeated_pair(EffectKind::JointCompliance, EffectKind::Latency);
+    assert_eq!(named_set(&r), hidden_set(&h));
+    for truth in &h.answer.effects {
+        let e = r.effects.iter().find(|e| e.name == truth.spec.name).unwrap();
+        let p = &main_parameter(&truth.spec);
+        let (got, want) = (e.parameters[p], truth.spec.parameters[p]);
+        assert!(((got - want) / want).abs() < 0.02, "{}: {p} = {got}, truth {want}", e.name);
+    }
+    assert!(r.steps.last().unwrap().rms_heldout_after < 1.2, "{:?}", r.steps);
+}
+
 /// Two-effect trials: TRIALS random pairs at ENR drawn in [3, 8] each, analysed by the repeated
 /// workflow. `DVRK_TRIALS=40 cargo test --release -p dvrk-calib --test calib two_effect_table --
 /// --ignored --nocapture` (`DVRK_FIRST_SEED`: the first trial's seed, 7000 and up).
