@@ -45,6 +45,13 @@ fn main() {
             println!("  named {} {:?} {:?} ci {:?} dBIC {:.1}", e.name, e.joint, e.parameters, e.ci95, e.delta_bic);
         }
         println!("analyse {:.2} s", t1.elapsed().as_secs_f64());
+        // DVRK_LAST: the candidates of one more round on the final model.
+        if std::env::var("DVRK_LAST").is_ok() {
+            let last = discrepancy(&rep.model, &scene, "PSM1", &h.log, &o).unwrap().report;
+            for c in last.candidates.iter().take(8) {
+                println!("  last cand {:40} dBIC {:10.1} p {:.1e} hold p {:.1e} size {:.2} {:?}", c.label, c.effect.delta_bic, c.effect.p_value, c.heldout_p_value, c.effect_to_noise, c.effect.parameters);
+            }
+        }
         return;
     }
     let out = discrepancy(&model, &scene, "PSM1", &h.log, &o).unwrap();
