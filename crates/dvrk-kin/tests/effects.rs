@@ -173,6 +173,10 @@ fn bad_effects_name_the_effect_the_field_and_the_value() {
     let e = err("[[effects]]\nname = \"coupling_error\"\nparameters = { d66 = 0.17 }\n");
     assert!(e.contains("(coupling_error).parameters.d66`: 0.17 is outside [-0.16612") && e.contains("of row 6's largest coupling entry"), "{e}");
     assert!(psm_with("[[effects]]\nname = \"coupling_error\"\nparameters = { d66 = 0.166 }\n").is_ok());
+    // An offset's bounds: +-pi rad on a revolute joint, +-5 cm on the insertion.
+    let offset = |joint: &str, v: f64| psm_with(&format!("[[effects]]\nname = \"joint_offset\"\njoint = \"{joint}\"\nparameters = {{ offset = {v} }}\n"));
+    assert!(offset("outer_insertion", -0.06).unwrap_err().to_string().contains("(joint_offset).parameters.offset`: -0.06 m is outside its physical bounds [-0.05, 0.05]"));
+    assert!(offset("outer_insertion", 0.04).is_ok() && offset("outer_pitch", 0.5).is_ok() && offset("outer_pitch", 3.2).is_err());
 }
 
 /// `[[inertials]]` (what `dvrk identify -o` writes): read back per body, written back by

@@ -243,7 +243,8 @@ pub fn build(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f64; 3
                 names: names(&["offset"]),
                 columns: vec![d.clone()],
                 at: vec![0.0],
-                range: None,
+                // A prismatic joint's in m, not the revolute +-pi.
+                range: (model.joints[j].kind == dvrk_kin::JointType::Prismatic).then(|| EffectKind::JointOffset.range_on("offset", true).into_iter().collect()),
                 focus: j,
                 profile: None,
             });
