@@ -738,11 +738,9 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
     // Whether an effect is analysed (all of them, or [`Options::only`]'s).
     let wanted = |spec: &EffectSpec| o.only.as_ref().is_none_or(|t| same_effect(spec, t));
     let delay_columns = |c: &mut Candidate| {
-        if lag > 0.0 {
-            let grids = c.profile.iter_mut().flat_map(|(_, g)| g.iter_mut().flat_map(|(_, cols)| cols.iter_mut()));
-            for col in c.columns.iter_mut().chain(grids) {
-                *col = shifted(col, prep.dt, lag);
-            }
+        let grids = c.profile.iter_mut().flat_map(|(_, g)| g.iter_mut().flat_map(|(_, cols)| cols.iter_mut()));
+        for col in c.columns.iter_mut().chain(grids) {
+            *col = delayed(std::mem::take(col));
         }
     };
     let mut cands = candidates::build(&predictor, arm, scene.gravity, &prep, &rigid, &offsets)?;
