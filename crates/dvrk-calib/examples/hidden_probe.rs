@@ -1,4 +1,4 @@
-//! One hidden-effect trial, printed: `[DVRK_PERTURB=0.03] [DVRK_NOISE=1] [DVRK_POS_NOISE=1] [DVRK_TRUTH_DT=1.25e-4] [DVRK_DURATION=30] [DVRK_DUMP=residual.csv] cargo run --release -p dvrk-calib --example hidden_probe -- KIND SEED [ENR]`.
+//! One hidden-effect trial, printed: `[DVRK_SCENE=psm] [DVRK_PERTURB=0.03] [DVRK_NOISE=1] [DVRK_POS_NOISE=1] [DVRK_TRUTH_DT=1.25e-4] [DVRK_DURATION=30] [DVRK_DUMP=residual.csv] cargo run --release -p dvrk-calib --example hidden_probe -- KIND SEED [ENR]`.
 //! DVRK_ROUNDS=4 runs the repeated workflow (KIND `random-pair` for the two-effect trials).
 //! DVRK_DUMP writes the band-limited residual before and after, with each joint's position,
 //! velocity and load, one row per analysed sample.
@@ -29,10 +29,12 @@ fn main() {
     if let Some(k) = std::env::var("DVRK_POS_NOISE").ok().and_then(|s| s.parse::<f64>().ok()) {
         o.position_noise = generate::POSITION_NOISE * k;
     }
-    let h = hidden_effect("psm", &o).unwrap();
+    // DVRK_SCENE: the truth's and the analysis' scene (a file or built-in name).
+    let truth_scene = std::env::var("DVRK_SCENE").unwrap_or_else(|_| "psm".into());
+    let h = hidden_effect(&truth_scene, &o).unwrap();
     println!("generate {:.2} s; answer {}", t0.elapsed().as_secs_f64(), serde_json::to_string(&h.answer).unwrap());
     let t1 = std::time::Instant::now();
-    let scene = dvrk_sim::Scene::load("psm").unwrap();
+    let scene = dvrk_sim::Scene::load(&truth_scene).unwrap();
     let model = dvrk_kin::load("psm", None).unwrap();
     let o = Options { tracking: args.get(4).is_some(), ..Default::default() };
     // DVRK_ROUNDS: the repeated workflow (step 4), its steps and named effects printed.
