@@ -28,9 +28,10 @@ const POSITION_DAMPING: f64 = 6.0e3;
 /// a step early (hidden-effect recordings at 0.125 ms: effect-free seed 1000 showed an apparent
 /// latency of 38 us, 31.5 us with this; under seed 1031's 8 ms latency the wrist yaw's and wrist
 /// pitch's own estimates, whose efforts are mostly damping, were 76 and 27 us late, now 42 and
-/// 3). Half and half is the trapezoidal rule: the damping on the step's central velocity. Drives only: their armature keeps the explicit half stable (`dt d / 2 I` =
-/// 0.0125 for the PSM wrist at 1 ms); a passive joint's link can be light, and the passive joints'
-/// share changed the apparent latency by 0.01 us.
+/// 3). Half and half is the trapezoidal rule: the damping on the step's central velocity.
+/// Drives only: their armature keeps the explicit half stable (`dt d / 2 I` = 0.0125 for the PSM
+/// wrist at 1 ms); a passive joint's link can be light, and the passive joints' share changed the
+/// apparent latency by 0.01 us.
 const DRIVE_DAMPING_EXPLICIT: f64 = 0.5;
 /// Natural frequency of a cable's mode on its follower's own inertia (rad/s), critically damped.
 pub(crate) const CABLE_BANDWIDTH: f64 = 200.0;
@@ -837,15 +838,17 @@ impl Sim {
                     tau = t.step(tau, self.q_link[i], self.qd_link[i], self.dt);
                 }
                 tau += arm.effects.force[k];
-                if tau == 0.0 {
+                // Generalised force on the drive's coordinate (tau dq = f dcoord), with the
+                // explicit part of its damping on the velocity the step starts with (the link's
+                // qd: the coordinate's last change over dt, per unit of q).
+                let f = tau / dr.c - arm.explicit_damping * dr.c * self.qd_link[i];
+                if f == 0.0 {
                     continue;
                 }
-                // Generalised force on the drive's coordinate: tau dq = f dcoord.
-                apply_generalized(&mut self.worlds[arm.world].bodies, &arm.dofs[dr.dof], tau / dr.c);
+                apply_generalized(&mut self.worlds[arm.world].bodies, &arm.dofs[dr.dof], f);
             }
         }
         self.apply_cables();
-        self.apply_explicit_damping();
         let gravity = self.gravity;
         if self.parallel && self.worlds.len() > 1 {
             use rayon::prelude::*;
@@ -857,21 +860,6 @@ impl Sim {
         }
         self.time += self.dt;
         self.read_state();
-    }
-
-    /// The explicit part of the drives' damping ([`DRIVE_DAMPING_EXPLICIT`]).
-    fn apply_explicit_damping(&mut self) {
-        for arm in &self.arms {
-            if arm.explicit_damping == 0.0 {
-                continue;
-            }
-            let w = &mut self.worlds[arm.world];
-            for dof in arm.drives.iter().map(|dr| &arm.dofs[dr.dof]) {
-                if let Some((_, v)) = coordinate(&w.multibody_joints, dof) {
-                    apply_generalized(&mut w.bodies, dof, -arm.explicit_damping * v);
-                }
-            }
-        }
     }
 
     /// Cables: the spring-damper tension on each follower and its reaction on the leader.

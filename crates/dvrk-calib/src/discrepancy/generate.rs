@@ -108,8 +108,9 @@ pub struct HiddenOptions {
     /// at 0.25 ms, 0.4 of its effort noise floor, halving with the step). Such O(dt) errors are
     /// what the workflow's finest estimates see of the truth: an effect-free recording shows an
     /// apparent latency of 67, 38, 24 us at 0.25, 0.125, 0.0625 ms (seed 1000, no inertia
-    /// perturbation; 31.5 us at 0.125 ms since the drives' damping is trapezoidal, see dvrk-sim), and a spring on the wrist yaw comes out 0.77% weak at 0.125 ms, 0.40% at
-    /// 0.0625 ms (seed 1035, a tenth of the noise).
+    /// perturbation; 31.5 us at 0.125 ms since the drives' damping is trapezoidal, see dvrk-sim),
+    /// and a spring on the wrist yaw comes out 0.77% weak at 0.125 ms, 0.40% at 0.0625 ms (seed
+    /// 1035, a tenth of the noise).
     pub truth_dt: f64,
     /// Recording rate (Hz).
     pub rate: f64,
