@@ -10,7 +10,6 @@
 //! (the jaw blades) get a small box along the tip's approach axis (z of the tip frame).
 
 use crate::error::{Result, SimError};
-use crate::sim::to_rapier;
 use dvrk_kin::{FrameJoint, Model, Pose};
 use nalgebra::{Point3, Rotation3, Translation3, Unit, Vector3};
 use rapier3d_f64::math::Vector as RVec;
@@ -263,7 +262,21 @@ pub fn tessellate(solid: &Solid) -> (Vec<Vector3<f64>>, Vec<[u32; 3]>) {
     (v, i)
 }
 
-/// The rapier pose of a solid (for a collider's position relative to its body).
-pub fn collider_pose(solid: &Solid) -> rapier3d_f64::math::Pose {
-    to_rapier(&solid.pose)
+/// A solid's shape placed at its body's frame (a collider at the identity pose): as it is where
+/// its pose is the identity, else its surface moved into the body frame (a box: the hull of its
+/// corners). A collider at the identity with zero mass properties adds exactly nothing to its
+/// body's: rapier then keeps the body's own (see [`crate::sim::mass_properties`] for why that
+/// matters), where any other collider re-derives them through parry's principal axes.
+pub fn in_body_frame(solid: &Solid) -> Result<SharedShape> {
+    if solid.pose == Pose::identity() {
+        return Ok(solid.shape.clone());
+    }
+    let (v, i) = tessellate(solid);
+    let points: Vec<RVec> = v.iter().map(rv).collect();
+    let shape = if solid.shape.as_cuboid().is_some() {
+        SharedShape::convex_hull(&points)
+    } else {
+        SharedShape::trimesh(points, i).ok()
+    };
+    shape.ok_or_else(|| SimError::Build(format!("the {:?} solid could not be moved into its body frame", solid.part)))
 }

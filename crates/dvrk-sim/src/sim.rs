@@ -325,6 +325,24 @@ pub fn from_rapier(p: &RPose) -> Pose {
     Pose::from_parts(Translation3::new(p.translation.x, p.translation.y, p.translation.z), uq.to_rotation_matrix())
 }
 
+/// rapier mass properties of a body: `mass` (kg), centre `com` (m) and `inertia` about it
+/// (kg m^2), both in the body's frame. The principal axes come from nalgebra's iterative
+/// eigensolver: parry's closed-form one (`MassProperties::with_inertia_matrix`) returns wrong
+/// axes when two principal moments are equal, and the PSM tool's near-isotropic 0.001 kg m^2
+/// links came back 1e-5 kg m^2 off in every entry (all of their products of inertia), which an
+/// effect-free recording showed as a wrist residual above its noise floor.
+pub fn mass_properties(mass: f64, com: &Vector3<f64>, inertia: &nalgebra::Matrix3<f64>) -> MassProperties {
+    let eig = inertia.symmetric_eigen();
+    let mut axes = eig.eigenvectors;
+    // A right-handed frame: flipping one axis keeps it an eigenvector.
+    if axes.determinant() < 0.0 {
+        axes.column_mut(2).neg_mut();
+    }
+    let frame = to_rapier(&Pose::from_parts(Translation3::identity(), Rotation3::from_matrix_unchecked(axes))).rotation;
+    let moments = eig.eigenvalues.map(|e| e.max(0.0));
+    MassProperties::with_principal_inertia_frame(rv(com), mass, rv(&moments), frame)
+}
+
 fn rv(v: &Vector3<f64>) -> RVec {
     RVec::new(v.x, v.y, v.z)
 }
@@ -373,9 +391,7 @@ impl Sim {
             // The bodies' inertials with any payload_mass effect added.
             let inertias = dvrk_kin::effects::effect_inertias(model, &model.effects, &arm.inertials.body_inertias(model)?)?;
             for (bi, ine) in inertias.iter().enumerate() {
-                let i = ine.inertia;
-                let cols = [[i[(0, 0)], i[(1, 0)], i[(2, 0)]], [i[(0, 1)], i[(1, 1)], i[(2, 1)]], [i[(0, 2)], i[(1, 2)], i[(2, 2)]]];
-                let mp = MassProperties::with_inertia_matrix(RVec::new(ine.com.x, ine.com.y, ine.com.z), ine.mass, RMat::from_cols_array_2d(&cols));
+                let mp = mass_properties(ine.mass, &ine.com, &ine.inertia);
                 let rb = RigidBodyBuilder::dynamic().pose(to_rapier(&body_pose[bi])).additional_mass_properties(mp).can_sleep(false);
                 handles.push(bodies.insert(rb));
             }
@@ -385,8 +401,9 @@ impl Sim {
                 let groups = collision_groups(scene, a, options.colliders);
                 for (bi, solids) in geometry.bodies.iter().enumerate() {
                     for s in solids {
-                        // Massless: the CAD inertials stay the bodies' only mass.
-                        let c = ColliderBuilder::new(s.shape.clone()).position(to_rapier(&s.pose)).density(0.0).collision_groups(groups).solver_groups(groups);
+                        // Massless, and exactly: the CAD inertials stay the bodies' only mass.
+                        let shape = crate::geometry::in_body_frame(s)?;
+                        let c = ColliderBuilder::new(shape).mass_properties(MassProperties::default()).collision_groups(groups).solver_groups(groups);
                         colliders.insert_with_parent(c, handles[bi], bodies);
                     }
                 }
