@@ -254,12 +254,9 @@ fn a_simulated_recording_gives_back_the_simulators_damping_and_armature() {
     let roll = model.joint_id("outer_roll").unwrap();
     let inertia = |m: &dvrk_kin::Model, bodies: Vec<dvrk_kin::BodyInertia>, armature: f64, q: &[f64]| {
         let dm = dvrk_kin::DynamicsModel::new(m, bodies).unwrap();
-        let mut data = dvrk_kin::DynamicsData::new(m);
-        let (nq, mut tau) = (m.nq(), vec![0.0; m.nq()]);
-        let mut qdd = vec![0.0; nq];
-        qdd[roll] = 1.0;
-        dvrk_kin::dynamics::inverse_dynamics(m, &dm, &mut data, q, &vec![0.0; nq], &qdd, &nalgebra::Vector3::zeros(), &mut tau).unwrap();
-        tau[roll] + armature
+        let mut mass = nalgebra::DMatrix::zeros(m.nq(), m.nq());
+        dvrk_kin::mass_matrix(m, &dm, &mut dvrk_kin::DynamicsData::new(m), q, &mut mass).unwrap();
+        mass[(roll, roll)] + armature
     };
     for q in [model.home(), vec![0.3, -0.2, 0.12, 0.7, -0.5, 0.4, 0.6]] {
         let truth = inertia(&model, prior.clone(), scene.arms[0].armature[roll], &q);
