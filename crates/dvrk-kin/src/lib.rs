@@ -42,7 +42,7 @@ pub mod so3;
 pub mod spec;
 pub mod urdf;
 
-pub use dynamics::{gravity_torque, inverse_dynamics, mass_matrix, regressor, BodyInertia, DynamicsData, DynamicsModel};
+pub use dynamics::{frame_bias_forces, gravity_torque, inverse_dynamics, mass_matrix, regressor, BodyInertia, DynamicsData, DynamicsModel};
 pub use closure::{closure_conditioning, closure_gap, closure_jacobian, max_closure_residual};
 pub use error::{KinError, Result};
 pub use fk::{compute_frame_placements, forward_kinematics, Data};

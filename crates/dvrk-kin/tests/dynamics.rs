@@ -3,7 +3,7 @@
 
 use dvrk_kin::dynamics::PARAMETERS_PER_BODY;
 use dvrk_kin::{
-    compute_frame_placements, frame_jacobian, gravity_torque, inverse_dynamics, mass_matrix, regressor, BodyInertia, Data, DynamicsData,
+    compute_frame_placements, frame_bias_forces, frame_jacobian, gravity_torque, inverse_dynamics, mass_matrix, regressor, BodyInertia, Data, DynamicsData,
     DynamicsModel, Model,
 };
 use nalgebra::{DMatrix, DVector, Matrix6xX, Point3, Vector3};
@@ -424,4 +424,40 @@ fn parameters_round_trip_and_inconsistent_inertias_are_named() {
     assert!(e.contains("built for model psm"), "{e}");
     let mut small = DMatrix::zeros(7, 6);
     assert!(mass_matrix(&model, &dm, &mut data, &q, &mut small).unwrap_err().to_string().contains("mass matrix"));
+}
+
+/// The tree's own velocity products at frame rates the actuated map does not give (the affine
+/// arm, `theta2 = q2 - q1`, at independent rates of its two frames): the relative closed form's
+/// Coriolis and centrifugal torques at those rates; frames without a variable get 0.
+#[test]
+fn frame_bias_forces_are_the_trees_velocity_products_at_any_frame_rates() {
+    let arm = Arm2 { m: [1.1, 0.8], lc: [0.2, 0.15], i: [0.012, 0.007], l1: 0.4 };
+    let model = model_from(&ARM2.replace("THETA2", "q2 - q1"), "arm2-absolute.toml");
+    let dm = DynamicsModel::new(&model, arm2_inertias(&arm)).unwrap();
+    let mut data = DynamicsData::new(&model);
+    let nf = model.frames.len();
+    let moving: Vec<usize> = (0..nf).filter(|&i| model.frames[i].variable().is_some_and(|v| !v.is_constant())).collect();
+    assert_eq!(moving.len(), 2);
+    let (mut phi, mut out) = (vec![0.0; nf], vec![0.0; nf]);
+    let mut checked = 0;
+    for (q, rates, _) in ARM2_STATES {
+        phi[moving[0]] = rates[0];
+        phi[moving[1]] = rates[1];
+        frame_bias_forces(&model, &dm, &mut data, &q, &phi, &mut out).unwrap();
+        let q_rel = [q[0], q[1] - q[0]];
+        let (with, without) = (arm.tau(q_rel, rates, [0.0; 2]), arm.tau(q_rel, [0.0; 2], [0.0; 2]));
+        for k in 0..2 {
+            let e = with[k] - without[k];
+            assert!((out[moving[k]] - e).abs() < 1e-12, "q {q:?} rates {rates:?}: frame {} {} vs {e}", moving[k], out[moving[k]]);
+            checked += usize::from(e.abs() > 0.01);
+        }
+        assert!((0..nf).filter(|i| !moving.contains(i)).all(|i| out[i] == 0.0));
+    }
+    // Not vacuous: the moving states have real velocity products.
+    assert!(checked >= 4, "{checked}");
+    let err = frame_bias_forces(&model, &dm, &mut data, &[0.0; 2], &[0.0; 1], &mut out).unwrap_err().to_string();
+    assert!(err.contains("frame rates"), "{err}");
+    phi[moving[0]] = f64::NAN;
+    let err = frame_bias_forces(&model, &dm, &mut data, &[0.0; 2], &phi, &mut out).unwrap_err().to_string();
+    assert!(err.contains("frame rate") && err.contains("NaN"), "{err}");
 }

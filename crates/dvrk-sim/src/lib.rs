@@ -36,5 +36,5 @@ pub use mjcf::export_mjcf;
 pub use recording::{RecordOptions, Recorder};
 pub use run::{run, run_recorded, run_traced, run_with, CameraSummary, Outputs, RunOptions, Summary, Trace};
 pub use scene::{Scene, SolverSettings};
-pub use sim::{ClosingLinks, Colliders, LoopMode, Sim, SimOptions};
+pub use sim::{ClosingLinks, Colliders, Coriolis, LoopMode, Sim, SimOptions};
 pub use dvrk_kin;

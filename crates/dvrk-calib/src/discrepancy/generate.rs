@@ -384,7 +384,10 @@ pub fn simulate(scene: &Scene, excitation: &MultiSine, duration: f64, rate: f64)
     let (mut q, mut qd) = (vec![0.0; nq], vec![0.0; nq]);
     excitation.sample(0.0, &mut q, &mut qd);
     scene.set_start(0, &q).map_err(sim_error)?;
-    let mut sim = Sim::new(&scene, &SimOptions::default()).map_err(sim_error)?;
+    // Explicit Coriolis: rapier's implicit one reads late in a recording (the yaw's by half a
+    // truth step), an apparent latency of the truth's integrator.
+    let options = SimOptions { coriolis: dvrk_sim::Coriolis::Explicit, ..SimOptions::default() };
+    let mut sim = Sim::new(&scene, &options).map_err(sim_error)?;
     let dt = sim.dt;
     let stride = ((1.0 / (rate * dt)).round() as usize).max(1);
     let steps = (duration / dt).round() as usize;

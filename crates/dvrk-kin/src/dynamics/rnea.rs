@@ -29,7 +29,8 @@ pub fn inverse_dynamics(
     check_gravity(gravity)?;
     check_out(tau, model.nq())?;
     placements_and_axes(model, dm, data, q);
-    rnea(model, dm, data, Some(qd), Some(qdd), gravity, tau);
+    rnea(model, dm, data, Rates::Joints(qd), Rates::Joints(qdd), gravity);
+    project(dm, &data.tau_phi, tau);
     Ok(())
 }
 
@@ -68,7 +69,35 @@ pub fn gravity_torque(model: &Model, dm: &DynamicsModel, data: &mut DynamicsData
     check_gravity(gravity)?;
     check_out(tau, model.nq())?;
     placements_and_axes(model, dm, data, q);
-    rnea(model, dm, data, None, None, gravity, tau);
+    rnea(model, dm, data, Rates::Zero, Rates::Zero, gravity);
+    project(dm, &data.tau_phi, tau);
+    Ok(())
+}
+
+/// Velocity-product forces on the frame tree's own joints, as if the loops were cut: the
+/// Coriolis, centrifugal and gyroscopic part of each frame's generalised force (N·m about a
+/// revolute frame's z, N along a prismatic one's) at the placements of actuated positions `q`
+/// (rad, m) and independent frame rates `phi_rates` (one per frame, rad/s or m/s; a frame without
+/// a variable moves with its parent whatever its entry). A simulator that integrates the tree
+/// (rapier's multibody) needs these where the actuated map `phi' = C q'` does not hold: between
+/// its loop constraints' solves. Written into `out` (one per frame, 0 for a frame without a
+/// variable); allocates nothing.
+pub fn frame_bias_forces(model: &Model, dm: &DynamicsModel, data: &mut DynamicsData, q: &[f64], phi_rates: &[f64], out: &mut [f64]) -> Result<()> {
+    check_common(model, dm, data, q)?;
+    let nf = model.frames.len();
+    for (what, x) in [("frame rates", phi_rates.len()), ("output (frames)", out.len())] {
+        if x != nf {
+            return Err(KinError::Size { what: what.into(), expected: nf, got: x });
+        }
+    }
+    if let Some(x) = phi_rates.iter().find(|x| !x.is_finite()) {
+        return Err(KinError::Value { what: "frame rate".into(), value: *x, message: "must be finite (rad/s, m/s)".into() });
+    }
+    placements_and_axes(model, dm, data, q);
+    rnea(model, dm, data, Rates::Frames(phi_rates), Rates::Zero, &Vector3::zeros());
+    for ((o, t), terms) in out.iter_mut().zip(&data.tau_phi).zip(&dm.terms) {
+        *o = if terms.is_empty() { 0.0 } else { *t };
+    }
     Ok(())
 }
 
@@ -79,9 +108,30 @@ pub(crate) fn check_out(tau: &[f64], nq: usize) -> Result<()> {
     Ok(())
 }
 
-/// The two passes, after [`placements_and_axes`]. `None` rates are zero. Gravity enters as an
-/// upward acceleration `-g` of the base, which every body inherits.
-fn rnea(model: &Model, dm: &DynamicsModel, data: &mut DynamicsData, qd: Option<&[f64]>, qdd: Option<&[f64]>, gravity: &Vector3<f64>, tau: &mut [f64]) {
+/// The frames' rates (or their derivatives) in [`rnea`].
+#[derive(Clone, Copy)]
+enum Rates<'a> {
+    /// Through the actuated joints' (`phi' = C q'`).
+    Joints(&'a [f64]),
+    /// One per frame; a frame without a variable has none.
+    Frames(&'a [f64]),
+    Zero,
+}
+
+impl Rates<'_> {
+    fn of(&self, terms: &[(usize, f64)], frame: usize) -> f64 {
+        match self {
+            Rates::Joints(x) => frame_rate(terms, Some(x)),
+            Rates::Frames(x) if !terms.is_empty() => x[frame],
+            _ => 0.0,
+        }
+    }
+}
+
+/// The two passes, after [`placements_and_axes`]: each frame's generalised force into
+/// `data.tau_phi`. Gravity enters as an upward acceleration `-g` of the base, which every body
+/// inherits.
+fn rnea(model: &Model, dm: &DynamicsModel, data: &mut DynamicsData, qd: Rates, qdd: Rates, gravity: &Vector3<f64>) {
     let base_a = Spatial { ang: Vector3::zeros(), lin: -gravity };
     for (i, f) in model.frames.iter().enumerate() {
         let (vp, ap) = match f.parent {
@@ -90,10 +140,10 @@ fn rnea(model: &Model, dm: &DynamicsModel, data: &mut DynamicsData, qd: Option<&
         };
         let s = data.axis[i];
         let terms = &dm.terms[i];
-        let vj = s * frame_rate(terms, qd);
+        let vj = s * qd.of(terms, i);
         let v = vp + vj;
         // The axis is fixed in the moving frame: d/dt (s phi') = s phi'' + v x (s phi').
-        let a = ap + s * frame_rate(terms, qdd) + v.cross_motion(&vj);
+        let a = ap + s * qdd.of(terms, i) + v.cross_motion(&vj);
         data.v[i] = v;
         data.a[i] = a;
         data.f[i] = match dm.carries[i] {
@@ -111,7 +161,6 @@ fn rnea(model: &Model, dm: &DynamicsModel, data: &mut DynamicsData, qd: Option<&
             data.f[p] += fi;
         }
     }
-    project(dm, &data.tau_phi, tau);
 }
 
 /// Body `b`'s inertia in world axes about the world origin; `frame` is its inertial frame.
