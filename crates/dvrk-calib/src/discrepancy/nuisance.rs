@@ -10,6 +10,7 @@
 //! `W = I - N (N^T N + lambda I)^-1 N^T`: everything below works in that metric, through the
 //! Cholesky factor `L` of `N^T N + lambda I` (`v^T W v = |v|^2 - |L^-1 N^T v|^2`).
 
+use super::candidates::Table;
 use super::signals::Prepared;
 use crate::error::{CalibError, Result};
 use dvrk_kin::dynamics::PARAMETERS_PER_BODY;
@@ -62,6 +63,9 @@ pub struct Nuisance {
     /// every parameter's prior standard deviation (the columns' scale).
     keep: Vec<usize>,
     stds: Vec<f64>,
+    /// The prior's weight and the analysed joints per sample (see [`Nuisance::new`]).
+    lambda: f64,
+    na: usize,
 }
 
 impl Nuisance {
@@ -93,13 +97,29 @@ impl Nuisance {
         }
         let n = full.select_columns(&keep);
         let train = prep.split * na;
-        let nt = n.rows(0, train);
-        let mut p = nt.transpose() * nt;
-        for d in 0..p.nrows() {
-            p[(d, d)] += lambda;
+        let chol = factor(&n, train, lambda)?;
+        Ok(Some(Nuisance { n, train, chol, keep, stds, lambda, na }))
+    }
+
+    /// The same nuisance on another timeline: each column, as a series over the samples (one
+    /// entry per analysed joint), passed through `shift` (the workflow's latency shift of the
+    /// prediction). A latency moves the whole predicted effort, the inertias' share included:
+    /// the nuisance left on the measured timeline fits its inertias' error `tau` apart, and the
+    /// latency estimate absorbs the difference (`tau` times the error's share of the effort's
+    /// rate: 3% inertia errors moved 12 ms estimates by up to 80 us).
+    pub fn retimed(&self, shift: &dyn Fn(&Table) -> Table) -> Result<Nuisance> {
+        let (na, samples) = (self.na, self.n.nrows() / self.na.max(1));
+        let mut n = self.n.clone();
+        for c in 0..n.ncols() {
+            let series: Table = (0..samples).map(|i| (0..na).map(|a| self.n[(i * na + a, c)]).collect()).collect();
+            for (i, row) in shift(&series).iter().enumerate() {
+                for (a, x) in row.iter().enumerate() {
+                    n[(i * na + a, c)] = *x;
+                }
+            }
         }
-        let chol = p.cholesky().ok_or_else(|| CalibError::data("inertia nuisance", "the prior's normal matrix is not positive definite"))?;
-        Ok(Some(Nuisance { n, train, chol, keep, stds }))
+        let chol = factor(&n, self.train, self.lambda)?;
+        Ok(Nuisance { n, chol, keep: self.keep.clone(), stds: self.stds.clone(), ..*self })
     }
 
     /// `L^-1 N_train^T v` for a training-row vector `v`.
@@ -144,4 +164,14 @@ impl Nuisance {
         let (zc, zy) = (self.project_columns(c), self.project(y));
         (c.tr_mul(c) - zc.tr_mul(&zc), c.tr_mul(y) - zc.tr_mul(&zy))
     }
+}
+
+/// The Cholesky factor of `N_train^T N_train + lambda I` (`train` rows).
+fn factor(n: &DMatrix<f64>, train: usize, lambda: f64) -> Result<Cholesky<f64, Dyn>> {
+    let nt = n.rows(0, train);
+    let mut p = nt.transpose() * nt;
+    for d in 0..p.nrows() {
+        p[(d, d)] += lambda;
+    }
+    p.cholesky().ok_or_else(|| CalibError::data("inertia nuisance", "the prior's normal matrix is not positive definite"))
 }

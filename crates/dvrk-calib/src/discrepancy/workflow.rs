@@ -733,8 +733,17 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
     let base = delayed(base);
     let r = residual(&prep, &base, true);
     let gravity = nalgebra::Vector3::from(scene.gravity);
-    let nuisance = Nuisance::new(&arm.model, predictor.dynamics(), &gravity, &prep, &o.inertia_prior, 1.0 / prep.noise_fraction)?;
-    let fit = Fitter { prep: &prep, nuisance: nuisance.as_ref() };
+    // The nuisance on the prediction's timeline (see [`Nuisance::retimed`]).
+    let measured_time = Nuisance::new(&arm.model, predictor.dynamics(), &gravity, &prep, &o.inertia_prior, 1.0 / prep.noise_fraction)?;
+    let retimed = |tau: f64| -> Result<Option<Nuisance>> {
+        match &measured_time {
+            Some(n) if tau > 0.0 => Ok(Some(n.retimed(&|t| shifted(t, prep.dt, tau))?)),
+            _ => Ok(None),
+        }
+    };
+    let lagged = retimed(lag)?;
+    let nuisance = lagged.as_ref().or(measured_time.as_ref());
+    let fit = Fitter { prep: &prep, nuisance };
     // Whether an effect is analysed (all of them, or [`Options::only`]'s).
     let wanted = |spec: &EffectSpec| o.only.as_ref().is_none_or(|t| same_effect(spec, t));
     let delay_columns = |c: &mut Candidate| {
@@ -772,11 +781,18 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
     let shift = |tau: f64| sub(&shifted(&base, prep.dt, tau), &base);
     let lat_grid: Vec<f64> = (0..=60).map(|i| i as f64 * 1e-3).collect();
     if wanted(&profiled_spec(&arm.model, EffectKind::Latency, None, 0.0)) {
+        let mut score = score_profile(&fit, &r, &lat_grid, &shift, None);
+        // Profiled again with the nuisance moved by the estimate: near it, the profile is
+        // then the one a nuisance on the right timeline gives (the null's is not, by the
+        // nuisance's misfit over the estimate's shift: nothing next to a latency's evidence).
+        if let Some(moved) = retimed(lag + score.x[0])? {
+            score = score_profile(&Fitter { prep: &prep, nuisance: Some(&moved) }, &r, &lat_grid, &shift, None);
+        }
         scored.push(Scored {
             candidate: None,
             kind: EffectKind::Latency,
             label: "latency".into(),
-            score: score_profile(&fit, &r, &lat_grid, &shift, None),
+            score,
             joint: None,
             kinematic: None,
         });
