@@ -3,7 +3,7 @@
 //! under PID, where the steady efforts are what rapier needs to hold the arm against gravity.
 //! The two share only the model and the inertials.
 
-use dvrk_sim::dvrk_kin::{gravity_torque, inverse_dynamics, BodyInertia, DynamicsData, DynamicsModel};
+use dvrk_sim::dvrk_kin::{gravity_torque, inverse_dynamics, DynamicsData, DynamicsModel};
 use dvrk_sim::{Coriolis, Gains, Scene, Sim, SimOptions};
 use nalgebra::Vector3;
 
@@ -29,12 +29,7 @@ fn steady_pid_efforts_equal_newton_euler_gravity_torques() {
     let scene = Scene::load("psm").unwrap();
     let arm = &scene.arms[0];
     let model = &arm.model;
-    let inertias: Vec<BodyInertia> = (0..model.bodies.len())
-        .map(|b| {
-            let e = arm.inertials.body(model, b).unwrap();
-            BodyInertia::new(e.mass, e.com, e.inertia)
-        })
-        .collect();
+    let inertias = arm.inertials.body_inertias(model).unwrap();
     let dm = DynamicsModel::new(model, inertias).unwrap();
     let mut data = DynamicsData::new(model);
     let insertion = model.joint_id("outer_insertion").unwrap();
@@ -83,12 +78,7 @@ fn steady_pid_efforts_equal_newton_euler_gravity_torques() {
 fn tracking_residual(coriolis: Coriolis) -> Vec<f64> {
     let scene = Scene::load("psm").unwrap();
     let model = &scene.arms[0].model;
-    let inertias: Vec<BodyInertia> = (0..model.bodies.len())
-        .map(|b| {
-            let e = scene.arms[0].inertials.body(model, b).unwrap();
-            BodyInertia::new(e.mass, e.com, e.inertia)
-        })
-        .collect();
+    let inertias = scene.arms[0].inertials.body_inertias(model).unwrap();
     let dm = DynamicsModel::new(model, inertias).unwrap();
     let mut data = DynamicsData::new(model);
     let mut sim = Sim::new(&scene, &SimOptions { coriolis, ..Default::default() }).unwrap();

@@ -109,7 +109,7 @@ impl Nuisance {
     /// rate: 3% inertia errors moved 12 ms estimates by up to 80 us).
     pub fn retimed(&self, shift: &dyn Fn(&Table) -> Table) -> Result<Nuisance> {
         let (na, samples) = (self.na, self.n.nrows() / self.na.max(1));
-        let mut n = self.n.clone();
+        let mut n = DMatrix::zeros(self.n.nrows(), self.n.ncols());
         for c in 0..n.ncols() {
             let series: Table = (0..samples).map(|i| (0..na).map(|a| self.n[(i * na + a, c)]).collect()).collect();
             for (i, row) in shift(&series).iter().enumerate() {

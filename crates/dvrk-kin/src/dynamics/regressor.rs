@@ -48,10 +48,10 @@ pub fn regressor(
             None => (Spatial::zero(), base_a),
         };
         let s = data.axis[i];
-        let vj = s * frame_rate(&dm.terms[i], Some(qd));
+        let vj = s * frame_rate(&dm.terms[i], qd);
         let v = vp + vj;
         data.v[i] = v;
-        data.a[i] = ap + s * frame_rate(&dm.terms[i], Some(qdd)) + v.cross_motion(&vj);
+        data.a[i] = ap + s * frame_rate(&dm.terms[i], qdd) + v.cross_motion(&vj);
     }
     out.fill(0.0);
     for (b, body) in model.bodies.iter().enumerate() {

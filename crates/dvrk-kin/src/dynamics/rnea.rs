@@ -121,7 +121,7 @@ enum Rates<'a> {
 impl Rates<'_> {
     fn of(&self, terms: &[(usize, f64)], frame: usize) -> f64 {
         match self {
-            Rates::Joints(x) => frame_rate(terms, Some(x)),
+            Rates::Joints(x) => frame_rate(terms, x),
             Rates::Frames(x) if !terms.is_empty() => x[frame],
             _ => 0.0,
         }

@@ -184,9 +184,6 @@ pub(crate) fn placements_and_axes(model: &Model, dm: &DynamicsModel, data: &mut 
 
 /// `sum_k c_k x_k` over a frame's variable's terms: its rate for `x = q'`.
 #[inline]
-pub(crate) fn frame_rate(terms: &[(usize, f64)], x: Option<&[f64]>) -> f64 {
-    match x {
-        Some(x) => terms.iter().map(|(k, c)| c * x[*k]).sum(),
-        None => 0.0,
-    }
+pub(crate) fn frame_rate(terms: &[(usize, f64)], x: &[f64]) -> f64 {
+    terms.iter().map(|(k, c)| c * x[*k]).sum()
 }
