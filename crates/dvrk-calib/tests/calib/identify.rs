@@ -223,7 +223,10 @@ fn a_simulated_recording_gives_back_the_simulators_damping_and_armature() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("psm.mcap");
     let scene = dvrk_sim::Scene::load("psm").unwrap();
-    let options = dvrk_sim::RunOptions { duration: 20.0, trajectory: dvrk_sim::run::TrajectoryKind::Sine, sim: Default::default() };
+    // Explicit Coriolis: rapier's implicit term adds dt dc/dv to the mass the drives see, and the
+    // roll's whole inertia came out 16% high with it (8.6% without).
+    let sim = dvrk_sim::SimOptions { coriolis: dvrk_sim::Coriolis::Explicit, ..Default::default() };
+    let options = dvrk_sim::RunOptions { duration: 20.0, trajectory: dvrk_sim::run::TrajectoryKind::Sine, sim };
     dvrk_sim::run_recorded(&scene, &options, Some(&dvrk_sim::RecordOptions { path: path.clone(), rate: 200.0 }), |_| {}).unwrap();
     let model = psm();
     let rec = read_mcap_joint_states(&path, &model, "PSM1").unwrap();
@@ -239,15 +242,18 @@ fn a_simulated_recording_gives_back_the_simulators_damping_and_armature() {
         eprintln!("{joint}: fv {fv:.5} N·m s/rad (damping 0.1), im {im:.5} kg m^2 (armature 0.004), fc {fc:.2e} N·m");
         assert!((fv - 0.1).abs() < 0.005 && fc < 1e-3, "{joint}: fv {fv}, fc {fc}");
         if joint != "outer_roll" {
-            assert!((im - 0.004).abs() < 0.0004, "{joint}: im {im}");
+            assert!((im - 0.004).abs() < 0.0002, "{joint}: im {im}");
         }
     }
     // The roll's motor inertia is not separable from the tool links': their inertias are
     // isotropic (the SDF's 0.001 kg m^2), so their share about the roll axis does not change with
     // the wrist. Their sum is: the roll's whole inertia, identified against the simulator's
     // (0.0090 kg m^2 = 0.005 links + 0.004 armature; the sim's roll row matches Newton-Euler to
-    // 1e-5). Measured: 0.0104 at both poses, 16% high and not explained; the recording barely
-    // shows it (the 0.1 Hz sine's inertial torque is 6% of the damping's, in quadrature), hence 20%.
+    // 1e-5). Measured: 0.00978 at both poses, 8.6% high. The recording barely shows it (the
+    // sine's inertial torque is 6% of the damping's, in quadrature) and a single frequency cannot
+    // tell an inertia from a spring (k q = -k a / w^2): the fit puts 6.6e-4 N m/rad on the roll's
+    // spring (the simulator has none) and the inertia follows; without the roll's spring term the
+    // roll comes out 0.00858 (-4.7%). Hence 12%.
     let identified = identified_model(&model, &id, &options.processing, &rec.to_joint, &prior, "sim").unwrap();
     let ident_model = dvrk_kin::Model::compile(identified.spec.clone()).unwrap();
     let ident_scene = dvrk_calib::identify::replay::identified_scene(&scene, 0, &identified).unwrap();
@@ -262,7 +268,7 @@ fn a_simulated_recording_gives_back_the_simulators_damping_and_armature() {
         let truth = inertia(&model, prior.clone(), scene.arms[0].armature[roll], &q);
         let got = inertia(&ident_model, ident_scene.arms[0].inertials.body_inertias(&ident_model).unwrap(), identified.armature[roll].unwrap(), &q);
         eprintln!("roll inertia at {q:.2?}: identified {got:.5} kg m^2, simulated {truth:.5}");
-        assert!((got - truth).abs() < 0.2 * truth, "roll inertia {got} vs {truth}");
+        assert!((got - truth).abs() < 0.12 * truth, "roll inertia {got} vs {truth}");
     }
     // A missing topic and a wrong arm name are named.
     let e = read_mcap_joint_states(&path, &model, "PSM2").unwrap_err().to_string();
