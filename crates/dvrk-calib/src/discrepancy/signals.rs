@@ -300,11 +300,6 @@ impl Predictor {
         &self.dm
     }
 
-    /// The damping the drive and tree joints put on joint `j`'s own velocity (N·m s/rad, N s/m).
-    pub fn joint_damping(&self, j: usize) -> f64 {
-        self.damping[(j, j)]
-    }
-
     /// The predicted effort at every sample of `prep`, `[sample][joint]`.
     pub fn series(&mut self, prep: &Prepared) -> Result<Vec<Vec<f64>>> {
         self.series_at(&prep.q, &prep.qd, &prep.qdd)

@@ -701,7 +701,6 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
             stiffness: d.clone(),
             rate: rate.clone(),
             motor: arm.armature[j],
-            damping: predictor.joint_damping(j),
             correction: vec![0.0; prep.t.len()],
             detail: super::drive::motor_detail(&prep, j),
         })
