@@ -35,9 +35,10 @@ pub const MOTOR_DETAIL_CUTOFF: f64 = 100.0;
 /// Bandwidth (rad/s) below which the motor follows the recorded motion, through a critically
 /// damped tie on its inertia; above it the motor is free. The encoder records the motor, so its
 /// motion in the band is known; an impact's recoil (milliseconds) is faster than the band shows,
-/// and prescribing the band's motion made the motor an immovable wall the link rebounded off.
-/// Too loose a tie lets the motor drift and the joint's own effort reads the play narrow; too
-/// stiff, and a link crossing its play with its load near zero rebounds off a near-wall again.
+/// and prescribing the band's motion made the motor an immovable wall the link rebounded off
+/// (b +6.1%, +6.4% on two plays, against +0.2%, -3.3% tied at 600, before the start-path fix).
+/// Too loose a tie and the joint's own effort reads the play narrow; too stiff and plays whose
+/// link crosses with its load near zero go wrong (why is not found: 1051 below, 27.5 s).
 /// Backlash table, seeds 1030-1059 (`detection_rate_table`): 600 rad/s 25/30 intervals cover,
 /// b -0.48% on average, held-out median 1.11 of the floor; 900 29/30, +0.19% (RMS 1.00%), 1.07,
 /// but the rattling seed 1059 (load hovering near zero) +4.6%, held-out 4.4 (600: -0.2%, 2.4);
