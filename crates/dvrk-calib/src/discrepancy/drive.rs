@@ -43,6 +43,7 @@ pub const MOTOR_DETAIL_CUTOFF: f64 = 100.0;
 /// b -0.48% on average, held-out median 1.11 of the floor; 900 29/30, +0.19% (RMS 1.00%), 1.07,
 /// but the rattling seed 1059 (load hovering near zero) +4.6%, held-out 4.4 (600: -0.2%, 2.4);
 /// 1200 ran away on seed 1051 (b +7.8%, held-out 5.6; 600: -0.46%, 1.11; 900: +0.26%, 1.05).
+/// Seeds 1000-1029: 600 22/30, -0.48% (RMS 0.79%), 1.13; 900 29/30, -0.07% (RMS 0.45%), 1.09.
 /// Low noise (effort noise / 100), b on seeds 1021, 1046, 1017, 1039: 600 +0.02, -0.66, -0.71,
 /// -0.29%; 900 on 1017 -0.49%; 1200 +0.46, +0.08, -1.20, +0.02%.
 const MOTOR_TIE: f64 = 900.0;
