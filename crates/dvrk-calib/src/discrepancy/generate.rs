@@ -95,6 +95,33 @@ pub const EFFORT_NOISE: [f64; 7] = [0.01, 0.015, 0.005, 0.0015, 0.0015, 0.0015, 
 /// Default encoder noise (rad, m).
 pub const POSITION_NOISE: f64 = 2e-6;
 
+/// Start of the recording the effects' sizes are taken over (s): the excitation's fade-in is
+/// left out.
+const FADE_IN: f64 = 2.0;
+
+/// Largest share of the samples past [`FADE_IN`] at which a joint's effort may sit at its limit.
+/// A truth beyond it is a controller in a limit cycle, not a recording the dVRK makes (its
+/// tracking-error check powers the arm off): seed 7017's 4 ms loop latency with a 7.2 mrad play
+/// on the outer pitch made the PID chatter at 61 Hz, at the limit on 9% of the samples, and no
+/// candidate's signature (each assumes a controller that tracks) could follow it. The effects'
+/// parameters are then drawn again, and random kinds too (that latency with a play on any
+/// joint, as drawn, saturated 8 times in 8).
+const MAX_SATURATED: f64 = 0.01;
+
+/// Draws of the effects' parameters before a truth that keeps saturating is an error.
+const DRAWS: usize = 8;
+
+/// The largest share, over the joints, of the samples from `from` (s) on at which the joint's
+/// recorded effort is at its limit (limits of 0: none), and that joint.
+fn saturated_share(log: &JointLog, limits: &[f64], from: f64) -> (f64, usize) {
+    let skip = log.t.iter().position(|t| *t >= from).unwrap_or(0);
+    let n = log.len().saturating_sub(skip).max(1) as f64;
+    (0..limits.len())
+        .filter(|&k| limits[k] > 0.0)
+        .map(|k| (log.effort[skip..].iter().filter(|e| e[k].abs() >= limits[k] * (1.0 - 1e-9)).count() as f64 / n, k))
+        .fold((0.0, 0), |best, x| if x.0 > best.0 { x } else { best })
+}
+
 /// How to generate.
 #[derive(Debug, Clone)]
 pub struct HiddenOptions {
@@ -460,28 +487,28 @@ pub fn hidden_effect(scene_name: &str, o: &HiddenOptions) -> Result<HiddenRecord
         }
     }
     let random = |rng: &mut ChaCha8Rng| HIDDEN_KINDS[rng.random_range(0..HIDDEN_KINDS.len())];
-    let kinds = match o.hidden {
+    let pick = |rng: &mut ChaCha8Rng| match o.hidden {
         Hidden::None => vec![],
         Hidden::Kind(k) => vec![k],
         Hidden::Pair(a, b) => vec![a, b],
-        Hidden::Random => vec![random(&mut rng)],
+        Hidden::Random => vec![random(rng)],
         Hidden::RandomPair => {
-            let a = random(&mut rng);
-            let mut b = random(&mut rng);
+            let a = random(rng);
+            let mut b = random(rng);
             while b == a {
-                b = random(&mut rng);
+                b = random(rng);
             }
             vec![a, b]
         }
     };
+    let mut kinds = pick(&mut rng);
     let marker_frame = o.marker.as_ref().map(|m| super::markers::marker_frame(&nominal, &m.link)).transpose()?;
-    let specs: Vec<EffectSpec> = kinds.iter().map(|&k| draw(k, &nominal, &scene.arms[0].inertials, &mut rng, o.magnitude, marker_frame)).collect::<Result<_>>()?;
     let mut excitation = MultiSine::new(&nominal, o.seed);
     let limits: Vec<f64> = nominal.joints.iter().map(|j| j.effort_limit).collect();
     let mut predictor = super::signals::Predictor::new(&scene.arms[0].model, &scene.arms[0], scene.gravity)?;
     excitation.within_effort_limits(&limits, |x| peak_efforts(x, &mut predictor))?;
-    // The truth with the effects in `keep` (indices into `specs`).
-    let truth_model = |keep: &[usize]| -> Result<Model> {
+    // The truth with the effects `specs[keep]`.
+    let truth_model = |specs: &[EffectSpec], keep: &[usize]| -> Result<Model> {
         let mut m = nominal.clone();
         for &i in keep {
             m = with_effect(&m, &specs[i])?;
@@ -489,19 +516,37 @@ pub fn hidden_effect(scene_name: &str, o: &HiddenOptions) -> Result<HiddenRecord
         m.base = scene.arms[0].original_base;
         Ok(m)
     };
-    let run = |keep: &[usize]| -> Result<(JointLog, Vec<Vec<f64>>)> {
+    let run = |specs: &[EffectSpec], keep: &[usize]| -> Result<(JointLog, Vec<Vec<f64>>)> {
         let mut truth = scene.clone();
-        truth.set_model(0, truth_model(keep)?).map_err(sim_error)?;
+        truth.set_model(0, truth_model(specs, keep)?).map_err(sim_error)?;
         simulate(&truth, &excitation, o.duration, o.rate)
     };
-    let all: Vec<usize> = (0..specs.len()).collect();
-    let (log, link) = run(&all)?;
+    let all: Vec<usize> = (0..kinds.len()).collect();
+    // The effects' parameters (and random kinds), drawn again while their truth saturates a
+    // drive (a loop latency with a play did on every one of 8 draws of their parameters).
+    let mut draws = 0;
+    let (specs, log, link) = loop {
+        let specs: Vec<EffectSpec> = kinds.iter().map(|&k| draw(k, &nominal, &scene.arms[0].inertials, &mut rng, o.magnitude, marker_frame)).collect::<Result<_>>()?;
+        let (log, link) = run(&specs, &all)?;
+        let (share, joint) = saturated_share(&log, &limits, FADE_IN);
+        draws += 1;
+        if share <= MAX_SATURATED || kinds.is_empty() {
+            break (specs, log, link);
+        }
+        if draws == DRAWS {
+            let names: Vec<&str> = kinds.iter().map(|k| k.name()).collect();
+            return Err(CalibError::data("hidden effect", format!("{} drawn {DRAWS} times, and each time a joint sat at its effort limit on more than {:.1}% of the samples (a limit cycle; {} {:.1}% the last time)", names.join(" + "), 100.0 * MAX_SATURATED, nominal.joints[joint].name, 100.0 * share)));
+        }
+        if matches!(o.hidden, Hidden::Random | Hidden::RandomPair) {
+            kinds = pick(&mut rng);
+        }
+    };
     // What each effect adds to each joint's effort (the truth against the truth without it),
     // past the fade-in.
-    let skip = log.t.iter().position(|t| *t >= 2.0).unwrap_or(0);
+    let skip = log.t.iter().position(|t| *t >= FADE_IN).unwrap_or(0);
     let mut shown = Vec::new();
     for (i, e) in specs.iter().enumerate() {
-        let (without, _) = run(&all.iter().copied().filter(|&k| k != i).collect::<Vec<_>>())?;
+        let (without, _) = run(&specs, &all.iter().copied().filter(|&k| k != i).collect::<Vec<_>>())?;
         let n = (log.len() - skip) as f64;
         let rms: Vec<f64> = (0..nq).map(|k| (log.effort[skip..].iter().zip(&without.effort[skip..]).map(|(a, b)| (a[k] - b[k]).powi(2)).sum::<f64>() / n).sqrt()).collect();
         let j = match e.joint.as_deref() {
@@ -522,7 +567,7 @@ pub fn hidden_effect(scene_name: &str, o: &HiddenOptions) -> Result<HiddenRecord
         }
     }
     let markers = match &o.marker {
-        Some(mo) => Some(track_marker(&truth_model(&all)?, &log.t, &link, mo, &mut rng)?),
+        Some(mo) => Some(track_marker(&truth_model(&specs, &all)?, &log.t, &link, mo, &mut rng)?),
         None => None,
     };
     let effects = specs
