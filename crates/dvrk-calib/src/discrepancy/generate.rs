@@ -111,10 +111,9 @@ const MAX_SATURATED: f64 = 0.01;
 /// Draws of the effects' parameters before a truth that keeps saturating is an error.
 const DRAWS: usize = 8;
 
-/// The largest share, over the joints, of the samples from `from` (s) on at which the joint's
+/// The largest share, over the joints, of the samples from index `skip` on at which the joint's
 /// recorded effort is at its limit (limits of 0: none), and that joint.
-fn saturated_share(log: &JointLog, limits: &[f64], from: f64) -> (f64, usize) {
-    let skip = log.t.iter().position(|t| *t >= from).unwrap_or(0);
+fn saturated_share(log: &JointLog, limits: &[f64], skip: usize) -> (f64, usize) {
     let n = log.len().saturating_sub(skip).max(1) as f64;
     (0..limits.len())
         .filter(|&k| limits[k] > 0.0)
@@ -525,13 +524,15 @@ pub fn hidden_effect(scene_name: &str, o: &HiddenOptions) -> Result<HiddenRecord
     // The effects' parameters (and random kinds), drawn again while their truth saturates a
     // drive (a loop latency with a play did on every one of 8 draws of their parameters).
     let mut draws = 0;
-    let (specs, log, link) = loop {
+    let (specs, log, link, skip) = loop {
         let specs: Vec<EffectSpec> = kinds.iter().map(|&k| draw(k, &nominal, &scene.arms[0].inertials, &mut rng, o.magnitude, marker_frame)).collect::<Result<_>>()?;
         let (log, link) = run(&specs, &all)?;
-        let (share, joint) = saturated_share(&log, &limits, FADE_IN);
+        // Past the fade-in.
+        let skip = log.t.iter().position(|t| *t >= FADE_IN).unwrap_or(0);
+        let (share, joint) = saturated_share(&log, &limits, skip);
         draws += 1;
         if share <= MAX_SATURATED || kinds.is_empty() {
-            break (specs, log, link);
+            break (specs, log, link, skip);
         }
         if draws == DRAWS {
             let names: Vec<&str> = kinds.iter().map(|k| k.name()).collect();
@@ -543,7 +544,6 @@ pub fn hidden_effect(scene_name: &str, o: &HiddenOptions) -> Result<HiddenRecord
     };
     // What each effect adds to each joint's effort (the truth against the truth without it),
     // past the fade-in.
-    let skip = log.t.iter().position(|t| *t >= FADE_IN).unwrap_or(0);
     let mut shown = Vec::new();
     for (i, e) in specs.iter().enumerate() {
         let (without, _) = run(&specs, &all.iter().copied().filter(|&k| k != i).collect::<Vec<_>>())?;
