@@ -2,9 +2,9 @@
 //! knows how a residual's size, a bounded fit and a held-out prediction are taken.
 
 use super::candidates::Table;
-use super::nuisance::Nuisance;
+use super::nuisance::{fold_rows, Nuisance, FOLDS};
 use super::signals::Prepared;
-use super::stats::{bounded_least_squares, Bounds};
+use super::stats::{bounded_least_squares, solve_normal_equations, Bounds};
 use crate::error::Result;
 use nalgebra::{DMatrix, DVector};
 
@@ -69,18 +69,8 @@ impl Fitter<'_> {
         if self.nuisance.is_none() {
             return bounded_least_squares(c, y, bounds);
         }
-        let (mut g, b) = self.normal_equations(c, y);
-        // The same problem as a small least squares: |L^T x - L^-1 b|^2 = x^T G x - 2 b^T x + const.
-        let jitter = 1e-12 * g.trace().abs().max(1e-300) / g.nrows().max(1) as f64;
-        for d in 0..g.nrows() {
-            g[(d, d)] += jitter;
-        }
-        let Some(ch) = g.clone().cholesky() else {
-            return bounded_least_squares(c, y, bounds);
-        };
-        let l = ch.l();
-        let r = l.solve_lower_triangular(&b).unwrap_or(b);
-        bounded_least_squares(&l.transpose(), &r, bounds)
+        let (g, b) = self.normal_equations(c, y);
+        solve_normal_equations(g, b, bounds).unwrap_or_else(|| bounded_least_squares(c, y, bounds))
     }
 
     /// The training residual with the nuisance's fit taken out (what is left to look white).
@@ -146,5 +136,29 @@ impl Fitter<'_> {
             }
         }
         out
+    }
+}
+
+impl Fitter<'_> {
+    /// The held-out likelihood-ratio statistic over the whole recording: each of
+    /// [`FOLDS`] contiguous parts predicted from the others, without and with `columns`
+    /// (bounded by `bounds`), the nuisance refitted each time; and the total effective sample size.
+    pub fn cross_validated(&self, r: &Table, columns: &[Table], bounds: &[Bounds]) -> Result<(f64, f64)> {
+        let all = Rows { prep: self.prep, range: 0..self.prep.t.len() };
+        let (y, c) = (all.vector(r), all.matrix(columns));
+        let (e0, e1) = match self.nuisance {
+            Some(n) => n.cross_validated(&y, &c, bounds)?,
+            None => {
+                let mut e1 = DVector::zeros(y.len());
+                for f in 0..FOLDS {
+                    let part = fold_rows(f, self.prep.t.len(), self.prep.active.len());
+                    let keep: Vec<usize> = (0..y.len()).filter(|i| !part.contains(i)).collect();
+                    let x = bounded_least_squares(&c.select_rows(&keep), &y.select_rows(&keep), bounds)?;
+                    e1.rows_mut(part.start, part.len()).copy_from(&(y.rows(part.start, part.len()) - c.rows(part.start, part.len()) * x));
+                }
+                (y, e1)
+            }
+        };
+        Ok(per_joint_ratio(&all, &e0, &e1))
     }
 }

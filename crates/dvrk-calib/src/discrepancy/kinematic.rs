@@ -187,6 +187,7 @@ impl KinematicChannel {
                             p_value: k.p_value,
                         },
                         heldout_p_value: k.heldout_p,
+                        heldout_cv_p_value: None,
                         effect_to_noise: k.effect_to_noise,
                         supported: strong(k.delta_bic, k.p_value, k.heldout_p, k.effect_to_noise),
                     }

@@ -66,6 +66,28 @@ pub struct Nuisance {
     /// The prior's weight and the analysed joints per sample (see [`Nuisance::new`]).
     lambda: f64,
     na: usize,
+    /// `N^T N` over every row, and over each of the [`FOLDS`] parts (cross-validation).
+    gram: DMatrix<f64>,
+    fold_grams: Vec<DMatrix<f64>>,
+}
+
+/// The parts a recording is cut into for the cross-validated held-out test.
+pub const FOLDS: usize = 5;
+
+/// The rows of fold `f` of [`FOLDS`] over `samples` samples of `na` rows each (whole samples).
+pub fn fold_rows(f: usize, samples: usize, na: usize) -> std::ops::Range<usize> {
+    f * samples / FOLDS * na..(f + 1) * samples / FOLDS * na
+}
+
+/// `N^T N` over every row and over each fold's rows.
+fn grams(n: &DMatrix<f64>, na: usize) -> (DMatrix<f64>, Vec<DMatrix<f64>>) {
+    let samples = n.nrows() / na.max(1);
+    let parts: Vec<DMatrix<f64>> = (0..FOLDS).map(|f| {
+        let r = fold_rows(f, samples, na);
+        let nf = n.rows(r.start, r.len());
+        nf.tr_mul(&nf)
+    }).collect();
+    (parts.iter().fold(DMatrix::zeros(n.ncols(), n.ncols()), |a, g| a + g), parts)
 }
 
 impl Nuisance {
@@ -98,7 +120,8 @@ impl Nuisance {
         let n = full.select_columns(&keep);
         let train = prep.split * na;
         let chol = factor(&n, train, lambda)?;
-        Ok(Some(Nuisance { n, train, chol, keep, stds, lambda, na }))
+        let (gram, fold_grams) = grams(&n, na);
+        Ok(Some(Nuisance { n, train, chol, keep, stds, lambda, na, gram, fold_grams }))
     }
 
     /// The same nuisance on another timeline: each column, as a series over the samples (one
@@ -119,7 +142,8 @@ impl Nuisance {
             }
         }
         let chol = factor(&n, self.train, self.lambda)?;
-        Ok(Nuisance { n, chol, keep: self.keep.clone(), stds: self.stds.clone(), ..*self })
+        let (gram, fold_grams) = grams(&n, na);
+        Ok(Nuisance { n, chol, keep: self.keep.clone(), stds: self.stds.clone(), gram, fold_grams, ..*self })
     }
 
     /// `L^-1 N_train^T v` for a training-row vector `v`.
@@ -174,4 +198,42 @@ fn factor(n: &DMatrix<f64>, train: usize, lambda: f64) -> Result<Cholesky<f64, D
         p[(d, d)] += lambda;
     }
     p.cholesky().ok_or_else(|| CalibError::data("inertia nuisance", "the prior's normal matrix is not positive definite"))
+}
+
+impl Nuisance {
+    /// Out-of-fold residuals over every row: the recording cut into [`FOLDS`] contiguous parts,
+    /// each predicted by the nuisance alone (`e0`) and by the nuisance with columns `c`
+    /// (bounded by `bounds`; `e1`) fitted on the other parts. `y`, `c`: every row (scaled).
+    pub fn cross_validated(&self, y: &DVector<f64>, c: &DMatrix<f64>, bounds: &[super::stats::Bounds]) -> Result<(DVector<f64>, DVector<f64>)> {
+        let rows = self.n.nrows();
+        // Totals once; each fold's training sums are the totals less the fold's own.
+        let (nc, ny, cc, cy) = (self.n.tr_mul(c), self.n.tr_mul(y), c.tr_mul(c), c.tr_mul(y));
+        let (mut e0, mut e1) = (DVector::zeros(rows), DVector::zeros(rows));
+        for (f, gf) in self.fold_grams.iter().enumerate() {
+            let r = fold_rows(f, rows / self.na.max(1), self.na);
+            let (nf, cf, yf) = (self.n.rows(r.start, r.len()), c.rows(r.start, r.len()), y.rows(r.start, r.len()));
+            let mut g = &self.gram - gf;
+            for d in 0..g.nrows() {
+                g[(d, d)] += self.lambda;
+            }
+            let ch = g.cholesky().ok_or_else(|| CalibError::data("inertia nuisance", "a fold's prior normal matrix is not positive definite"))?;
+            let (ntc, nty) = (&nc - nf.tr_mul(&cf), &ny - nf.tr_mul(&yf));
+            e0.rows_mut(r.start, r.len()).copy_from(&(yf - nf * ch.solve(&nty)));
+            // The candidate's normal equations in the metric the nuisance leaves (as
+            // [`Nuisance::normal_equations`]).
+            let l = ch.l();
+            let (zc, zy) = (l.solve_lower_triangular(&ntc).unwrap_or_else(|| ntc.clone()), l.solve_lower_triangular(&nty).unwrap_or_else(|| nty.clone()));
+            let gc = &cc - cf.tr_mul(&cf) - zc.tr_mul(&zc);
+            let bc = &cy - cf.tr_mul(&yf) - zc.tr_mul(&zy);
+            let Some(x) = super::stats::solve_normal_equations(gc, bc, bounds) else {
+                // Columns the other parts do not determine: the fold gets the null's prediction.
+                e1.rows_mut(r.start, r.len()).copy_from(&e0.rows(r.start, r.len()));
+                continue;
+            };
+            let x = x?;
+            let t1 = ch.solve(&(&nty - &ntc * &x));
+            e1.rows_mut(r.start, r.len()).copy_from(&(yf - cf * &x - nf * &t1));
+        }
+        Ok((e0, e1))
+    }
 }

@@ -41,6 +41,10 @@ pub struct CandidateReport {
     pub effect: EffectReport,
     /// The fitted effect's likelihood-ratio test on the held-out part.
     pub heldout_p_value: f64,
+    /// A linear candidate's held-out test over the whole recording (each of 5 parts predicted
+    /// by a fit to the others); either test confirms.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub heldout_cv_p_value: Option<f64>,
     /// RMS of the fitted effect on its joint over that joint's effort noise.
     pub effect_to_noise: f64,
     /// Strong evidence, confirmed on held-out data, and large enough to matter.

@@ -49,6 +49,19 @@ impl Bounds {
     }
 }
 
+/// `min x^T G x - 2 b^T x` within `bounds`, as the small least squares
+/// `|L^T x - L^-1 b|^2` (`G = L L^T`, a trace-relative jitter on its diagonal); `None` when `G`
+/// is not positive definite.
+pub fn solve_normal_equations(mut g: DMatrix<f64>, b: DVector<f64>, bounds: &[Bounds]) -> Option<Result<DVector<f64>>> {
+    let jitter = 1e-12 * g.trace().abs().max(1e-300) / g.nrows().max(1) as f64;
+    for d in 0..g.nrows() {
+        g[(d, d)] += jitter;
+    }
+    let l = g.cholesky()?.l();
+    let r = l.solve_lower_triangular(&b).unwrap_or(b);
+    Some(bounded_least_squares(&l.transpose(), &r, bounds))
+}
+
 /// `min |A x - r|^2` subject to `bounds` on each `x_i`. The columns are scaled to unit norm first
 /// (clarabel's tolerances are absolute). Only the bounds a fit crosses are given to the solver,
 /// side by side, added until none is crossed (a relaxation whose optimum is feasible is the
