@@ -116,9 +116,9 @@ struct Score {
     /// The held-out test on the last part of the recording the fit never saw.
     heldout_p: f64,
     /// A linear candidate's held-out test over the whole recording, each of
-    /// [`super::nuisance::FOLDS`] parts predicted from the others: an effect the inertias mimic
-    /// on most of the motion (a pitch offset, seen only at deep insertion) can leave the last
-    /// part no evidence of it. `None` for a profile.
+    /// [`super::nuisance::FOLDS`] parts predicted from the others: of an effect the inertias
+    /// mostly mimic (an encoder offset on the pitch rotates its gravity torque as a first-moment
+    /// change would) the last part alone can hold too little. `None` for a profile.
     cv_p: Option<f64>,
     effect_to_noise: f64,
     /// The fitted effect's effort `[sample][joint]` over the whole analysed span (with the
