@@ -217,8 +217,8 @@ fn detection_rate_table() {
     };
     // (ENR, named correctly) of every trial, for the curve.
     let mut curve: Vec<(f64, bool)> = Vec::new();
-    println!("| class | trials | named correctly | named wrong | ambiguous | none | CI covers | held-out after / band floor (median) | raw held-out after / noise (median) | tracker held-out after / noise (median) |");
-    println!("|---|---|---|---|---|---|---|---|---|---|");
+    println!("| class | trials | named correctly | named wrong | ambiguous | none | CI covers | error mean / RMS | CI half-width median | error / sigma RMS | held-out after / band floor (median) | raw held-out after / noise (median) | tracker held-out after / noise (median) |");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     // Trials in parallel (one per core), counted in seed order.
     use rayon::prelude::*;
     let run = |hidden: Hidden, seeds: std::ops::Range<u64>, enr: &(dyn Fn(u64) -> Option<f64> + Sync)| -> Vec<(u64, dvrk_calib::discrepancy::generate::Answer, dvrk_calib::discrepancy::Report)> {
@@ -234,6 +234,9 @@ fn detection_rate_table() {
     };
     for kind in kinds {
         let (mut right, mut wrong, mut amb, mut none, mut covered, mut ratios, mut raw, mut kin) = (0, 0, 0, 0, 0, Vec::new(), Vec::new(), Vec::new());
+        // Per correctly named trial: estimate / truth - 1, the interval's half-width over
+        // |truth|, and the error over the interval's sigma (half-width / 1.96).
+        let mut accuracy = IntervalAccuracy::default();
         for (seed, answer, r) in run(Hidden::Kind(kind), first..first + trials, &|s| Some(enr_lo + (enr_hi - enr_lo) * (((s - 1000) * 7919) % 100) as f64 / 100.0)) {
             let truth = &answer.effects[0].spec;
             let correct = r.verdict == "named"
@@ -255,6 +258,7 @@ fn detection_rate_table() {
                                 covered += 1;
                             }
                             println!("    {p} {:.5e} in [{lo:.5e}, {hi:.5e}], truth {:.5e}", e.parameters[p], truth.parameters[p]);
+                            accuracy.push(e.parameters[p], [*lo, *hi], truth.parameters[p]);
                         }
                         ratios.push(r.rms_heldout_after);
                         raw.push(r.raw_rms_heldout_after);
@@ -269,7 +273,7 @@ fn detection_rate_table() {
             }
         }
         let (m, rm, km) = (median(&mut ratios), median(&mut raw), median(&mut kin));
-        println!("| {} | {trials} | {right} | {wrong} | {amb} | {none} | {covered}/{right} | {m:.2} | {rm:.3} | {km:.2} |", kind.name());
+        println!("| {} | {trials} | {right} | {wrong} | {amb} | {none} | {covered}/{right} | {} | {m:.2} | {rm:.3} | {km:.2} |", kind.name(), accuracy.columns());
     }
     println!("| ENR | trials | named correctly |\n|---|---|---|");
     for bin in (enr_lo.floor() as i64)..(enr_hi.ceil() as i64) {
@@ -287,6 +291,37 @@ fn detection_rate_table() {
         }
     }
     println!("effect-free: {alarms} false alarms in {free} trials; held-out / band floor median {:.3}", median(&mut floor_ratios));
+}
+
+/// How close the named parameters are to the truth over a table's trials, and whether their
+/// intervals are as wide as their errors say they should be (error / sigma RMS near 1).
+#[derive(Default)]
+struct IntervalAccuracy {
+    /// estimate / truth - 1, in percent.
+    error_percent: Vec<f64>,
+    /// Interval half-width / |truth|, in percent.
+    half_width_percent: Vec<f64>,
+    /// (estimate - truth) / (half-width / 1.96).
+    z: Vec<f64>,
+}
+
+impl IntervalAccuracy {
+    fn push(&mut self, estimate: f64, [lo, hi]: [f64; 2], truth: f64) {
+        let half = (hi - lo) / 2.0;
+        self.error_percent.push((estimate / truth - 1.0) * 100.0);
+        self.half_width_percent.push(half / truth.abs() * 100.0);
+        self.z.push((estimate - truth) / (half / 1.96));
+    }
+
+    /// The table's three columns: error mean / RMS, half-width median, error / sigma RMS.
+    fn columns(&self) -> String {
+        let rms = |v: &[f64]| (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt();
+        let mean = self.error_percent.iter().sum::<f64>() / self.error_percent.len() as f64;
+        let mut widths = self.half_width_percent.clone();
+        widths.sort_by(f64::total_cmp);
+        let median = widths.get(widths.len() / 2).copied().unwrap_or(f64::NAN);
+        format!("{mean:+.2}% / {:.2}% | {median:.2}% | {:.2}", rms(&self.error_percent), rms(&self.z))
+    }
 }
 
 /// A 12 ms latency on a truth whose inertias are a few percent off (seed 1039, 30 s, ENR 5.05,
