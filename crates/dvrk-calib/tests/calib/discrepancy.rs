@@ -245,7 +245,8 @@ fn detection_rate_table() {
                 && r.effects[0].link == truth.link.as_ref().map(|l| l.to_string())
                 && r.effects[0].parameters.contains_key(&main_parameter(truth));
             // One line a trial, for the detection-rate curve against ENR.
-            println!("  trial {} seed {seed} enr {:.2} verdict {} correct {correct} held-out {:.3}", kind.name(), answer.effects[0].enr, r.verdict, r.rms_heldout_after);
+            let on = truth.joint.clone().or(truth.link.as_ref().map(|l| l.to_string())).unwrap_or_else(|| "-".into());
+            println!("  trial {} seed {seed} on {on} enr {:.2} verdict {} correct {correct} held-out {:.3}", kind.name(), answer.effects[0].enr, r.verdict, r.rms_heldout_after);
             curve.push((answer.effects[0].enr, correct));
             match r.verdict.as_str() {
                 "named" => {
