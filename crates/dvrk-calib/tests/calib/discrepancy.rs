@@ -228,10 +228,6 @@ fn detection_rate_table() {
             (s, h.answer, r)
         }).collect()
     };
-    let median = |v: &mut Vec<f64>| {
-        v.sort_by(f64::total_cmp);
-        v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
-    };
     for kind in kinds {
         let (mut right, mut wrong, mut amb, mut none, mut covered, mut ratios, mut raw, mut kin) = (0, 0, 0, 0, 0, Vec::new(), Vec::new(), Vec::new());
         // Per correctly named trial: estimate / truth - 1, the interval's half-width over
@@ -294,6 +290,12 @@ fn detection_rate_table() {
     println!("effect-free: {alarms} false alarms in {free} trials; held-out / band floor median {:.3}", median(&mut floor_ratios));
 }
 
+/// The upper median (NaN when empty); sorts `v`.
+fn median(v: &mut [f64]) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
+}
+
 /// How close the named parameters are to the truth over a table's trials, and whether their
 /// intervals are as wide as their errors say they should be (error / sigma RMS near 1).
 #[derive(Default)]
@@ -318,10 +320,8 @@ impl IntervalAccuracy {
     fn columns(&self) -> String {
         let rms = |v: &[f64]| (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt();
         let mean = self.error_percent.iter().sum::<f64>() / self.error_percent.len() as f64;
-        let mut widths = self.half_width_percent.clone();
-        widths.sort_by(f64::total_cmp);
-        let median = widths.get(widths.len() / 2).copied().unwrap_or(f64::NAN);
-        format!("{mean:+.2}% / {:.2}% | {median:.2}% | {:.2}", rms(&self.error_percent), rms(&self.z))
+        let width = median(&mut self.half_width_percent.clone());
+        format!("{mean:+.2}% / {:.2}% | {width:.2}% | {:.2}", rms(&self.error_percent), rms(&self.z))
     }
 }
 
