@@ -1,5 +1,6 @@
 //! One hidden-effect trial, printed: `[DVRK_SCENE=psm] [DVRK_PERTURB=0.03] [DVRK_NOISE=1] [DVRK_POS_NOISE=1] [DVRK_TRUTH_DT=1.25e-4] [DVRK_DURATION=30] [DVRK_DUMP=residual.csv] cargo run --release -p dvrk-calib --example hidden_probe -- KIND SEED [ENR]`.
-//! DVRK_ORACLE=1 analyses with the hidden effects in the model (or a comma list of their names).
+//! DVRK_ORACLE=1 analyses with the hidden effects in the model (or a comma list of their names);
+//! DVRK_ORACLE_SCALE=k with their parameters times k.
 //! DVRK_ROUNDS=4 runs the repeated workflow (KIND `random-pair` for the two-effect trials).
 //! DVRK_DUMP writes the band-limited residual before and after, with each joint's position,
 //! velocity and load, one row per analysed sample.
@@ -41,7 +42,12 @@ fn main() {
     // can tell at best).
     if let Ok(which) = std::env::var("DVRK_ORACLE") {
         for e in h.answer.effects.iter().filter(|e| which == "1" || which.split(',').any(|n| n == e.spec.name)) {
-            model = generate::with_effect(&model, &e.spec).unwrap();
+            // DVRK_ORACLE_SCALE: its parameters scaled (an estimate's error, without the fit's).
+            let mut spec = e.spec.clone();
+            if let Some(k) = std::env::var("DVRK_ORACLE_SCALE").ok().and_then(|s| s.parse::<f64>().ok()) {
+                spec.parameters.values_mut().for_each(|v| *v *= k);
+            }
+            model = generate::with_effect(&model, &spec).unwrap();
         }
     }
     let o = Options { tracking: args.get(4).is_some(), ..Default::default() };
