@@ -41,12 +41,11 @@ fn main() {
     // DVRK_ORACLE: analyse with the hidden effects already in the model (what the held-out data
     // can tell at best).
     if let Ok(which) = std::env::var("DVRK_ORACLE") {
+        // DVRK_ORACLE_SCALE: their parameters scaled (an estimate's error, without the fit's).
+        let scale = std::env::var("DVRK_ORACLE_SCALE").ok().and_then(|s| s.parse::<f64>().ok()).unwrap_or(1.0);
         for e in h.answer.effects.iter().filter(|e| which == "1" || which.split(',').any(|n| n == e.spec.name)) {
-            // DVRK_ORACLE_SCALE: its parameters scaled (an estimate's error, without the fit's).
             let mut spec = e.spec.clone();
-            if let Some(k) = std::env::var("DVRK_ORACLE_SCALE").ok().and_then(|s| s.parse::<f64>().ok()) {
-                spec.parameters.values_mut().for_each(|v| *v *= k);
-            }
+            spec.parameters.values_mut().for_each(|v| *v *= scale);
             model = generate::with_effect(&model, &spec).unwrap();
         }
     }
