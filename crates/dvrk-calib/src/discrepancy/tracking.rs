@@ -12,12 +12,37 @@ fn sim_error(e: dvrk_sim::SimError) -> CalibError {
     CalibError::data("simulation", e.to_string())
 }
 
+/// Share of a joint's range a recorded start may lie past a limit and still be replayed from
+/// the limit: a real encoder reads a hair beyond it (the WPI recording `two` starts with the jaw
+/// at 1.39659 rad against the model's 1.39626). Further out, [`Scene::set_start`] refuses it.
+const START_SLACK: f64 = 0.01;
+
+/// `q` (rad, m) with each joint a hair past a limit put on it ([`START_SLACK`]).
+fn start_within_limits(model: &dvrk_kin::Model, q: &[f64]) -> Vec<f64> {
+    model
+        .joints
+        .iter()
+        .zip(q)
+        .map(|(j, &x)| {
+            let slack = START_SLACK * (j.upper - j.lower);
+            if x > j.upper && x <= j.upper + slack {
+                j.upper
+            } else if x < j.lower && x >= j.lower - slack {
+                j.lower
+            } else {
+                x
+            }
+        })
+        .collect()
+}
+
 /// RMS per joint of recorded minus replayed encoder positions (rad, m), past the first 2 s.
 fn replay(scene: &Scene, arm: usize, log: &JointLog) -> Result<Vec<f64>> {
     let nq = log.names.len();
     let traj = Trajectory::samples("recording", &log.t, log.setpoint.clone(), nq).map_err(|e| CalibError::data("replay", e))?;
     let mut scene = scene.clone();
-    scene.set_start(arm, &log.setpoint[0]).map_err(sim_error)?;
+    let start = start_within_limits(&scene.arms[arm].model, &log.setpoint[0]);
+    scene.set_start(arm, &start).map_err(sim_error)?;
     let mut sim = Sim::new(&scene, &SimOptions::default()).map_err(sim_error)?;
     let off = sim.arms[arm].q_offset;
     let (mut q, mut qd) = (vec![0.0; nq], vec![0.0; nq]);
@@ -55,4 +80,37 @@ pub fn compare(scene: &Scene, arm: usize, log: &JointLog, before: &dvrk_kin::Mod
         replay(&s, arm, log)
     };
     Ok(TrackingReport { joints: log.names.clone(), rms_before: with(before)?, rms_after: after.map(with).transpose()? })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A log holding the scene's start with the jaw `past` its upper limit (rad), 2.5 s at 100 Hz.
+    fn log_past_jaw_limit(scene: &Scene, past: f64) -> JointLog {
+        let model = &scene.arms[0].model;
+        let jaw = model.joints.iter().position(|j| j.name == "jaw").unwrap();
+        let mut q = scene.arms[0].start.clone();
+        q[jaw] = model.joints[jaw].upper + past;
+        let n = 250;
+        JointLog {
+            names: model.joints.iter().map(|j| j.name.clone()).collect(),
+            t: (0..n).map(|i| i as f64 * 0.01).collect(),
+            setpoint: vec![q.clone(); n],
+            position: vec![q.clone(); n],
+            effort: vec![vec![0.0; q.len()]; n],
+            markers: None,
+        }
+    }
+
+    #[test]
+    fn a_start_a_hair_past_a_limit_replays_from_the_limit_and_one_far_past_is_refused() {
+        let scene = Scene::load("psm").unwrap();
+        let jaw = scene.arms[0].model.joints.iter().position(|j| j.name == "jaw").unwrap();
+        // WPI `two`'s jaw: 0.33 mrad past; the replayed jaw holds at the limit.
+        let rms = replay(&scene, 0, &log_past_jaw_limit(&scene, 3.3e-4)).unwrap();
+        assert!(rms[jaw] > 2e-4 && rms[jaw] < 2e-3, "jaw RMS {}", rms[jaw]);
+        let e = replay(&scene, 0, &log_past_jaw_limit(&scene, 0.1)).unwrap_err().to_string();
+        assert!(e.contains("start configuration") && e.contains("jaw = 1.49"), "{e}");
+    }
 }
