@@ -25,10 +25,8 @@ fn start_within_limits(model: &dvrk_kin::Model, q: &[f64]) -> Vec<f64> {
         .zip(q)
         .map(|(j, &x)| {
             let slack = START_SLACK * (j.upper - j.lower);
-            if x > j.upper && x <= j.upper + slack {
-                j.upper
-            } else if x < j.lower && x >= j.lower - slack {
-                j.lower
+            if (j.lower - slack..=j.upper + slack).contains(&x) {
+                x.clamp(j.lower, j.upper)
             } else {
                 x
             }
