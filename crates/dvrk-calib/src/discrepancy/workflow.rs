@@ -863,6 +863,11 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
         let strong: &dyn Fn(f64, f64, f64, f64) -> bool = if e.kinematic.is_some() { &strong_kinematic } else { &strong };
         !s.at_edge && strong(s.delta_bic, s.p_value, s.confirmed_p(), s.effect_to_noise)
     };
+    // Supported but for its size: strong, confirmed evidence of an effect too small to matter.
+    let held_back_by_size = |e: &Scored| {
+        let s = &e.score;
+        !supported(e) && !s.at_edge && strong_at(0.0)(s.delta_bic, s.p_value, s.confirmed_p(), s.effect_to_noise)
+    };
     let spec_of = |c: Option<&Candidate>, kind: EffectKind, joint: Option<usize>, s: &Score| -> EffectSpec {
         match c {
             Some(c) => c.spec(&arm.model, &s.x, s.profiled, "dvrk discrepancy"),
@@ -913,6 +918,14 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
     if let Some(k) = pair_choice(&scored, &winners, &fit, &r, o)? {
         winners.retain(|&i| i != k);
         winners.insert(0, k);
+    }
+    // A supported candidate far weaker than one held back by its size alone (in the same
+    // channel) is a stand-in fitting part of that small effect's signature: name nothing.
+    if let Some(&b) = winners.first() {
+        let best = &scored[b];
+        if scored.iter().any(|e| held_back_by_size(e) && e.kinematic.is_some() == best.kinematic.is_some() && e.score.delta_bic > best.score.delta_bic + o.ambiguity_bic) {
+            winners.clear();
+        }
     }
     let mut verdict = "none";
     let mut experiment = None;

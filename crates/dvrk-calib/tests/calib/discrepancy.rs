@@ -145,6 +145,26 @@ fn an_effect_free_recording_names_nothing() {
     assert!(t.rms_after.is_none());
 }
 
+/// An effect just under the size gate is not replaced by a stand-in that clears it. Seed 1000
+/// (30 s, ENR 1: a compliance of 44.5 N·m/rad on the outer pitch, its RMS 0.95 of the noise):
+/// the right candidate's delta BIC is 5609 at size 0.95 (held back, the gate is 1); compliance
+/// on the wrist pitch (delta BIC 22.8, size 1.32) clears every gate and was named before the
+/// rule. Measured: `none`.
+#[test]
+fn a_stand_in_for_an_effect_too_small_to_matter_is_not_named() {
+    let h = trial(Hidden::Kind(EffectKind::JointCompliance), 1000, Some(1.0), 30.0);
+    let r = analyse(&h, false).report;
+    let top: Vec<_> = r.candidates.iter().take(5).map(|c| (&c.label, c.effect.delta_bic, c.effect_to_noise, c.supported)).collect();
+    eprintln!("{} {top:?}", r.verdict);
+    let c = &r.candidates[0];
+    assert_eq!(c.label, "joint_compliance on outer_pitch");
+    assert!(c.effect.delta_bic > 1000.0 && c.effect_to_noise < 1.0 && !c.supported, "{top:?}");
+    // A weaker candidate is supported on its own; the rule, not the gates, holds it back.
+    assert!(r.candidates.iter().any(|c| c.supported), "{top:?}");
+    assert_eq!(r.verdict, "none");
+    assert!(r.effects.is_empty());
+}
+
 /// The MCAP written for a hidden-effect recording reads back with its efforts; recordings the
 /// workflow cannot use are refused with the file, topic and value.
 #[test]
