@@ -530,6 +530,7 @@ impl Model {
             (0..model.frames.len()).map(|i| model.spec_frame(i).and_then(|f| f.body.clone())).collect();
         model.finalize(&declared)?;
         model.check_inertials()?;
+        model.check_drive()?;
         crate::closure::compile_closures(&mut model)?;
         if let Some(r) = &spec.rcm {
             let frame = model.frame_id(&r.frame).map_err(|e| KinError::field("rcm.frame", e.to_string()))?;
@@ -554,6 +555,22 @@ impl Model {
                 return Err(KinError::field(format!("{what}.body"), "body appears twice"));
             }
             crate::BodyInertia::new(e.mass, e.com, e.inertia).check(&what)?;
+        }
+        Ok(())
+    }
+
+    /// The model file's `[drive]`: an armature per joint, every figure finite and non-negative.
+    fn check_drive(&self) -> Result<()> {
+        let Some(d) = &self.spec.drive else { return Ok(()) };
+        if d.armature.len() != self.nq() {
+            return Err(KinError::field("drive.armature", format!("has {} entries, model {} has {} joints", d.armature.len(), self.name, self.nq())));
+        }
+        let bad = |v: f64| !v.is_finite() || v < 0.0;
+        if bad(d.damping) {
+            return Err(KinError::field("drive.damping", format!("{} is not a finite non-negative number", d.damping)));
+        }
+        if let Some((k, v)) = d.armature.iter().enumerate().find(|(_, v)| bad(**v)) {
+            return Err(KinError::field(format!("drive.armature[{k}] ({})", self.joints[k].name), format!("{v} is not a finite non-negative number")));
         }
         Ok(())
     }

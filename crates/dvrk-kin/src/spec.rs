@@ -248,6 +248,23 @@ pub struct InertialSpec {
     pub source: String,
 }
 
+/// The drive a model's efforts were identified with (`[drive]`): an identified model
+/// (`dvrk identify -o`) carries the joint damping and reflected motor inertias its friction and
+/// inertials were fitted beside, so that a scene arm built from it does not add its own on top.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DriveSpec {
+    /// Viscous damping of every tree joint (N·m s/rad, N s/m), as a scene arm's `damping`: it
+    /// replaces the scene's.
+    pub damping: f64,
+    /// Reflected motor inertia per joint (kg m^2, kg for a prismatic joint), as a scene arm's
+    /// `armature`.
+    pub armature: Vec<f64>,
+    /// Where the figures come from.
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub source: String,
+}
+
 /// A whole model file.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -280,6 +297,9 @@ pub struct ModelSpec {
     /// ActuatorToJointPosition (rows: joints, columns: actuators), as in dVRK files.
     #[serde(default)]
     pub coupling: Option<Vec<Vec<f64>>>,
+    /// The drive the model's efforts were identified with ([`DriveSpec`]); none: the scene's.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub drive: Option<DriveSpec>,
     /// Physical effects: friction, springs, offsets, compliance... ([`crate::effects`]).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub effects: Vec<crate::effects::EffectSpec>,
@@ -309,6 +329,7 @@ impl ModelSpec {
             serial_equivalent: None,
             tool: None,
             coupling: None,
+            drive: None,
             effects: vec![],
             inertials: vec![],
             meshes: vec![],

@@ -203,3 +203,22 @@ fn model_file_inertials_are_read_checked_and_written_back() {
     // 0.018 > 0.016 + 0.001: no mass distribution has these moments.
     assert!(err(&body.replace("0.008]]", "0.001]]")).contains("triangle inequality"));
 }
+
+/// `[drive]` (the damping and motor inertias an identified model was fitted with): read, written
+/// back by `to_toml`, and refused with the field named when an entry is missing or not physical.
+#[test]
+fn model_file_drive_is_read_checked_and_written_back() {
+    let drive = "[drive]\ndamping = 0.0\narmature = [1e-6, 0.0, 0.128, 0.0, 3e-4, 1e-4, 2.5e-5]\nsource = \"test\"\n";
+    let m = psm_with(drive).unwrap();
+    let d = m.spec.drive.as_ref().unwrap();
+    assert_eq!((d.damping, d.armature[2], d.armature.len()), (0.0, 0.128, 7));
+    let again = load_toml_text(&m.spec.to_toml().unwrap(), Path::new("again.toml"), None, None).unwrap();
+    assert_eq!(again.spec.drive, m.spec.drive);
+    assert!(psm_with("").unwrap().spec.drive.is_none());
+    let err = |s: &str| psm_with(s).unwrap_err().to_string();
+    let short = err(&drive.replace(", 2.5e-5]", "]"));
+    assert!(short.contains("drive.armature`: has 6 entries, model psm has 7 joints"), "{short}");
+    let negative = err(&drive.replace("0.128", "-0.128"));
+    assert!(negative.contains("drive.armature[2] (outer_insertion)`: -0.128 is not a finite non-negative number"), "{negative}");
+    assert!(err(&drive.replace("damping = 0.0", "damping = -1.0")).contains("drive.damping"));
+}

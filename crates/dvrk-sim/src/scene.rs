@@ -246,6 +246,27 @@ impl Scene {
         Ok(())
     }
 
+    /// Start arm `arm` at a recorded configuration `q` (rad, m): a joint up to `slack` (a share
+    /// of its range, e.g. [`RECORDED_START_SLACK`]) past a limit starts at the limit, because a
+    /// real encoder reads a hair beyond it; further out is refused as [`Scene::set_start`] does.
+    pub fn set_start_recorded(&mut self, arm: usize, q: &[f64], slack: f64) -> Result<()> {
+        let within: Vec<f64> = self.arms[arm]
+            .model
+            .joints
+            .iter()
+            .zip(q)
+            .map(|(j, &x)| {
+                let s = slack * (j.upper - j.lower);
+                if (j.lower - s..=j.upper + s).contains(&x) {
+                    x.clamp(j.lower, j.upper)
+                } else {
+                    x
+                }
+            })
+            .collect();
+        self.set_start(arm, &within)
+    }
+
     /// Replace arm `arm`'s model by `model` (a calibrated copy, say), keeping the arm's mount,
     /// inertials (matched to the new model's bodies by name), gains and armature. The new model
     /// must have the same joints.
@@ -265,6 +286,7 @@ impl Scene {
         inertials.check(&format!("{} inertials", a.name), &model)?;
         let a = &mut self.arms[arm];
         a.inertials = inertials;
+        take_model_drive(&model, &mut a.damping, &mut a.armature);
         a.start = model.home();
         a.model = model;
         a.original_base = original_base;
@@ -383,7 +405,9 @@ impl Scene {
                 return Err(SimError::field(file, field("name"), "two arms have this name"));
             }
             let start = model.home();
-            arms.push(Arm { name: a.name.clone(), model, original_base, inertials, gains, armature: a.armature.clone(), damping: a.damping, parent, mode: a.mode, tracking: a.tracking, pgs_iterations: a.pgs_iterations, gravity_compensation: a.gravity_compensation, start });
+            let (mut armature, mut damping) = (a.armature.clone(), a.damping);
+            take_model_drive(&model, &mut damping, &mut armature);
+            arms.push(Arm { name: a.name.clone(), model, original_base, inertials, gains, armature, damping, parent, mode: a.mode, tracking: a.tracking, pgs_iterations: a.pgs_iterations, gravity_compensation: a.gravity_compensation, start });
         }
         if let Some(c) = &f.camera {
             c.check(file)?;
@@ -399,5 +423,23 @@ impl Scene {
                 warmstart_joints: f.warmstart_joints,
             },
             gravity: f.gravity, arms })
+    }
+}
+
+/// Share of a joint's range a recording's first sample may lie past a limit and still be
+/// replayed from the limit ([`Scene::set_start_recorded`]): the WPI recording `two` starts with
+/// the jaw at 1.39659 rad against the model's 1.39626.
+pub const RECORDED_START_SLACK: f64 = 0.01;
+
+/// A model's own drive (`[drive]`: the one an identified model's efforts were fitted with):
+/// its damping replaces the arm's; its motor inertias raise the arm's armature and never lower
+/// it, because the scene's armature is also the explicit PID's stability floor (kd dt / armature
+/// <= 0.25, see the scene files). Efforts predicted from the model take its own armature.
+fn take_model_drive(model: &Model, damping: &mut f64, armature: &mut [f64]) {
+    if let Some(d) = &model.spec.drive {
+        *damping = d.damping;
+        for (a, m) in armature.iter_mut().zip(&d.armature) {
+            *a = a.max(*m);
+        }
     }
 }

@@ -258,6 +258,9 @@ pub struct Predictor {
     /// The drives' reflected motor inertia on the joints read: `diag(a)`, or `B^T diag(a) B`
     /// under a coupling error (the motors sit on the true joints `B q`).
     armature: DMatrix<f64>,
+    /// `a` (kg m^2, kg): the model's own drive's ([`dvrk_kin::DriveSpec`]) if it has one, else
+    /// the arm's.
+    motor: Vec<f64>,
     damping: DMatrix<f64>,
     gravity: Vector3<f64>,
     velocity_scale: f64,
@@ -280,7 +283,10 @@ impl Predictor {
             }
         }
         // The tree joints' damping above follows the frames, which a coupling error already maps.
-        let mut armature = DMatrix::from_diagonal(&nalgebra::DVector::from_column_slice(&arm.armature));
+        // An identified model's efforts include its own drive; the arm's armature may sit above
+        // it as the explicit PID's stability floor (`dvrk_sim::Scene::set_model`).
+        let motor = model.spec.drive.as_ref().map_or_else(|| arm.armature.clone(), |d| d.armature.clone());
+        let mut armature = DMatrix::from_diagonal(&nalgebra::DVector::from_column_slice(&motor));
         if let Some(b) = model.coupling_error_map() {
             armature = b.transpose() * armature * b;
         }
@@ -289,10 +295,16 @@ impl Predictor {
             data: DynamicsData::new(model),
             dm,
             armature,
+            motor,
             damping,
             gravity: Vector3::from(gravity),
             velocity_scale: super::candidates::COULOMB_SMOOTHING_DEFAULT,
         })
+    }
+
+    /// The reflected motor inertia per joint its efforts include (kg m^2, kg).
+    pub fn armature(&self) -> &[f64] {
+        &self.motor
     }
 
     /// The dynamics it evaluates: the arm's inertias with the model's payloads.

@@ -12,35 +12,12 @@ fn sim_error(e: dvrk_sim::SimError) -> CalibError {
     CalibError::data("simulation", e.to_string())
 }
 
-/// Share of a joint's range a recorded start may lie past a limit and still be replayed from
-/// the limit: a real encoder reads a hair beyond it (the WPI recording `two` starts with the jaw
-/// at 1.39659 rad against the model's 1.39626). Further out, [`Scene::set_start`] refuses it.
-const START_SLACK: f64 = 0.01;
-
-/// `q` (rad, m) with each joint a hair past a limit put on it ([`START_SLACK`]).
-fn start_within_limits(model: &dvrk_kin::Model, q: &[f64]) -> Vec<f64> {
-    model
-        .joints
-        .iter()
-        .zip(q)
-        .map(|(j, &x)| {
-            let slack = START_SLACK * (j.upper - j.lower);
-            if (j.lower - slack..=j.upper + slack).contains(&x) {
-                x.clamp(j.lower, j.upper)
-            } else {
-                x
-            }
-        })
-        .collect()
-}
-
 /// RMS per joint of recorded minus replayed encoder positions (rad, m), past the first 2 s.
 fn replay(scene: &Scene, arm: usize, log: &JointLog) -> Result<Vec<f64>> {
     let nq = log.names.len();
     let traj = Trajectory::samples("recording", &log.t, log.setpoint.clone(), nq).map_err(|e| CalibError::data("replay", e))?;
     let mut scene = scene.clone();
-    let start = start_within_limits(&scene.arms[arm].model, &log.setpoint[0]);
-    scene.set_start(arm, &start).map_err(sim_error)?;
+    scene.set_start_recorded(arm, &log.setpoint[0], dvrk_sim::scene::RECORDED_START_SLACK).map_err(sim_error)?;
     let mut sim = Sim::new(&scene, &SimOptions::default()).map_err(sim_error)?;
     let off = sim.arms[arm].q_offset;
     let (mut q, mut qd) = (vec![0.0; nq], vec![0.0; nq]);

@@ -706,13 +706,14 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
     let driven: Vec<usize> = prep.active.iter().copied().filter(|&j| arm.armature[j] > 0.0).collect();
     let rates = candidates::rate_sensitivities(&mut predictor, &prep, &rigid, &driven)?;
     let nq = arm.model.nq();
+    let motor = predictor.armature().to_vec();
     // Joint j's drive load along the recorded motion, for a prediction `base`.
     let joint_load = |j: usize, base: &Table| -> Option<super::drive::JointLoad> {
         let d = offsets.iter().find(|(k, _)| *k == j).map(|(_, d)| d)?;
         let rate = rates.iter().find(|(k, _)| *k == j).map(|(_, c)| c)?;
         (arm.armature[j] > 0.0).then(|| super::drive::JointLoad {
             joint: j,
-            load: (0..prep.t.len()).map(|i| base[i][j] - arm.armature[j] * prep.qdd[i][j]).collect(),
+            load: (0..prep.t.len()).map(|i| base[i][j] - motor[j] * prep.qdd[i][j]).collect(),
             inertia: link_m.iter().map(|m| m.column(j).iter().copied().collect()).collect(),
             stiffness: d.clone(),
             rate: rate.clone(),
@@ -847,7 +848,7 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
         }
     }
     let kin = match &log.markers {
-        Some(mk) => Some(super::kinematic::analyse(&super::kinematic::Inputs { model: &arm.model, log, markers: mk, prep: &prep, armature: &arm.armature })?),
+        Some(mk) => Some(super::kinematic::analyse(&super::kinematic::Inputs { model: &arm.model, log, markers: mk, prep: &prep, armature: &motor })?),
         None => None,
     };
     if let Some(kc) = &kin {

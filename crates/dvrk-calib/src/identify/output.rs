@@ -12,15 +12,16 @@
 //! joins their `coulomb_friction` offsets. The other terms of coupled channels act on actuator
 //! velocities and positions, which mix several joints (`q_actuator = to_joint^-1 q_joint`): a
 //! per-joint effect cannot express them, so they are listed in the notes with their values
-//! (and in [`IdentifiedModel::not_expressed`]), as is the reflected motor inertia, which is a
-//! drive (scene armature) figure rather than a model effect.
+//! (and in [`IdentifiedModel::not_expressed`]). The reflected motor inertias and the joint
+//! damping the fit assumed (none: the viscous frictions hold it) go in the model's `[drive]`,
+//! which a scene arm built from the model takes over its own.
 
 use super::problem::{EffectTerm, Param, Processing};
 use super::Identification;
 use crate::error::{CalibError, Result};
 use dvrk_kin::dynamics::PARAMETERS_PER_BODY;
 use dvrk_kin::effects::EffectSpec;
-use dvrk_kin::{BodyInertia, InertialSpec, Model, ModelSpec};
+use dvrk_kin::{BodyInertia, DriveSpec, InertialSpec, Model, ModelSpec};
 use nalgebra::DMatrix;
 use std::collections::BTreeMap;
 
@@ -32,7 +33,7 @@ pub struct IdentifiedModel {
     /// The effects added (model-file form).
     pub effects: Vec<EffectSpec>,
     /// Per model joint: the identified reflected motor inertia of a channel that is that joint
-    /// (kg m^2, kg for the insertion), `None` elsewhere. Not a model effect: a scene's armature.
+    /// (kg m^2, kg for the insertion), `None` elsewhere (the model's `[drive]` holds it).
     pub armature: Vec<Option<f64>>,
     /// Identified terms that no per-joint effect expresses, as `name = value unit`.
     pub not_expressed: Vec<String>,
@@ -104,6 +105,7 @@ pub fn identified_model(model: &Model, id: &Identification, processing: &Process
     let mut armature = vec![None; nq];
     let mut not_expressed = Vec::new();
     let mut channel_offset = vec![0.0; nc];
+    let mut channel_armature = vec![0.0; nc];
     for (i, p) in id.layout.params.iter().enumerate() {
         let value = id.theta[i];
         // The joint the term acts on, and the Coulomb smoothing it was fitted with.
@@ -114,6 +116,11 @@ pub fn identified_model(model: &Model, id: &Identification, processing: &Process
                 Some(j) => (term, Some((j, processing.coulomb_velocity_of(channel)))),
                 None if term == EffectTerm::Offset => {
                     channel_offset[channel] += value;
+                    continue;
+                }
+                None if term == EffectTerm::Armature => {
+                    channel_armature[channel] = value;
+                    not_expressed.push(format!("{} = {value:.6} {} (in [drive] as the diagonal of its joint-space image; the cross terms are not)", id.estimates[i].name, unit(term, false)));
                     continue;
                 }
                 None => (term, None),
@@ -139,10 +146,7 @@ pub fn identified_model(model: &Model, id: &Identification, processing: &Process
             EffectTerm::Offset => *by_joint.entry((j, "coulomb_friction")).or_default().entry("offset".into()).or_default() += value,
             EffectTerm::Viscous => *by_joint.entry((j, "viscous_friction")).or_default().entry("fv".into()).or_default() += value,
             EffectTerm::Spring => *by_joint.entry((j, "spring")).or_default().entry("k".into()).or_default() += value,
-            EffectTerm::Armature => {
-                armature[j] = Some(value);
-                not_expressed.push(format!("{} = {value:.6} {} (reflected motor inertia: a scene armature, not a model effect)", id.estimates[i].name, unit(term, prismatic(j))));
-            }
+            EffectTerm::Armature => armature[j] = Some(value),
             // No presliding in the vocabulary: once the joint slides the Dahl state is the
             // velocity's sign, so its level adds to the Coulomb one (the simulator then feels the
             // sliding friction the recording did, and turns it over within a velocity instead).
@@ -186,14 +190,21 @@ pub fn identified_model(model: &Model, id: &Identification, processing: &Process
         let i = ine.inertia;
         inertials.push(InertialSpec { body: body.name.clone(), mass: ine.mass, com: [ine.com.x, ine.com.y, ine.com.z], inertia: [[i[(0, 0)], i[(0, 1)], i[(0, 2)]], [i[(1, 0)], i[(1, 1)], i[(1, 2)]], [i[(2, 0)], i[(2, 1)], i[(2, 2)]]], source: from });
     }
+    // The drive the efforts were fitted with: the viscous frictions hold all the joint damping
+    // (a scene's too: identified on a simulated recording, fv is its damping), the motor inertias
+    // are the identified ones; a tool actuator's maps to the joints as to_joint^-T diag(im)
+    // to_joint^-1, of which a per-joint armature holds the diagonal.
+    let drive_armature = (0..nq).map(|j| armature[j].unwrap_or_else(|| (0..nc).map(|c| inv_t[(j, c)].powi(2) * channel_armature[c]).sum())).collect();
     let mut spec = model.spec.clone();
+    spec.drive = Some(DriveSpec { damping: 0.0, armature: drive_armature, source: source.clone() });
     spec.effects.extend(effects.iter().cloned());
     spec.inertials = inertials;
     spec.title = format!("{} (identified from {recording})", spec.title);
     spec.notes = format!(
         "{}\n\nIdentified by `dvrk identify` from {recording}: [[inertials]] for every body (physically consistent: each \
 body's pseudo-inertia positive semidefinite, {} of {} inertial parameters determined by the data, the rest by the CAD prior), \
-and the effects added at the end of [[effects]].{}{}",
+the effects added at the end of [[effects]], and the drive they were fitted with ([drive]: no joint damping beyond the viscous \
+frictions, the identified motor inertias).{}{}",
         spec.notes.trim_end(),
         id.base_parameters,
         id.layout.nbodies * PARAMETERS_PER_BODY,
@@ -203,8 +214,7 @@ and the effects added at the end of [[effects]].{}{}",
         } else {
             format!(
                 "\nNot expressible as per-joint effects (terms of the tool's actuator channels act on actuator velocities and positions, \
-which mix joints: q_actuator = to_joint^-1 q_joint; their constant offsets are mapped exactly into the joints' coulomb_friction offsets), \
-and motor inertias:\n{}",
+which mix joints: q_actuator = to_joint^-1 q_joint; their constant offsets are mapped exactly into the joints' coulomb_friction offsets):\n{}",
                 not_expressed.iter().map(|s| format!("- {s}")).collect::<Vec<_>>().join("\n")
             )
         }
@@ -217,8 +227,9 @@ and motor inertias:\n{}",
 pub fn output_toml(identified: &IdentifiedModel, recording: &str) -> Result<String> {
     let body = identified.spec.to_toml().map_err(|e| CalibError::data("identification output", e.to_string()))?;
     Ok(format!(
-        "# Model {} identified by `dvrk identify` from {recording}: [[inertials]] (kg, m, kg m^2, per body in its first DH frame)\n\
-# and [[effects]] (N·m or N; N·m s/rad or N s/m; N·m/rad or N/m). Load it with `dvrk sim --model ARM=FILE`.\n\n{body}",
+        "# Model {} identified by `dvrk identify` from {recording}: [[inertials]] (kg, m, kg m^2, per body in its first DH frame),\n\
+# [[effects]] (N·m or N; N·m s/rad or N s/m; N·m/rad or N/m) and [drive] (joint damping; motor inertias, kg m^2 or kg).\n\
+# Load it with `dvrk sim --model ARM=FILE`.\n\n{body}",
         identified.spec.name
     ))
 }

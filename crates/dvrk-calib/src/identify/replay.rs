@@ -30,21 +30,14 @@ use dvrk_sim::{Gains, Scene, Sim, SimOptions};
 pub const IDENTIFIED_PGS_ITERATIONS: usize = 30;
 
 /// `base`'s arm `arm` with the identified model ([`super::output::identified_model`]: its
-/// inertials and effects, exactly what `dvrk identify -o` writes), the identified reflected
-/// motor inertias as armature where they exceed the scene's, and at least
+/// inertials, effects and drive, exactly what `dvrk identify -o` writes; the scene keeps an
+/// armature above a smaller identified motor inertia, see [`Scene::set_model`]), and at least
 /// [`IDENTIFIED_PGS_ITERATIONS`] sweeps.
 pub fn identified_scene(base: &Scene, arm: usize, identified: &IdentifiedModel) -> Result<Scene> {
     let model = Model::compile(identified.spec.clone())?;
     let mut scene = base.clone();
     scene.set_model(arm, model).map_err(|e| CalibError::data("identified scene", e.to_string()))?;
     let a = &mut scene.arms[arm];
-    // The scene's armature keeps the explicit PID stable (kd dt / I <= 0.25); a larger
-    // identified motor inertia replaces it, a smaller one cannot.
-    for (k, im) in identified.armature.iter().enumerate() {
-        if let (Some(im), Some(a)) = (im, a.armature.get_mut(k)) {
-            *a = a.max(*im);
-        }
-    }
     a.pgs_iterations = Some(a.pgs_iterations.unwrap_or(base.solver.pgs_iterations).max(IDENTIFIED_PGS_ITERATIONS));
     Ok(scene)
 }
@@ -62,10 +55,7 @@ pub fn torque_replay(scene: &Scene, arm: usize, rec: &TorqueRecording, feedback:
     let qd: Vec<Vec<f64>> = rec.qd.iter().map(|r| joints(r)).collect();
     let tau: Vec<Vec<f64>> = rec.tau.iter().map(|r| efforts(r)).collect();
     let mut scene = scene.clone();
-    // Start on the first sample, inside the limits.
-    let model = &scene.arms[arm].model;
-    let q0: Vec<f64> = q[0].iter().zip(&model.joints).map(|(x, j)| x.clamp(j.lower, j.upper)).collect();
-    scene.set_start(arm, &q0).map_err(|e| CalibError::data("torque replay", e.to_string()))?;
+    scene.set_start_recorded(arm, &q[0], dvrk_sim::scene::RECORDED_START_SLACK).map_err(|e| CalibError::data("torque replay", e.to_string()))?;
     let mut sim = Sim::new(&scene, &SimOptions::default()).map_err(|e| CalibError::data("torque replay", e.to_string()))?;
     let off = sim.arms[arm].q_offset;
     for k in 0..n {
