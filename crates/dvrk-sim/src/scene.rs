@@ -435,7 +435,7 @@ pub const RECORDED_START_SLACK: f64 = 0.01;
 /// its damping replaces the arm's; its motor inertias raise the arm's armature and never lower
 /// it, because the scene's armature is also the explicit PID's stability floor (kd dt / armature
 /// <= 0.25, see the scene files). Efforts predicted from the model take its own armature.
-fn take_model_drive(model: &Model, damping: &mut f64, armature: &mut [f64]) {
+pub(crate) fn take_model_drive(model: &Model, damping: &mut f64, armature: &mut [f64]) {
     if let Some(d) = &model.spec.drive {
         *damping = d.damping;
         for (a, m) in armature.iter_mut().zip(&d.armature) {

@@ -126,3 +126,24 @@ fn the_counterweight_cable_does_not_drag_the_insertion() {
     let ins = s.joints.iter().find(|j| j.joint == "outer_insertion").unwrap();
     assert!(ins.rms_error < 1.5e-4, "insertion RMS {} m", ins.rms_error);
 }
+
+/// A model file with its own `[[inertials]]` and `[drive]` (what `dvrk identify -o` writes)
+/// exports with them, as `dvrk sim --model ARM=FILE` (`Scene::set_model`) runs it: the body's
+/// mass, the drive's damping (replacing the scene's 0.1), and the armature raised to the
+/// drive's where it is larger (insertion) but kept as the PID's floor where it is smaller (yaw).
+#[test]
+fn a_model_file_exports_with_its_own_inertials_and_drive() {
+    let own = "\n[drive]\ndamping = 0.0\narmature = [1e-6, 0.0, 0.128, 0.0, 3e-4, 1e-4, 2.5e-5]\n\n[[inertials]]\nbody = \"yaw_link\"\nmass = 1.5\ncom = [0.01, 0.0, -0.04]\ninertia = [[0.018, 0.0, 0.0], [0.0, 0.016, 0.0], [0.0, 0.0, 0.008]]\n";
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("psm-own.toml");
+    std::fs::write(&path, format!("{}{own}", dvrk_kin::load::builtin_text("psm").unwrap())).unwrap();
+    let s = resolve(path.to_str().unwrap()).unwrap();
+    let template = &Scene::load("psm").unwrap().arms[0];
+    let a = &s.arms[0];
+    assert_eq!(a.inertials.bodies.iter().find(|b| b.name == "yaw_link").unwrap().mass, 1.5);
+    assert_eq!((a.damping, template.damping), (0.0, 0.1));
+    assert_eq!((a.armature[0], a.armature[2]), (template.armature[0], 0.128));
+    let mut set = Scene::load("psm").unwrap();
+    set.set_model(0, a.model.clone()).unwrap();
+    assert_eq!((set.arms[0].damping, &set.arms[0].armature), (a.damping, &a.armature));
+}
