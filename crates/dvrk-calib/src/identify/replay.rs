@@ -23,22 +23,17 @@ use crate::error::{CalibError, Result};
 use dvrk_kin::Model;
 use dvrk_sim::{Gains, Scene, Sim, SimOptions};
 
-/// Gauss-Seidel sweeps per substep of the identified arm (the scene's `pgs_iterations`).
-/// Measured on WPI `two` (torque replay, feedback 0.3): the identified yaw locks for 198, 0 and 0
-/// of 6000 samples at 16, 20 and 30 sweeps (RMS 0.040, 0.0072, 0.0072 rad), the CAD yaw for 53,
-/// 3 and 0; 30 leaves a margin and costs no measurable time on one arm.
-pub const IDENTIFIED_PGS_ITERATIONS: usize = 30;
+/// Gauss-Seidel sweeps per substep of an identified arm ([`Scene::set_model`] raises them).
+pub use dvrk_sim::scene::IDENTIFIED_PGS_ITERATIONS;
 
 /// `base`'s arm `arm` with the identified model ([`super::output::identified_model`]: its
-/// inertials, effects and drive, exactly what `dvrk identify -o` writes; the scene keeps an
-/// armature above a smaller identified motor inertia, see [`Scene::set_model`]), and at least
-/// [`IDENTIFIED_PGS_ITERATIONS`] sweeps.
+/// inertials, effects and drive, exactly what `dvrk identify -o` writes), as
+/// [`Scene::set_model`] puts it: an armature kept above a smaller identified motor inertia, and
+/// at least [`IDENTIFIED_PGS_ITERATIONS`] sweeps.
 pub fn identified_scene(base: &Scene, arm: usize, identified: &IdentifiedModel) -> Result<Scene> {
     let model = Model::compile(identified.spec.clone())?;
     let mut scene = base.clone();
     scene.set_model(arm, model).map_err(|e| CalibError::data("identified scene", e.to_string()))?;
-    let a = &mut scene.arms[arm];
-    a.pgs_iterations = Some(a.pgs_iterations.unwrap_or(base.solver.pgs_iterations).max(IDENTIFIED_PGS_ITERATIONS));
     Ok(scene)
 }
 

@@ -191,8 +191,9 @@ fn identify_output_is_a_model_file_the_simulator_loads() {
     assert!(loaded.spec.notes.contains("outer_yaw.fd = "), "the presliding friction is listed: {}", loaded.spec.notes);
     // In the simulator, as `dvrk sim --model PSM1=FILE` puts it: the file's [drive] replaces
     // the scene's joint damping (the identified viscous frictions hold it) and raises the
-    // armature where the identified motor inertia is larger (the insertion), and the arm
-    // replays `two` exactly as the identified scene does.
+    // armature where the identified motor inertia is larger (the insertion), the loop gets the
+    // sweeps identified inertias need, and the arm replays `two` exactly as the identified scene
+    // does.
     let base = dvrk_sim::Scene::load("psm").unwrap();
     let mut from_file = base.clone();
     from_file.set_model(0, loaded).unwrap();
@@ -202,10 +203,9 @@ fn identify_output_is_a_model_file_the_simulator_loads() {
     assert_eq!(a.damping, 0.0);
     assert!(im > base.arms[0].armature[2] && a.armature[2] == im, "insertion armature {} (identified {im})", a.armature[2]);
     assert_eq!(a.armature[0], base.arms[0].armature[0]);
+    assert_eq!(a.pgs_iterations, Some(dvrk_calib::identify::replay::IDENTIFIED_PGS_ITERATIONS));
     let reference = identified_scene(&base, 0, &identified).unwrap();
-    let mut same = from_file.clone();
-    same.arms[0].pgs_iterations = reference.arms[0].pgs_iterations;
-    let (a, _) = torque_replay(&same, 0, &r2, 0.3).unwrap();
+    let (a, _) = torque_replay(&from_file, 0, &r2, 0.3).unwrap();
     let (b, _) = torque_replay(&reference, 0, &r2, 0.3).unwrap();
     assert_eq!(a, b);
 }
