@@ -270,7 +270,7 @@ impl Scene {
     /// Replace arm `arm`'s model by `model` (a calibrated copy, say), keeping the arm's mount,
     /// inertials (matched to the new model's bodies by name), gains and armature. The new model
     /// must have the same joints. A model file's own `[[inertials]]` and `[drive]` (an identified
-    /// model's) are taken over the arm's ([`take_model_drive`], [`IDENTIFIED_PGS_ITERATIONS`]).
+    /// model's) are taken over the arm's (its damping, a raised armature, [`IDENTIFIED_PGS_ITERATIONS`]).
     pub fn set_model(&mut self, arm: usize, mut model: Model) -> Result<()> {
         let a = &self.arms[arm];
         let what = format!("{} model", a.name);
