@@ -413,12 +413,11 @@ fn single_model(model: Model, what: &str) -> Result<Scene> {
                 arm.inertials.check(&format!("built-in inertials of {}", model.name), &model)?;
                 let mut a = arm.clone();
                 a.name = model.name.clone();
-                // An identified model file's own inertials and drive, as `Scene::set_model` takes them.
-                a.inertials = arm.inertials.with_model(&model);
-                a.inertials.check(&format!("{} inertials", model.name), &model)?;
-                crate::scene::take_model_drive(&model, &mut a.damping, &mut a.armature);
                 a.model = model;
                 a.parent = None;
+                // An identified model file's own inertials and drive, as `Scene::set_model` takes them.
+                a.take_model_file(scene.solver.pgs_iterations);
+                a.inertials.check(&format!("{} inertials", a.model.name), &a.model)?;
                 return Ok(Scene { name: a.name.clone(), title: format!("{} alone ({})", a.name, model_title(&a.model)), dt: scene.dt, solver: scene.solver, gravity: scene.gravity, arms: vec![a], camera: None, file: scene.file.clone() });
             }
             if !with.contains(&arm.model.name) {

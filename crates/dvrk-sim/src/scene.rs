@@ -282,17 +282,13 @@ impl Scene {
         let mount = a.model.base * a.original_base.inverse();
         let original_base = model.base;
         model.base = mount * model.base;
-        // A model file with its own [[inertials]] (an identified model) brings them along.
-        let inertials = a.inertials.with_model(&model);
-        inertials.check(&format!("{} inertials", a.name), &model)?;
-        let scene_sweeps = self.solver.pgs_iterations;
-        let a = &mut self.arms[arm];
-        a.inertials = inertials;
-        take_model_drive(&model, &mut a.damping, &mut a.armature);
-        a.pgs_iterations = sweeps_for(&model, a.pgs_iterations, scene_sweeps);
-        a.start = model.home();
-        a.model = model;
-        a.original_base = original_base;
+        let mut new = a.clone();
+        new.start = model.home();
+        new.model = model;
+        new.original_base = original_base;
+        new.take_model_file(self.solver.pgs_iterations);
+        new.inertials.check(&format!("{} inertials", new.name), &new.model)?;
+        self.arms[arm] = new;
         Ok(())
     }
 
@@ -386,8 +382,7 @@ impl Scene {
                     let text = std::fs::read_to_string(&p).map_err(|e| SimError::Io { path: p.display().to_string(), source: e })?;
                     Inertials::parse(&text, &p.display().to_string(), &model)?
                 }
-            }
-            .with_model(&model);
+            };
             let n = model.nq();
             for (name, v) in [("kp", &a.kp), ("ki", &a.ki), ("kd", &a.kd), ("armature", &a.armature)] {
                 if v.len() != n {
@@ -408,10 +403,9 @@ impl Scene {
                 return Err(SimError::field(file, field("name"), "two arms have this name"));
             }
             let start = model.home();
-            let (mut armature, mut damping) = (a.armature.clone(), a.damping);
-            take_model_drive(&model, &mut damping, &mut armature);
-            let pgs_iterations = sweeps_for(&model, a.pgs_iterations, f.pgs_iterations);
-            arms.push(Arm { name: a.name.clone(), model, original_base, inertials, gains, armature, damping, parent, mode: a.mode, tracking: a.tracking, pgs_iterations, gravity_compensation: a.gravity_compensation, start });
+            let mut arm = Arm { name: a.name.clone(), model, original_base, inertials, gains, armature: a.armature.clone(), damping: a.damping, parent, mode: a.mode, tracking: a.tracking, pgs_iterations: a.pgs_iterations, gravity_compensation: a.gravity_compensation, start };
+            arm.take_model_file(f.pgs_iterations);
+            arms.push(arm);
         }
         if let Some(c) = &f.camera {
             c.check(file)?;
@@ -443,25 +437,25 @@ pub const RECORDED_START_SLACK: f64 = 0.01;
 /// CAD yaw for 53, 3 and 0; 30 leaves a margin and costs no measurable time on one arm.
 pub const IDENTIFIED_PGS_ITERATIONS: usize = 30;
 
-/// An arm's sweeps (`arm`, else the scene's `scene`), raised to [`IDENTIFIED_PGS_ITERATIONS`]
-/// when `model` carries its own inertials.
-fn sweeps_for(model: &Model, arm: Option<usize>, scene: usize) -> Option<usize> {
-    if model.spec.inertials.is_empty() {
-        arm
-    } else {
-        Some(arm.unwrap_or(scene).max(IDENTIFIED_PGS_ITERATIONS))
-    }
-}
-
-/// A model's own drive (`[drive]`: the one an identified model's efforts were fitted with):
-/// its damping replaces the arm's; its motor inertias raise the arm's armature and never lower
-/// it, because the scene's armature is also the explicit PID's stability floor (kd dt / armature
-/// <= 0.25, see the scene files). Efforts predicted from the model take its own armature.
-pub(crate) fn take_model_drive(model: &Model, damping: &mut f64, armature: &mut [f64]) {
-    if let Some(d) = &model.spec.drive {
-        *damping = d.damping;
-        for (a, m) in armature.iter_mut().zip(&d.armature) {
-            *a = a.max(*m);
+impl Arm {
+    /// Take over what the arm's model file brings of its own (an identified model's): its
+    /// `[[inertials]]` over the arm's (matched by body name), its `[drive]` (the damping replaces
+    /// the arm's; the motor inertias raise the armature and never lower it, because the scene's
+    /// armature is also the explicit PID's stability floor, kd dt / armature <= 0.25, see the
+    /// scene files; efforts predicted from the model take its own), and at least
+    /// [`IDENTIFIED_PGS_ITERATIONS`] sweeps when it brings inertials (`scene_sweeps`: the
+    /// scene's, for an arm that sets none).
+    pub(crate) fn take_model_file(&mut self, scene_sweeps: usize) {
+        let spec = &self.model.spec;
+        self.inertials = self.inertials.with_model(&self.model);
+        if let Some(d) = &spec.drive {
+            self.damping = d.damping;
+            for (a, m) in self.armature.iter_mut().zip(&d.armature) {
+                *a = a.max(*m);
+            }
+        }
+        if !spec.inertials.is_empty() {
+            self.pgs_iterations = Some(self.pgs_iterations.unwrap_or(scene_sweeps).max(IDENTIFIED_PGS_ITERATIONS));
         }
     }
 }

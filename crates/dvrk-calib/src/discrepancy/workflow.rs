@@ -706,6 +706,8 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
     let driven: Vec<usize> = prep.active.iter().copied().filter(|&j| arm.armature[j] > 0.0).collect();
     let rates = candidates::rate_sensitivities(&mut predictor, &prep, &rigid, &driven)?;
     let nq = arm.model.nq();
+    // The motor inertia the prediction includes (an identified model's own); the two-mass
+    // drive laws keep the arm's, which the simulator steps with.
     let motor = predictor.armature().to_vec();
     // Joint j's drive load along the recorded motion, for a prediction `base`.
     let joint_load = |j: usize, base: &Table| -> Option<super::drive::JointLoad> {
