@@ -27,6 +27,7 @@ pub fn steps(options: &IdentifyOptions) -> Vec<(String, IdentifyOptions)> {
     let mut o = options.rigid_only();
     o.processing = Processing { channel_cutoff: Vec::new(), channel_coulomb_velocity: Vec::new(), ..options.processing.clone() };
     o.prior_fraction = IdentifyOptions::full(Vec::new()).prior_fraction;
+    o.small_bodies = Vec::new();
     out.push(("rigid body only (CAD prior, one cut-off)".into(), o.clone()));
     let has = |t: EffectTerm| options.terms.effects.contains(&t);
     let friction: Vec<EffectTerm> = [EffectTerm::Coulomb, EffectTerm::Offset, EffectTerm::Viscous].into_iter().filter(|t| has(*t)).collect();
@@ -54,6 +55,11 @@ pub fn steps(options: &IdentifyOptions) -> Vec<(String, IdentifyOptions)> {
     if o.prior_fraction != options.prior_fraction {
         o.prior_fraction = options.prior_fraction;
         out.push((format!("+ weak CAD prior ({}x magnitude)", options.prior_fraction), o.clone()));
+    }
+    if o.small_bodies != options.small_bodies {
+        o.small_bodies = options.small_bodies.clone();
+        let names: Vec<&str> = options.small_bodies.iter().map(|b| b.name.as_str()).collect();
+        out.push((format!("+ small-part prior ({})", names.join(", ")), o.clone()));
     }
     if !options.terms.joint_friction.is_empty() {
         o.terms.joint_friction = options.terms.joint_friction.clone();

@@ -60,15 +60,17 @@ fn real_psm_recordings_identify_physically_and_predict_the_held_out_one() {
             id.body_inertia(b, &body.name).unwrap();
         }
     }
-    // Measured 0.054 0.108 0.184 0.171 0.107 0.144 0.166: at or below the published figures on
-    // every channel but the roll, 28% above them (the authors' own published roll parameters
-    // give 0.170 on `two` with this metric, against the recorded efforts unfiltered). The effects
-    // matter on every channel.
+    // Measured 0.052 0.107 0.185 0.158 0.105 0.140 0.155 (in band 0.048 0.106 0.162 0.121 0.098
+    // 0.132 0.144): at or below the published figures on every channel but the roll, 18% above
+    // them against the raw efforts (the authors' own published roll parameters give 0.172 on
+    // `two` with this metric; their 0.134 is against filtered efforts, see `as_published`). The
+    // effects matter on every channel.
     for c in 0..7 {
         // The sensor noise above the analysis band is part of the raw figure, not of the banded one.
         assert!(in_band[c] < held_out[c], "channel {c}: in band {} vs raw {}", in_band[c], held_out[c]);
+        assert!(in_band[c] <= PUBLISHED[c], "channel {c}: in band {} vs published {}", in_band[c], PUBLISHED[c]);
         assert!(held_out[c] < 0.75 * rigid_held_out[c], "channel {c}: {} vs rigid {}", held_out[c], rigid_held_out[c]);
-        let bound = if c == 3 { 1.3 * PUBLISHED[c] } else { PUBLISHED[c] };
+        let bound = if c == 3 { 1.2 * PUBLISHED[c] } else { PUBLISHED[c] };
         assert!(held_out[c] <= bound, "channel {c}: {} vs published {} (bound {bound})", held_out[c], PUBLISHED[c]);
     }
     // Friction of the first three joints agrees with the original authors' own identification
@@ -90,7 +92,7 @@ fn real_psm_recordings_identify_physically_and_predict_the_held_out_one() {
     }
     // The ablation ends at the chosen options with the same figures.
     let rows = dvrk_calib::identify::ablation::ablation(&model, &prior, &r1, Some(&r2), &options, None).unwrap();
-    assert_eq!(rows.len(), 10);
+    assert_eq!(rows.len(), 11);
     assert_eq!(rows.last().unwrap().validation.as_ref().unwrap(), &held_out);
     assert_eq!(rows[0].validation.as_ref().unwrap().len(), 7);
 }
@@ -116,7 +118,7 @@ fn bad_wpi_files_name_the_line_and_column() {
 /// every joint, whether the CAD scene runs its own 12 Gauss-Seidel sweeps or the identified
 /// scene's 30. Measured (RMS, CAD 12 sweeps / CAD 30 sweeps -> identified, with its [drive]):
 /// yaw 0.0330 / 0.0320 -> 0.0061 rad, pitch 0.086 / 0.090 -> 0.0087 rad, insertion 6.5 / 6.5 ->
-/// 2.1 mm, roll 0.0261 -> 0.0062, wrist pitch 0.0213 -> 0.0119, wrist yaw 0.0201 -> 0.0091, jaw
+/// 2.1 mm, roll 0.0261 -> 0.0062, wrist pitch 0.0213 -> 0.0116, wrist yaw 0.0201 -> 0.0092, jaw
 /// 0.0205 -> 0.0090 rad. With the scene's joint damping on top of the identified friction (before
 /// the model file carried its drive): yaw 0.0076, pitch 0.024, insertion 1.9 mm, roll 0.025,
 /// wrist 0.021 / 0.019, jaw 0.0115.
@@ -216,8 +218,8 @@ fn identify_output_is_a_model_file_the_simulator_loads() {
 /// (0.1 N·m s/rad on every tree joint) to friction identified with it inside, and the
 /// identified model came out worse than CAD on the yaw, pitch and wrist (yaw 0.187 vs 0.084
 /// N·m on `one` itself). Measured on `two`, held-out band RMS identified / CAD (N·m, N): yaw
-/// 0.049 / 0.084, pitch 0.097 / 0.284, insertion 0.186 / 0.622, roll 0.0018 / 0.075, wrist
-/// pitch 0.027 / 0.079, wrist yaw 0.019 / 0.053, jaw 0.0064 / 0.046.
+/// 0.048 / 0.084, pitch 0.097 / 0.284, insertion 0.185 / 0.622, roll 0.0012 / 0.075, wrist
+/// pitch 0.027 / 0.079, wrist yaw 0.020 / 0.053, jaw 0.0059 / 0.046.
 #[test]
 fn the_identified_model_leaves_less_discrepancy_than_cad_on_the_held_out_recording() {
     use dvrk_calib::discrepancy::{discrepancy, run::read_log, scene_for_arm, Options};
