@@ -221,6 +221,11 @@ fn identify_json_and_output_file() {
     }
     assert_eq!(v["physically_consistent"], true);
     assert_eq!(v["validation"]["relative_error"].as_array().unwrap().len(), 7);
+    // The WPI authors' protocol: one period of `two`'s excitation (6.48 s) after 1 s trimmed.
+    let published = &v["validation"]["as_published"];
+    assert_eq!(published["relative_error"].as_array().unwrap().len(), 7);
+    assert!((published["period_s"].as_f64().unwrap() - 6.48).abs() < 0.01, "{published}");
+    assert!((published["window_s"][0].as_f64().unwrap() - 1.0).abs() < 1e-9, "{published}");
     let ablation = v["ablation"].as_array().unwrap();
     assert_eq!(ablation[0]["effects"], "rigid body only (CAD prior, one cut-off)");
     assert_eq!(ablation.last().unwrap()["validation"], v["validation"]["relative_error"]);

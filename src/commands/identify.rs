@@ -100,10 +100,14 @@ pub fn run(args: &IdentifyArgs) -> Result<()> {
         return Ok(());
     }
     println!("identified {} from {} ({} samples): {} parameters, {} determined by the data", model.name, args.recording.display(), id.samples, id.layout.len(), id.base_parameters);
-    println!("{:<28} {:>10} {:>12} {:>12}", "channel", "rel. error", "rigid only", "validation");
+    println!("{:<28} {:>10} {:>12} {:>12} {:>14}", "channel", "rel. error", "rigid only", "validation", "as published");
+    let held = |key: &str, c: usize| summary.get("validation").and_then(|v| v.pointer(&format!("{key}/{c}"))).and_then(|x| x.as_f64()).map(|x| format!("{x:.3}")).unwrap_or_default();
     for (c, name) in id.channels.iter().enumerate() {
-        let v = summary.get("validation").map(|v| format!("{:.3}", v["relative_error"][c].as_f64().unwrap_or(f64::NAN))).unwrap_or_default();
-        println!("{name:<28} {:>10.3} {:>12.3} {v:>12}", id.relative_error[c], rigid.relative_error[c]);
+        let (v, p) = (held("/relative_error", c), held("/as_published/relative_error", c));
+        println!("{name:<28} {:>10.3} {:>12.3} {v:>12} {p:>14}", id.relative_error[c], rigid.relative_error[c]);
+    }
+    if let Some(p) = summary.get("validation").and_then(|v| v.get("as_published")).filter(|p| !p.is_null()) {
+        println!("as published: against the efforts low-passed at {} Hz (order {}), over {:.2}..{:.2} s (the excitation's first period, {} s), as the WPI authors computed theirs", p["cutoff_hz"], p["order"], p["window_s"][0].as_f64().unwrap_or(f64::NAN), p["window_s"][1].as_f64().unwrap_or(f64::NAN), p["period_s"]);
     }
     println!("physically consistent: {} ({} cutting-plane rounds)", summary["physically_consistent"], id.fit.rounds);
     println!("ablation (cumulative; relative error per channel{}):", if held_out.is_some() { ", fitted / held-out" } else { "" });

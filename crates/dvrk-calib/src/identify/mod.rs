@@ -11,6 +11,7 @@
 //! the 95% intervals, tests/calib/identify_synthetic.rs).
 
 pub mod ablation;
+pub mod as_published;
 pub mod filter;
 pub mod output;
 pub mod problem;
@@ -433,5 +434,13 @@ impl Identification {
     pub fn validate(&self, model: &Model, rec: &TorqueRecording, options: &IdentifyOptions) -> Result<(Vec<f64>, Vec<f64>)> {
         let reg = problem::regression(model, rec, &self.layout, &options.processing)?;
         Ok((relative_errors(&reg, &self.theta), relative_errors_in_band(&reg, &self.theta)))
+    }
+
+    /// [`Identification::validate`], and the errors with the WPI authors' protocol
+    /// ([`as_published`]; `None` for a recording too short for its window).
+    pub fn validate_all(&self, model: &Model, rec: &TorqueRecording, options: &IdentifyOptions) -> Result<(Vec<f64>, Vec<f64>, Option<as_published::AsPublished>)> {
+        let reg = problem::regression(model, rec, &self.layout, &options.processing)?;
+        let published = as_published::relative_errors(&reg, &self.theta, rec, options.processing.trim, &as_published::Protocol::default());
+        Ok((relative_errors(&reg, &self.theta), relative_errors_in_band(&reg, &self.theta), published))
     }
 }

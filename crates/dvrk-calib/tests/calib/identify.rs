@@ -48,11 +48,12 @@ fn real_psm_recordings_identify_physically_and_predict_the_held_out_one() {
     let options = IdentifyOptions::psm();
     assert_eq!(IdentifyOptions::for_model(&model), options);
     let (id, _) = identify(&model, &prior, &r1, &options).unwrap();
-    let (held_out, in_band) = id.validate(&model, &r2, &options).unwrap();
+    let (held_out, in_band, as_published) = id.validate_all(&model, &r2, &options).unwrap();
+    let as_published = as_published.unwrap().relative_error;
     let rigid_options = options.rigid_only();
     let (rigid, _) = identify(&model, &prior, &r1, &rigid_options).unwrap();
     let (rigid_held_out, _) = rigid.validate(&model, &r2, &rigid_options).unwrap();
-    eprintln!("held-out relative error: {held_out:.4?}\nin the analysis band:    {in_band:.4?}\nrigid body only:         {rigid_held_out:.3?}\npublished:               {PUBLISHED:.3?}");
+    eprintln!("held-out relative error: {held_out:.4?}\nin the analysis band:    {in_band:.4?}\nas published:            {as_published:.4?}\nrigid body only:         {rigid_held_out:.3?}\npublished:               {PUBLISHED:.3?}");
     // Every body's pseudo-inertia is positive semidefinite (the published parameters were not).
     assert!(id.fit.min_eigen.iter().all(|l| *l > -1e-9), "{:?}", id.fit.min_eigen);
     for (b, body) in model.bodies.iter().enumerate() {
@@ -63,12 +64,14 @@ fn real_psm_recordings_identify_physically_and_predict_the_held_out_one() {
     // Measured 0.052 0.107 0.185 0.158 0.105 0.140 0.155 (in band 0.048 0.106 0.162 0.121 0.098
     // 0.132 0.144): at or below the published figures on every channel but the roll, 18% above
     // them against the raw efforts (the authors' own published roll parameters give 0.172 on
-    // `two` with this metric; their 0.134 is against filtered efforts, see `as_published`). The
-    // effects matter on every channel.
+    // `two` with this metric; their 0.134 is against filtered efforts over one period, see
+    // `the_authors_protocol_reproduces...`). With their protocol: 0.049 0.100 0.165 0.120 0.102
+    // 0.130 0.148, below theirs on every channel. The effects matter on every channel.
     for c in 0..7 {
         // The sensor noise above the analysis band is part of the raw figure, not of the banded one.
         assert!(in_band[c] < held_out[c], "channel {c}: in band {} vs raw {}", in_band[c], held_out[c]);
         assert!(in_band[c] <= PUBLISHED[c], "channel {c}: in band {} vs published {}", in_band[c], PUBLISHED[c]);
+        assert!(as_published[c] <= PUBLISHED[c], "channel {c}: as published {} vs published {}", as_published[c], PUBLISHED[c]);
         assert!(held_out[c] < 0.75 * rigid_held_out[c], "channel {c}: {} vs rigid {}", held_out[c], rigid_held_out[c]);
         let bound = if c == 3 { 1.2 * PUBLISHED[c] } else { PUBLISHED[c] };
         assert!(held_out[c] <= bound, "channel {c}: {} vs published {} (bound {bound})", held_out[c], PUBLISHED[c]);
@@ -95,6 +98,39 @@ fn real_psm_recordings_identify_physically_and_predict_the_held_out_one() {
     assert_eq!(rows.len(), 11);
     assert_eq!(rows.last().unwrap().validation.as_ref().unwrap(), &held_out);
     assert_eq!(rows[0].validation.as_ref().unwrap().len(), 7);
+}
+
+/// The WPI authors' protocol (`identify::as_published`: efforts low-passed by a sixth-order
+/// zero-phase Butterworth at 17 Hz, 200 samples trimmed, the excitation's first period)
+/// reproduces their published roll error on `two` from their own published roll parameters
+/// (`psm_params.json` link 10: `Fc sign(qd) + Fo + Fv qd + Im qdd + K q`, positions and velocities
+/// low-passed like the efforts): 0.1356 against their 0.134 (0.1345 over the 1111 samples of
+/// their nominal 0.18 Hz base frequency). Against the raw efforts over the whole recording the
+/// same parameters give 0.172: the published figures are not `relative_error`.
+#[test]
+fn the_authors_protocol_reproduces_their_published_roll_error_from_their_parameters() {
+    use dvrk_calib::identify::as_published::{relative_error, window, Protocol};
+    use dvrk_calib::identify::filter::{derivative, Butterworth};
+    let (Some(two), Some(params)) = (wpi("psm_two_results.csv"), wpi("psm_params.json")) else { return };
+    let rec = read_wpi_csv(&two, &psm()).unwrap();
+    let protocol = Protocol::default();
+    let w = window(&rec, 0, rec.len(), &protocol).unwrap();
+    assert_eq!((w.start, w.stop, w.period), (200, 1496, Some(1296)));
+    let p: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(params).unwrap()).unwrap();
+    let k = |name: &str| p["10"][name].as_f64().unwrap();
+    let roll = |x: &[Vec<f64>]| x.iter().map(|v| v[3]).collect::<Vec<f64>>();
+    let (q, qd, tau) = (roll(&rec.q), roll(&rec.qd), roll(&rec.tau));
+    let f = Butterworth::new(protocol.order, protocol.cutoff_hz, w.rate);
+    let pad = 40;
+    let (qf, qdf, qddf) = (f.filtfilt(&q, pad), f.filtfilt(&qd, pad), f.filtfilt(&derivative(&qd, 1.0 / w.rate), pad));
+    let model = |q: f64, qd: f64, qdd: f64| k("Fc") * qd.signum() + k("Fo") + k("Fv") * qd + k("Im") * qdd + k("K") * q;
+    let e = relative_error(&tau, |i| model(qf[i], qdf[i], qddf[i]), &w, &protocol);
+    let qdd = derivative(&qd, 1.0 / w.rate);
+    let (num, den) = (0..rec.len()).fold((0.0, 0.0), |(n, d), i| (n + (tau[i] - model(q[i], qd[i], qdd[i])).powi(2), d + tau[i] * tau[i]));
+    let raw = (num / den).sqrt();
+    eprintln!("the authors' roll parameters on two: {e:.4} with their protocol (published 0.134), {raw:.4} against the raw efforts");
+    assert!((e - PUBLISHED[3]).abs() < 0.003, "{e}");
+    assert!(raw > 0.165, "{raw}");
 }
 
 #[test]
