@@ -133,6 +133,26 @@ fn the_authors_protocol_reproduces_their_published_roll_error_from_their_paramet
     assert!(raw > 0.165, "{raw}");
 }
 
+/// A small-part prior names a body the model has, with a positive size.
+#[test]
+fn a_small_part_prior_on_an_unknown_body_or_of_no_size_is_refused() {
+    use dvrk_calib::identify::{SmallBody, TorqueRecording};
+    let model = psm();
+    let prior = dvrk_sim::scene::builtin_inertials("psm", &model).unwrap().body_inertias(&model).unwrap();
+    let t: Vec<f64> = (0..400).map(|i| i as f64 / 200.0).collect();
+    let q: Vec<Vec<f64>> = t.iter().map(|t| (0..7).map(|j| 0.2 * (t * (1.0 + j as f64)).sin() + if j == 2 { 0.12 } else { 0.0 }).collect()).collect();
+    let qd: Vec<Vec<f64>> = t.iter().map(|t| (0..7).map(|j| 0.2 * (1.0 + j as f64) * (t * (1.0 + j as f64)).cos()).collect()).collect();
+    let rec = TorqueRecording { source: "r.csv".into(), tau: qd.clone(), q, qd, t, channels: model.joints.iter().map(|j| j.name.clone()).collect(), to_joint: nalgebra::DMatrix::identity(7, 7) };
+    let mut options = IdentifyOptions::psm();
+    options.small_bodies.push(SmallBody { name: "tool_shaft".into(), mass_kg: 0.002, radius_m: 0.01 });
+    let e = identify(&model, &prior, &rec, &options).unwrap_err().to_string();
+    assert!(e.contains("small body `tool_shaft`: model psm has no such body"), "{e}");
+    options.small_bodies.pop();
+    options.small_bodies[0].radius_m = 0.0;
+    let e = identify(&model, &prior, &rec, &options).unwrap_err().to_string();
+    assert!(e.contains("small body `tool_pitch_link`: mass 0.002 kg and radius 0 m must be positive"), "{e}");
+}
+
 #[test]
 fn bad_wpi_files_name_the_line_and_column() {
     let model = psm();
