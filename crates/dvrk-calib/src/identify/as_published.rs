@@ -99,10 +99,7 @@ pub struct Window {
 /// the Nyquist frequency.
 pub fn window(rec: &TorqueRecording, first: usize, last: usize, protocol: &Protocol) -> Option<Window> {
     let n = rec.len();
-    if n < 2 || rec.t[n - 1] <= rec.t[0] {
-        return None;
-    }
-    let rate = (n - 1) as f64 / (rec.t[n - 1] - rec.t[0]);
+    let rate = rec.rate()?;
     let start = protocol.trim.max(first);
     let end = n.saturating_sub(protocol.trim).min(last);
     let period = fundamental_period(rec, rate, protocol.period_tolerance);

@@ -251,8 +251,8 @@ pub fn regression(model: &Model, rec: &TorqueRecording, layout: &Layout, process
     if n <= 2 * processing.trim + 10 {
         return Err(CalibError::data(&rec.source, format!("{n} samples; {} are trimmed at the ends for the filter", 2 * processing.trim)));
     }
-    let dt = (rec.t[n - 1] - rec.t[0]) / (n - 1) as f64;
-    let rate = 1.0 / dt;
+    let rate = rec.rate().ok_or_else(|| CalibError::data(&rec.source, format!("sample times do not advance ({} s to {} s)", rec.t[0], rec.t[n - 1])))?;
+    let dt = 1.0 / rate;
     for c in 0..nc {
         let fc = processing.cutoff_of(c);
         if !(fc > 0.0 && fc < 0.45 * rate) {

@@ -45,6 +45,13 @@ impl TorqueRecording {
         self.t.is_empty()
     }
 
+    /// Mean sample rate (Hz) over the recording; `None` with fewer than two samples or a time
+    /// span that is not positive.
+    pub fn rate(&self) -> Option<f64> {
+        let n = self.len();
+        (n >= 2 && self.t[n - 1] > self.t[0]).then(|| (n - 1) as f64 / (self.t[n - 1] - self.t[0]))
+    }
+
     /// Samples `range` as a recording of its own (for cross-validation: choose settings on
     /// one half, judge them on the other).
     pub fn slice(&self, range: std::ops::Range<usize>) -> TorqueRecording {
