@@ -107,7 +107,11 @@ pub fn run(args: &IdentifyArgs) -> Result<()> {
         println!("{name:<28} {:>10.3} {:>12.3} {v:>12} {p:>14}", id.relative_error[c], rigid.relative_error[c]);
     }
     if let Some(p) = summary.get("validation").and_then(|v| v.get("as_published")).filter(|p| !p.is_null()) {
-        println!("as published: against the efforts low-passed at {} Hz (order {}), over {:.2}..{:.2} s (the excitation's first period, {} s), as the WPI authors computed theirs", p["cutoff_hz"], p["order"], p["window_s"][0].as_f64().unwrap_or(f64::NAN), p["window_s"][1].as_f64().unwrap_or(f64::NAN), p["period_s"]);
+        let span = match p["period_s"].as_f64() {
+            Some(period) => format!("the excitation's first period, {period} s"),
+            None => "no period found: the whole trimmed recording".to_string(),
+        };
+        println!("as published: against the efforts low-passed at {} Hz (order {}), over {:.2}..{:.2} s ({span}), as the WPI authors computed theirs", p["cutoff_hz"], p["order"], p["window_s"][0].as_f64().unwrap_or(f64::NAN), p["window_s"][1].as_f64().unwrap_or(f64::NAN));
     }
     println!("physically consistent: {} ({} cutting-plane rounds)", summary["physically_consistent"], id.fit.rounds);
     println!("ablation (cumulative; relative error per channel{}):", if held_out.is_some() { ", fitted / held-out" } else { "" });
