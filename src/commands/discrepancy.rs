@@ -80,7 +80,7 @@ pub fn run(a: &DiscrepancyArgs) -> Result<()> {
         if v.is_empty() || v.len() > 2 || v.iter().any(|x| !(x.is_finite() && *x >= 0.0)) {
             bail!("--inertia-prior {text}: expected ROT or ROT,MASS (finite numbers >= 0)");
         }
-        options.inertia_prior = dvrk_calib::discrepancy::InertiaPrior { rotational: v[0], mass: v.get(1).copied().unwrap_or(options.inertia_prior.mass) };
+        options.inertia_prior = dvrk_calib::discrepancy::InertiaPrior::relative(v[0], v.get(1).copied().unwrap_or(options.inertia_prior.mass));
     }
     let marker = a.marker_topic.as_ref().zip(a.marker_link.as_ref()).map(|(topic, link)| dvrk_calib::discrepancy::run::MarkerSource { topic: topic.clone(), link: link.clone() });
     let out = dvrk_calib::discrepancy::run::run(&a.recording, &a.format, &model, &a.arm, marker.as_ref(), &options, a.max_rounds as usize)?;
@@ -103,14 +103,39 @@ pub fn run(a: &DiscrepancyArgs) -> Result<()> {
         crate::io::write_atomic(p, image).with_context(|| format!("--plot {}", p.display()))?;
     }
     let named = r.effects.iter().map(|e| e.label()).collect::<Vec<_>>().join(", ");
-    outln!(
-        "{}: {}{} (torque residual {:.2} -> {:.2} of the noise floor on held-out data); report in {}",
-        a.recording.display(),
-        r.verdict,
-        if named.is_empty() { String::new() } else { format!(": {named}") },
-        r.rms_heldout_before,
-        r.rms_heldout_after,
-        a.report.display()
-    );
+    outln!("{}: {}{}; report in {}", a.recording.display(), r.verdict, if named.is_empty() { String::new() } else { format!(": {named}") }, a.report.display());
+    // Per joint in its own unit: what is left, and how much of the joint's effort was explained.
+    for j in &r.joints {
+        outln!(
+            "  {:<20} residual {:.4} -> {:.4} {} ({:.0}% of its effort explained; {:.4} {} held out -> {:.4}); {}",
+            j.joint,
+            j.band_rms_before,
+            j.band_rms_after,
+            j.unit,
+            100.0 * j.share_explained,
+            j.band_rms_heldout_before,
+            j.unit,
+            j.band_rms_heldout_after,
+            j.unexplained
+        );
+    }
+    for p in r.effects.iter().filter_map(|e| e.payload.as_ref().map(|p| (e, p))) {
+        let (e, p) = p;
+        outln!(
+            "  {}: {:.3} kg [{:.3}, {:.3}] at ({:.3}, {:.3}, {:.3}) m; first moment about the pivot {:.4} kg m [{:.4}, {:.4}]{}{}",
+            e.label(),
+            p.mass,
+            p.mass_ci95[0],
+            p.mass_ci95[1],
+            p.position[0],
+            p.position[1],
+            p.position[2],
+            p.first_moment,
+            p.first_moment_ci95[0],
+            p.first_moment_ci95[1],
+            if p.cannot_fix.is_empty() { String::new() } else { format!("; cannot fix: {}", p.cannot_fix.join("; ")) },
+            if p.equivalent.is_empty() { String::new() } else { format!("; as well explained on: {}", p.equivalent.iter().map(|q| q.link.as_str()).collect::<Vec<_>>().join(", ")) }
+        );
+    }
     Ok(())
 }

@@ -50,7 +50,7 @@ pub use ik::{inverse_kinematics, IkOptions, IkSolution};
 pub use jacobian::frame_jacobian;
 pub use load::{builtin_names, load};
 pub use model::{pose_from_rows, pose_to_rows, sample_configurations, Body, Closure, Frame, Joint, Model, Part, Pose, Rcm};
-pub use spec::{DriveSpec, FrameJoint, FrameRef, InertialSpec, JointType, MeshSpec, ModelSpec};
+pub use spec::{DriveSpec, FrameJoint, FrameRef, InertialCovarianceSpec, InertialSpec, JointType, MeshSpec, ModelSpec};
 
 /// The names most programs need.
 pub mod prelude {

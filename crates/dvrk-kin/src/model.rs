@@ -531,6 +531,7 @@ impl Model {
         model.finalize(&declared)?;
         model.check_inertials()?;
         model.check_drive()?;
+        model.check_inertial_covariance()?;
         crate::closure::compile_closures(&mut model)?;
         if let Some(r) = &spec.rcm {
             let frame = model.frame_id(&r.frame).map_err(|e| KinError::field("rcm.frame", e.to_string()))?;
@@ -573,6 +574,58 @@ impl Model {
             return Err(KinError::field(format!("drive.armature[{k}] ({})", self.joints[k].name), format!("{v} is not a finite non-negative number")));
         }
         Ok(())
+    }
+
+    /// The model file's `[inertial_covariance]`: known bodies, each once, and a lower triangular
+    /// factor of the right size with finite entries and a positive diagonal.
+    fn check_inertial_covariance(&self) -> Result<()> {
+        let Some(c) = &self.spec.inertial_covariance else { return Ok(()) };
+        for (i, name) in c.bodies.iter().enumerate() {
+            if !self.bodies.iter().any(|b| &b.name == name) {
+                return Err(KinError::field(format!("inertial_covariance.bodies[{i}]"), format!("model {} has no body `{name}`", self.name)));
+            }
+            if c.bodies[..i].contains(name) {
+                return Err(KinError::field(format!("inertial_covariance.bodies[{i}]"), format!("body `{name}` appears twice")));
+            }
+        }
+        let n = c.bodies.len() * crate::dynamics::PARAMETERS_PER_BODY;
+        if c.cholesky.len() != n {
+            return Err(KinError::field("inertial_covariance.cholesky", format!("has {} rows; {} bodies need {n}", c.cholesky.len(), c.bodies.len())));
+        }
+        for (i, row) in c.cholesky.iter().enumerate() {
+            let what = format!("inertial_covariance.cholesky[{i}]");
+            if row.len() != i + 1 {
+                return Err(KinError::field(what, format!("has {} entries; row {i} of a lower triangular factor has {}", row.len(), i + 1)));
+            }
+            if let Some((k, v)) = row.iter().enumerate().find(|(_, v)| !v.is_finite()) {
+                return Err(KinError::field(format!("{what}[{k}]"), format!("{v} is not a finite number")));
+            }
+            if !(row[i] > 0.0) {
+                return Err(KinError::field(format!("{what}[{i}]"), format!("{:.6e}: the diagonal of a Cholesky factor is positive", row[i])));
+            }
+        }
+        Ok(())
+    }
+
+    /// The covariance of the parameters of `bodies` (each [`crate::dynamics::PARAMETERS_PER_BODY`]
+    /// in order, positions in [`Model::bodies`]) from the model file's `[inertial_covariance]`,
+    /// as its lower Cholesky factor; `None` if the file has none or it leaves out one of them.
+    pub fn inertial_covariance_factor(&self, bodies: &[usize]) -> Option<nalgebra::DMatrix<f64>> {
+        let c = self.spec.inertial_covariance.as_ref()?;
+        let per = crate::dynamics::PARAMETERS_PER_BODY;
+        let pos: Vec<usize> = bodies
+            .iter()
+            .map(|&b| {
+                let name = &self.bodies.get(b)?.name;
+                c.bodies.iter().position(|n| n == name)
+            })
+            .collect::<Option<_>>()?;
+        let n = c.bodies.len() * per;
+        let full = nalgebra::DMatrix::from_fn(n, n, |i, k| if k <= i { c.cholesky[i][k] } else { 0.0 });
+        // The requested parameters' rows of L: their covariance is L_s L_s^T, refactored.
+        let rows: Vec<usize> = pos.iter().flat_map(|p| p * per..(p + 1) * per).collect();
+        let sel = full.select_rows(&rows);
+        (&sel * sel.transpose()).cholesky().map(|ch| ch.l())
     }
 
     /// Body `b`'s inertial from the model file's `[[inertials]]`, if it has one.

@@ -265,6 +265,28 @@ pub struct DriveSpec {
     pub source: String,
 }
 
+/// How well a model's inertials are known (`[inertial_covariance]`): the covariance of the
+/// inertial parameters an identification fitted them with (`dvrk identify -o`), so that a later
+/// analysis holds them as tightly as the recording determined them and no tighter.
+///
+/// The parameters are each listed body's standard linear form
+/// ([`crate::dynamics::PARAMETER_NAMES`]: kg, kg m, kg m^2, about the body's first frame), body
+/// after body in the order of `bodies`. The covariance is `L L^T`, with `L` its lower Cholesky
+/// factor: `cholesky[i]` holds row `i` of `L` up to its diagonal (`i + 1` numbers). A factor
+/// keeps the matrix positive semidefinite whatever the rounding of the numbers written, and a
+/// direction the recording did not determine keeps the identification's prior variance.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InertialCovarianceSpec {
+    /// The bodies whose parameters are covered ([`crate::Model::bodies`] names).
+    pub bodies: Vec<String>,
+    /// Rows of the lower Cholesky factor of the covariance (units of the parameters' products).
+    pub cholesky: Vec<Vec<f64>>,
+    /// The recording and method it comes from.
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub source: String,
+}
+
 /// A whole model file.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -306,6 +328,10 @@ pub struct ModelSpec {
     /// Inertials of some or all bodies (`[[inertials]]`); bodies without one take the scene's.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub inertials: Vec<InertialSpec>,
+    /// The covariance of the inertials' parameters ([`InertialCovarianceSpec`]); none: unknown
+    /// (CAD figures).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub inertial_covariance: Option<InertialCovarianceSpec>,
     /// Mesh files of bodies (`[[meshes]]`); bodies without one get solids from the kinematics.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub meshes: Vec<MeshSpec>,
@@ -332,6 +358,7 @@ impl ModelSpec {
             drive: None,
             effects: vec![],
             inertials: vec![],
+            inertial_covariance: None,
             meshes: vec![],
         }
     }

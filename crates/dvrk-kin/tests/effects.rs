@@ -222,3 +222,38 @@ fn model_file_drive_is_read_checked_and_written_back() {
     assert!(negative.contains("drive.armature[2] (outer_insertion)`: -0.128 is not a finite non-negative number"), "{negative}");
     assert!(err(&drive.replace("damping = 0.0", "damping = -1.0")).contains("drive.damping"));
 }
+
+/// `[inertial_covariance]` (how well an identification determined the inertials): read, written
+/// back exactly, its factor giving back the covariance `L L^T` of any subset of bodies, and
+/// refused with the field named when a body is unknown or the factor is not one.
+#[test]
+fn model_file_inertial_covariance_is_read_checked_and_written_back() {
+    // One body, a diagonal factor 1e-3 .. 1e-2 and one off-diagonal entry.
+    let rows: Vec<String> = (0..10)
+        .map(|i| {
+            let mut r = vec![0.0; i + 1];
+            r[i] = 1e-3 * (i + 1) as f64;
+            if i == 3 {
+                r[0] = 2e-3;
+            }
+            format!("[{}]", r.iter().map(|x| format!("{x:e}")).collect::<Vec<_>>().join(", "))
+        })
+        .collect();
+    let cov = format!("[inertial_covariance]\nbodies = [\"pitch_end_link\"]\ncholesky = [{}]\nsource = \"test\"\n", rows.join(", "));
+    let m = psm_with(&cov).unwrap();
+    let again = load_toml_text(&m.spec.to_toml().unwrap(), Path::new("again.toml"), None, None).unwrap();
+    assert_eq!(again.spec.inertial_covariance, m.spec.inertial_covariance);
+    let b = m.bodies.iter().position(|b| b.name == "pitch_end_link").unwrap();
+    let l = m.inertial_covariance_factor(&[b]).unwrap();
+    let c = &l * l.transpose();
+    // Var(mcz) = 2e-3^2 + 4e-3^2; Cov(m, mcz) = 1e-3 * 2e-3.
+    assert!((c[(3, 3)] - 2e-5).abs() < 1e-18 && (c[(0, 3)] - 2e-6).abs() < 1e-18, "{c}");
+    // A body it does not cover: no prior from the file.
+    assert!(m.inertial_covariance_factor(&[0]).is_none());
+    let err = |s: &str| psm_with(s).unwrap_err().to_string();
+    assert!(err(&cov.replace("pitch_end_link", "elbow")).contains("inertial_covariance.bodies[0]`: model psm has no body `elbow`"));
+    let short = err(&cov.replace(&format!(", {}]", rows[9]), "]"));
+    assert!(short.contains("inertial_covariance.cholesky`: has 9 rows; 1 bodies need 10"), "{short}");
+    let negative = err(&cov.replace("[1e-3]", "[-1e-3]"));
+    assert!(negative.contains("inertial_covariance.cholesky[0][0]`: -1.000000e-3: the diagonal of a Cholesky factor is positive"), "{negative}");
+}

@@ -27,7 +27,8 @@ pub struct Candidate {
     pub names: Vec<String>,
     pub columns: Vec<Table>,
     /// The model's own value of each parameter (0: the effect is absent): a fit is a change
-    /// from it, reported as the new value.
+    /// from it, reported as the new value. A payload's: 0 and the place (m) its columns are
+    /// linearised at ([`payload_at`]).
     pub at: Vec<f64>,
     /// The parameters' physical ranges where the model sets them (a coupling entry's:
     /// [`dvrk_kin::effects::coupling_error_range`]); `None`: the vocabulary's.
@@ -80,9 +81,10 @@ impl Candidate {
             }
             EffectKind::PayloadMass => {
                 p.insert("mass".into(), x[0]);
-                for (i, c) in ["x", "y", "z"].iter().enumerate() {
-                    // The position is only defined where there is a mass (1 g and more).
-                    p.insert((*c).into(), if x[0] > 1e-3 { x[i + 1] / x[0] } else { 0.0 });
+                // The position is only defined where there is a mass (1 g and more).
+                let at = payload_at(&self.at, x).unwrap_or([0.0; 3]);
+                for (c, v) in ["x", "y", "z"].iter().zip(at) {
+                    p.insert((*c).into(), v);
                 }
             }
             _ => {
@@ -146,9 +148,13 @@ pub fn friction_sign(prep: &Prepared, nq: usize, j: usize, v: f64) -> Table {
     local(prep, nq, j, |i| s[i])
 }
 
-/// Frames a payload is tried on: the instrument's bodies (what a grasped object or a heavier
-/// tool loads), those the model has.
-pub const PAYLOAD_FRAMES: [&str; 3] = ["main_insertion", "tool_roll", "tool_yaw"];
+/// A payload's position (m, in its frame) from a fit `x = (m, m dx, m dy, m dz)` of a candidate
+/// linearised at `at` ([`super::payload`]): `at + d`, each coordinate within the vocabulary's
+/// range (+-1 m). `None` below 1 g, where the position is not defined.
+pub fn payload_at(at: &[f64], x: &[f64]) -> Option<[f64; 3]> {
+    let r = EffectKind::PayloadMass.range("x").unwrap_or([-1.0, 1.0]);
+    (x[0] > 1e-3).then(|| std::array::from_fn(|k| (at[k + 1] + x[k + 1] / x[0]).clamp(r[0], r[1])))
+}
 
 /// Per moving joint where an offset shows (gravity or coupling load it), the change of every
 /// joint's effort per unit offset of that joint (the joint's true position is the reading plus
@@ -189,8 +195,8 @@ pub fn rate_sensitivities(predictor: &mut Predictor, prep: &Prepared, base: &Tab
     Ok(out)
 }
 
-/// The linear candidates (friction, springs, offsets, payloads, the counterweight, the coupling's
-/// entries) for the joints `prep.active`,
+/// The linear candidates (friction, springs, offsets, the counterweight, the coupling's entries;
+/// payloads are [`super::payload`]'s) for the joints `prep.active`,
 /// with `base` the nominal prediction and `offsets` from [`offset_sensitivities`]. The drives'
 /// compliance and play are profiles ([`super::drive`]), latency too.
 pub fn build(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f64; 3], prep: &Prepared, base: &Table, offsets: &[(usize, Table)]) -> Result<Vec<Candidate>> {
@@ -250,39 +256,6 @@ pub fn build(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f64; 3
             });
         }
     }
-    // Payloads: a point mass m at (x, y, z) in the link's frame is linear in (m, m x, m y, m z)
-    // up to its own small inertia m |r|^2.
-    for name in PAYLOAD_FRAMES {
-        if !model.frames.iter().any(|f| f.name == name) {
-            continue;
-        }
-        let (m, s) = (0.05, 0.02);
-        let at = |x: f64, y: f64, z: f64| -> Result<Table> {
-            let spec = EffectSpec {
-                name: "payload_mass".into(),
-                joint: None,
-                link: Some(FrameRef::Name(name.into())),
-                parameters: BTreeMap::from([("mass".into(), m), ("x".into(), x), ("y".into(), y), ("z".into(), z)]),
-                source: String::new(),
-            };
-            Predictor::new(&with_effect(model, &spec)?, arm, gravity)?.series(prep)
-        };
-        let p0 = at(0.0, 0.0, 0.0)?;
-        let cm = diff(&p0, base, m);
-        let cols = vec![cm.clone(), diff(&at(s, 0.0, 0.0)?, &p0, m * s), diff(&at(0.0, s, 0.0)?, &p0, m * s), diff(&at(0.0, 0.0, s)?, &p0, m * s)];
-        let focus = focus_of(prep, &cm);
-        out.push(Candidate {
-            kind: EffectKind::PayloadMass,
-            joint: None,
-            link: Some(name.into()),
-            names: names(&["mass", "mx", "my", "mz"]),
-            columns: cols,
-            at: vec![0.0; 4],
-            range: None,
-            focus,
-            profile: None,
-        });
-    }
     out.extend(counterweight(predictor, arm, gravity, prep, base)?);
     out.extend(coupling(predictor, arm, gravity, prep, base)?);
     Ok(out)
@@ -294,7 +267,7 @@ fn model_effect(kind: EffectKind, parameters: BTreeMap<String, f64>) -> EffectSp
 }
 
 /// The joint whose effort `column` moves most against its noise.
-fn focus_of(prep: &Prepared, column: &Table) -> usize {
+pub(crate) fn focus_of(prep: &Prepared, column: &Table) -> usize {
     prep.active.iter().copied().max_by(|a, b| (rms_joint(column, *a) / prep.noise[*a]).total_cmp(&(rms_joint(column, *b) / prep.noise[*b]))).unwrap_or(0)
 }
 

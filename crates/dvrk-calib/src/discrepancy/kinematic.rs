@@ -185,6 +185,8 @@ impl KinematicChannel {
                             ci95,
                             delta_bic: k.delta_bic,
                             p_value: k.p_value,
+                            payload: None,
+                            explained: Vec::new(),
                         },
                         heldout_p_value: k.heldout_p,
                         heldout_cv_p_value: None,

@@ -28,6 +28,7 @@ pub mod kinematic;
 pub mod locate;
 pub mod markers;
 pub mod nuisance;
+pub mod payload;
 pub mod plot;
 pub mod registration;
 pub mod repeat;

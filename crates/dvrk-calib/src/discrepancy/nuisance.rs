@@ -9,6 +9,12 @@
 //! `min |y - N t - C x|^2 + lambda |t|^2` leaves `|y - C x|_W^2` with
 //! `W = I - N (N^T N + lambda I)^-1 N^T`: everything below works in that metric, through the
 //! Cholesky factor `L` of `N^T N + lambda I` (`v^T W v = |v|^2 - |L^-1 N^T v|^2`).
+//!
+//! A model identified from a recording (`dvrk identify -o`) carries how well that recording
+//! determined its inertias (`[inertial_covariance]`): the prior is then that covariance, `S S^T`,
+//! and `N`'s columns are the regressor times `S`. The inertias then move only where the
+//! identification left them free; a relative prior on an identified model let them take up a
+//! 205 g weight on the WPI arm (the pitch's residual 0.52 -> 0.10 N·m, no payload named).
 
 use super::candidates::Table;
 use super::signals::Prepared;
@@ -17,9 +23,12 @@ use dvrk_kin::dynamics::PARAMETERS_PER_BODY;
 use dvrk_kin::{BodyInertia, DynamicsData, DynamicsModel, Model};
 use nalgebra::{Cholesky, DMatrix, DVector, Dyn, Vector3};
 
-/// Prior standard deviations of the inertial parameters, relative to the model's values.
+/// Prior standard deviations of the inertial parameters, relative to the model's values (a CAD
+/// model's), unless the model carries its own covariance and [`InertiaPrior::from_model`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct InertiaPrior {
+    /// Take the model file's `[inertial_covariance]` as the prior where it has one.
+    pub from_model: bool,
     /// Of each body's rotational inertia (its six entries, relative to the largest moment about
     /// the centre of mass); 0 holds them at the model's values.
     pub rotational: f64,
@@ -29,14 +38,19 @@ pub struct InertiaPrior {
 
 impl Default for InertiaPrior {
     fn default() -> Self {
-        InertiaPrior { rotational: 0.1, mass: 0.02 }
+        InertiaPrior { from_model: true, rotational: 0.1, mass: 0.02 }
     }
 }
 
 impl InertiaPrior {
     /// Nothing re-estimated.
     pub fn none() -> Self {
-        InertiaPrior { rotational: 0.0, mass: 0.0 }
+        InertiaPrior { from_model: false, rotational: 0.0, mass: 0.0 }
+    }
+
+    /// Relative standard deviations (see the fields), whatever the model carries.
+    pub fn relative(rotational: f64, mass: f64) -> Self {
+        InertiaPrior { from_model: false, rotational, mass }
     }
 
     fn is_off(&self) -> bool {
@@ -59,10 +73,11 @@ pub struct Nuisance {
     /// Rows `0..train` are the fitted part.
     train: usize,
     chol: Cholesky<f64, Dyn>,
-    /// The parameters the columns of `n` are (indices into the model's linear-form vector) and
-    /// every parameter's prior standard deviation (the columns' scale).
-    keep: Vec<usize>,
-    stds: Vec<f64>,
+    /// The prior's square root: the inertial parameters' change (every body's, dvrk-kin's
+    /// regressor order) is `scale * theta`, `theta` one entry per column of `n`.
+    scale: DMatrix<f64>,
+    /// Whether `scale` is the model's own covariance ([`InertiaPrior::from_model`]).
+    pub from_model: bool,
     /// The prior's weight and the analysed joints per sample (see [`Nuisance::new`]).
     lambda: f64,
     na: usize,
@@ -95,33 +110,39 @@ impl Nuisance {
     /// when the prior holds everything. `lambda`: the prior's weight against a row
     /// (`1 / (n_eff / n)` of the band-limited noise: rows are correlated, the prior is not).
     pub fn new(model: &Model, dm: &DynamicsModel, gravity: &Vector3<f64>, prep: &Prepared, prior: &InertiaPrior, lambda: f64) -> Result<Option<Nuisance>> {
-        if prior.is_off() {
-            return Ok(None);
-        }
+        let nb = dm.inertias().len();
+        let np = nb * PARAMETERS_PER_BODY;
+        let own = if prior.from_model { model.inertial_covariance_factor(&(0..nb).collect::<Vec<_>>()) } else { None };
+        let from_model = own.is_some();
+        let scale = match own {
+            Some(l) => l,
+            None if prior.is_off() => return Ok(None),
+            None => DMatrix::from_diagonal(&DVector::from_iterator(np, dm.inertias().iter().flat_map(|b| prior.stds(b)))),
+        };
         let mut data = DynamicsData::new(model);
         let nq = model.nq();
-        let stds: Vec<f64> = dm.inertias().iter().flat_map(|b| prior.stds(b)).collect();
-        // Only parameters that change some effort and have room to move.
-        let mut y = DMatrix::zeros(nq, stds.len());
+        let mut y = DMatrix::zeros(nq, np);
         let na = prep.active.len();
-        let mut full = DMatrix::zeros(prep.t.len() * na, stds.len());
+        let mut full = DMatrix::zeros(prep.t.len() * na, np);
         for i in 0..prep.t.len() {
             dvrk_kin::regressor(model, dm, &mut data, &prep.q[i], &prep.qd[i], &prep.qdd[i], gravity, &mut y)?;
             for (a, &k) in prep.active.iter().enumerate() {
-                for c in 0..stds.len() {
-                    full[(i * na + a, c)] = y[(k, c)] * stds[c] / prep.floor[k];
+                for c in 0..np {
+                    full[(i * na + a, c)] = y[(k, c)] / prep.floor[k];
                 }
             }
         }
-        let keep: Vec<usize> = (0..stds.len()).filter(|&c| stds[c] > 0.0 && full.column(c).amax() > 0.0).collect();
+        let n = full * &scale;
+        // Only directions that change some effort and have room to move.
+        let keep: Vec<usize> = (0..n.ncols()).filter(|&c| n.column(c).amax() > 0.0).collect();
         if keep.is_empty() {
             return Ok(None);
         }
-        let n = full.select_columns(&keep);
+        let (n, scale) = (n.select_columns(&keep), scale.select_columns(&keep));
         let train = prep.split * na;
         let chol = factor(&n, train, lambda)?;
         let (gram, fold_grams) = grams(&n, na);
-        Ok(Some(Nuisance { n, train, chol, keep, stds, lambda, na, gram, fold_grams }))
+        Ok(Some(Nuisance { n, train, chol, scale, from_model, lambda, na, gram, fold_grams }))
     }
 
     /// The same nuisance on another timeline: each column, as a series over the samples (one
@@ -143,7 +164,7 @@ impl Nuisance {
         }
         let chol = factor(&n, self.train, self.lambda)?;
         let (gram, fold_grams) = grams(&n, na);
-        Ok(Nuisance { n, chol, keep: self.keep.clone(), stds: self.stds.clone(), gram, fold_grams, ..*self })
+        Ok(Nuisance { n, chol, scale: self.scale.clone(), gram, fold_grams, ..*self })
     }
 
     /// `L^-1 N_train^T v` for a training-row vector `v`.
@@ -171,11 +192,7 @@ impl Nuisance {
     /// The inertial parameters' change of a fitted nuisance `theta` (kg, kg m, kg m^2; every
     /// body's, in dvrk-kin's regressor order).
     pub fn parameters(&self, theta: &DVector<f64>) -> DVector<f64> {
-        let mut out = DVector::zeros(self.stds.len());
-        for (c, &k) in self.keep.iter().enumerate() {
-            out[k] = theta[c] * self.stds[k];
-        }
-        out
+        &self.scale * theta
     }
 
     /// The fitted nuisance's contribution on rows `start..start + len` (scaled units).

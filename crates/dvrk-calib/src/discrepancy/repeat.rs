@@ -106,7 +106,14 @@ pub fn discrepancy_repeated(model: &Model, scene: &Scene, arm: &str, log: &Joint
         merged.rms_after = r.rms_after;
         merged.rms_heldout_after = r.rms_heldout_after;
         merged.raw_rms_heldout_after = r.raw_rms_heldout_after;
-        merged.joints = r.joints;
+        // Per joint: the first round's before, this round's after (a round naming nothing has
+        // its before as after: the model with every effect named so far).
+        for (m, j) in merged.joints.iter_mut().zip(r.joints) {
+            m.band_rms_after = j.band_rms_after;
+            m.band_rms_heldout_after = j.band_rms_heldout_after;
+            m.share_explained = (m.band_rms_before - m.band_rms_after) / m.effort_band_rms.max(1e-300);
+            m.unexplained = j.unexplained;
+        }
         if let (Some(m), Some(k)) = (merged.kinematic.as_mut(), r.kinematic.as_ref()) {
             m.rms_after = k.rms_after;
             m.rms_heldout_after = k.rms_heldout_after;
@@ -133,7 +140,15 @@ pub fn discrepancy_repeated(model: &Model, scene: &Scene, arm: &str, log: &Joint
                     (Some(spec), Some(entry)) => {
                         settled &= moved(&named[i], entry) < REFIT_SETTLED;
                         named[i] = spec;
-                        merged.effects[i] = entry.clone();
+                        // A refit analyses this effect alone: the bodies a payload could not be
+                        // told from are the round's that named it.
+                        let mut entry = entry.clone();
+                        if let (Some(p), Some(was)) = (entry.payload.as_mut(), merged.effects[i].payload.as_ref()) {
+                            if p.equivalent.is_empty() {
+                                p.equivalent = was.equivalent.clone();
+                            }
+                        }
+                        merged.effects[i] = entry;
                         i += 1;
                     }
                     _ => {

@@ -16,6 +16,24 @@ pub struct EffectReport {
     pub ci95: BTreeMap<String, [f64; 2]>,
     pub delta_bic: f64,
     pub p_value: f64,
+    /// A payload's place, what the recording fixes of it and the bodies it cannot tell apart.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub payload: Option<super::payload::PayloadReport>,
+    /// Per analysed joint, in its own unit (N·m, N): the residual's band RMS on the fitted part
+    /// before and after the effect, and the share of the joint's measured effort it explains.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub explained: Vec<JointExplained>,
+}
+
+/// What an effect explains on one joint, in physical units.
+#[derive(Debug, Clone, Serialize)]
+pub struct JointExplained {
+    pub joint: String,
+    pub unit: &'static str,
+    pub rms_before: f64,
+    pub rms_after: f64,
+    /// `(rms_before - rms_after) / rms(measured effort)`, both in the analysis band.
+    pub share_of_effort: f64,
 }
 
 impl EffectReport {
@@ -63,6 +81,13 @@ pub struct JointRms {
     pub band_rms_after: f64,
     pub band_rms_heldout_before: f64,
     pub band_rms_heldout_after: f64,
+    /// The measured effort's band RMS on the fitted part (N·m, N).
+    pub effort_band_rms: f64,
+    /// `(band_rms_before - band_rms_after) / effort_band_rms`: the share of the joint's
+    /// measured effort the named effect explains.
+    pub share_explained: f64,
+    /// Why the residual left after is what it is, as far as the workflow can tell.
+    pub unexplained: String,
 }
 
 /// The tracking channel: the recording's setpoints replayed through the simulator, encoder

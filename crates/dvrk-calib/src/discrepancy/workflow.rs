@@ -10,7 +10,7 @@ use super::fit::{per_joint_ratio, Fitter, Rows};
 use super::joint_log::JointLog;
 use super::nuisance::{InertiaPrior, Nuisance};
 use super::plot::Residuals;
-use super::report::{CandidateReport, EffectReport, JointRms, Report};
+use super::report::{CandidateReport, EffectReport, JointExplained, JointRms, Report};
 use super::signals::{prepare, Predictor, Prepared, Processing};
 use super::stats::{chi2_sf, effective_fraction};
 use crate::error::{CalibError, Result};
@@ -124,6 +124,11 @@ struct Score {
     /// The fitted effect's effort `[sample][joint]` over the whole analysed span (with the
     /// inertia nuisance refitted with it).
     effect: Table,
+    /// The same without the nuisance's share: the effect's own signature.
+    own: Table,
+    /// The squared (scaled) residual one unit of chi-square is for a linear candidate's fit
+    /// (its variance over the effective fraction); 0 for a profile.
+    chi2_unit: f64,
     /// The profiled parameter's value, for a candidate that has one.
     profiled: Option<f64>,
     /// A profile whose best point is the grid's end, or a fit with a parameter held at a limit
@@ -260,10 +265,33 @@ fn score_linear(c: &Candidate, fit: &Fitter, r: &Table, o: &Options, rng: &mut C
     let cv_p = Some(chi2_sf(fit.cross_validated(r, columns, &bounds)?.0, p));
     let mut effect: Table = (0..prep.t.len()).map(|i| (0..r[0].len()).map(|k| columns.iter().zip(x.iter()).map(|(col, v)| col[i][k] * v).sum()).collect()).collect();
     let size = (effect[..prep.split].iter().map(|e| e[c.focus].powi(2)).sum::<f64>() / prep.split as f64).sqrt() / prep.noise[c.focus];
+    let own = effect.clone();
     add(&mut effect, &fit.nuisance_effort(&e1));
     // Held at zero change is the effect's absence (friction's lower bound): the bootstrap's case.
     let at_edge = bounds.iter().zip(x.iter()).any(|(b, v)| b.held_at(*v).is_some_and(|b| b != 0.0));
-    Ok(Score { x: x.iter().copied().collect(), ci, delta_bic, stat, p_value, heldout_p, cv_p, effect_to_noise: size, effect, profiled, at_edge })
+    Ok(Score { x: x.iter().copied().collect(), ci, delta_bic, stat, p_value, heldout_p, cv_p, effect_to_noise: size, effect, own, chi2_unit: chi2_unit(&train, &a, &white), profiled, at_edge })
+}
+
+/// The squared residual (scaled units) one unit of chi-square is for a fit of columns `a`: each
+/// joint's residual variance over its effective fraction, weighed by the columns' energy on
+/// that joint. A pooled variance would be the wrist's on the WPI arm (180 times its floor, a
+/// residual no effect expresses) and would widen a payload on the arm by that.
+fn chi2_unit(train: &Rows, a: &DMatrix<f64>, white: &DVector<f64>) -> f64 {
+    let series = train.series(white);
+    let na = series.len();
+    let energy: Vec<f64> = (0..na).map(|k| a.row_iter().skip(k).step_by(na).map(|r| r.norm_squared()).sum()).collect();
+    let total: f64 = energy.iter().sum();
+    if !(total > 0.0) {
+        return 0.0;
+    }
+    series
+        .iter()
+        .zip(&energy)
+        .map(|(e, w)| {
+            let var = e.iter().map(|x| x * x).sum::<f64>() / e.len().max(1) as f64;
+            w / total * var / super::stats::effective_fraction(std::slice::from_ref(e)).max(1e-6)
+        })
+        .sum()
 }
 
 /// The Particle Data Group's scale factor of a linear candidate's first parameter over the
@@ -474,6 +502,7 @@ fn score_profile(fit: &Fitter, r: &Table, grid: &[f64], make: &dyn Fn(f64) -> Ta
         Some(k) => size_at(k),
         None => prep.active.iter().map(|&k| size_at(k)).fold(0.0, f64::max),
     };
+    let own = sig.clone();
     let mut effect = sig;
     add(&mut effect, &fit.nuisance_effort(&e1));
     let p_value = if stat > 0.0 { chi2_sf(stat, 1) } else { 1.0 };
@@ -489,6 +518,8 @@ fn score_profile(fit: &Fitter, r: &Table, grid: &[f64], make: &dyn Fn(f64) -> Ta
         cv_p: None,
         effect_to_noise: size,
         effect,
+        own,
+        chi2_unit: 0.0,
         profiled: None,
         at_edge: value <= grid[0] || value >= grid[grid.len() - 1],
     }
@@ -610,12 +641,46 @@ fn with_kinematic(scored: &mut Vec<Scored>, kc: &super::kinematic::KinematicChan
                 effect_to_noise: k.effect_to_noise,
                 // No change of the predicted effort.
                 effect: vec![vec![0.0; nq]; samples],
+                own: vec![vec![0.0; nq]; samples],
+                chi2_unit: 0.0,
                 profiled: None,
                 at_edge: false,
             },
             joint: k.joint,
             kinematic: Some((spec, ci)),
         });
+    }
+}
+
+/// Why joint `joint`'s residual is left at `ratio` times its noise floor, as far as the model
+/// tells: at the floor; terms the model's identification fitted that no effect expresses (an
+/// identified model's notes list them, `- <joint>...`); or nothing the vocabulary holds.
+fn unexplained_guess(model: &Model, joint: &str, ratio: f64) -> String {
+    if ratio < 1.5 {
+        return format!("at the noise floor ({ratio:.1}x)");
+    }
+    let terms: Vec<&str> = model.spec.notes.lines().filter_map(|l| l.strip_prefix("- ")).filter(|l| l.starts_with(joint)).filter_map(|l| l.split(" = ").next()).collect();
+    if terms.is_empty() {
+        format!("{ratio:.1}x the noise floor: no candidate of the vocabulary explains it (model error outside the vocabulary, or effects below the gates)")
+    } else {
+        format!("{ratio:.1}x the noise floor: the identification fitted terms here that no effect of the vocabulary expresses ({}; the model's notes give their values)", terms.join(", "))
+    }
+}
+
+/// Two effects whose efforts are this little alike (|cosine| over the fitted rows, each joint
+/// over its noise floor) explain different things, and are not rivals.
+const RIVAL_OVERLAP: f64 = 0.2;
+
+/// |cosine| of two efforts over the training rows (floor-scaled); 1 when either is zero (a
+/// kinematic-only candidate, which changes no effort).
+fn overlap(prep: &Prepared, a: &Table, b: &Table) -> f64 {
+    let rows = Rows::train(prep);
+    let (x, y) = (rows.vector(a), rows.vector(b));
+    let (nx, ny) = (x.norm(), y.norm());
+    if nx == 0.0 || ny == 0.0 {
+        1.0
+    } else {
+        (x.dot(&y) / (nx * ny)).abs()
     }
 }
 
@@ -763,7 +828,11 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
     let nuisance = lagged.as_ref().or(measured_time.as_ref());
     let fit = Fitter { prep: &prep, nuisance };
     // Whether an effect is analysed (all of them, or [`Options::only`]'s).
-    let wanted = |spec: &EffectSpec| o.only.as_ref().is_none_or(|t| same_effect(spec, t));
+    // A payload's refit may move it to another body: named beside an effect it partly stood in
+    // for, its first body can be one that took up some of that effect too (seed 11: a payload
+    // on the wrist's yaw link named on its pitch link next to the pitch's unnamed friction).
+    let payload = EffectKind::PayloadMass.name();
+    let wanted = |spec: &EffectSpec| o.only.as_ref().is_none_or(|t| same_effect(spec, t) || (t.name == payload && spec.name == payload));
     let delay_columns = |c: &mut Candidate| {
         let grids = c.profile.iter_mut().flat_map(|(_, g)| g.iter_mut().flat_map(|(_, cols)| cols.iter_mut()));
         for col in c.columns.iter_mut().chain(grids) {
@@ -786,6 +855,15 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
             }
             *c = candidates::secant(c, s.x[0], &predictor, arm, scene.gravity, &prep, &rigid)?;
             delay_columns(c);
+        }
+    }
+    // Payloads on every moving body, each at the place that explains most (the regressor's
+    // own columns: exact for a point mass anywhere).
+    let body_columns = super::payload::BodyColumns::new(&arm.model, predictor.dynamics(), &gravity, &prep, &delayed)?;
+    let (payloads, payload_normals) = super::payload::candidates(&arm.model, &body_columns, &fit, &r, &prep)?;
+    for c in payloads {
+        if wanted(&c.spec(&arm.model, &[0.0; 4], None, "")) {
+            cands.push(c);
         }
     }
     let cands = cands;
@@ -897,12 +975,65 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
         }
         m
     };
+    // The kinematic channel's own candidates too, when one effect is analysed.
+    scored.retain(|e| wanted(&e.kinematic.as_ref().map_or_else(|| spec_of(e.candidate, e.kind, e.joint, &e.score), |(spec, _)| spec.clone())));
+    // Before: the model with its inertias refitted within their prior (the null of every test).
+    let mut before = base.clone();
+    add(&mut before, &fit.nuisance_effort(&Rows::train(&prep).vector(&r)));
+    let f0 = residual(&prep, &before, true);
+    let tr = 0..prep.split;
+    let unit = |k: usize| if arm.model.joints[k].kind == dvrk_kin::JointType::Prismatic { "N" } else { "N·m" };
+    let effort_rms: Vec<f64> = (0..nq).map(|k| rms(&prep.effort, k, tr.clone())).collect();
+    // Per joint, what an effect's effort `effect` (its nuisance's share included) explains.
+    let explained = |effect: &Table| -> Vec<JointExplained> {
+        let mut with = base.clone();
+        add(&mut with, effect);
+        let f1 = residual(&prep, &with, true);
+        prep.active
+            .iter()
+            .map(|&k| {
+                let (b, a) = (rms(&f0, k, tr.clone()), rms(&f1, k, tr.clone()));
+                JointExplained { joint: names[k].clone(), unit: unit(k), rms_before: b, rms_after: a, share_of_effort: (b - a) / effort_rms[k].max(1e-300) }
+            })
+            .collect()
+    };
+    // Where each payload's body turns about, for its report.
+    let mut pivots: BTreeMap<String, ([f64; 3], f64)> = BTreeMap::new();
+    for link in scored.iter().filter(|e| e.kind == EffectKind::PayloadMass).filter_map(|e| e.candidate.and_then(|c| c.link.clone())) {
+        if let Some(f) = arm.model.frames.iter().position(|f| f.name == link) {
+            pivots.insert(link, super::payload::pivot(&arm.model, arm.model.frames[f].body, &prep.q)?);
+        }
+    }
+    // The payloads on other bodies that explain as much as `best`'s (within the ambiguity).
+    let equivalents = |best: &Scored| -> Vec<super::payload::Placement> {
+        scored
+            .iter()
+            .filter(|e| e.kind == EffectKind::PayloadMass && e.label != best.label && !e.score.at_edge && e.score.delta_bic > best.score.delta_bic - o.ambiguity_bic)
+            .filter_map(|e| {
+                let c = e.candidate?;
+                Some(super::payload::Placement {
+                    link: c.link.clone()?,
+                    mass: e.score.x[0],
+                    position: candidates::payload_at(&c.at, &e.score.x).unwrap_or([c.at[1], c.at[2], c.at[3]]),
+                    delta_bic: e.score.delta_bic,
+                })
+            })
+            .collect()
+    };
     // A scored candidate as a model-file effect and as the report's entry.
     let report_of = |e: &Scored| -> (EffectSpec, EffectReport) {
         let s = &e.score;
         let (spec, ci95) = match &e.kinematic {
             Some((spec, ci)) => (spec.clone(), ci.clone()),
             None => (spec_of(e.candidate, e.kind, e.joint, s), ci_of(e.candidate, e.kind, s)),
+        };
+        let payload = match e.candidate {
+            Some(c) if c.kind == EffectKind::PayloadMass => c.link.as_ref().and_then(|l| Some((pivots.get(l)?, payload_normals.get(l)?))).map(|((pv, spread), normal)| {
+                let place = candidates::payload_at(&c.at, &s.x).unwrap_or([c.at[1], c.at[2], c.at[3]]);
+                let pr = super::payload::profile(normal, place, s.x[0].max(1e-6), *pv, s.chi2_unit);
+                super::payload::report(place, s.x[0], &pr, *pv, *spread, equivalents(e))
+            }),
+            _ => None,
         };
         let report = EffectReport {
             name: spec.name.clone(),
@@ -912,11 +1043,11 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
             ci95,
             delta_bic: s.delta_bic,
             p_value: s.p_value,
+            payload,
+            explained: if e.kinematic.is_some() { Vec::new() } else { explained(&s.effect) },
         };
         (spec, report)
     };
-    // The kinematic channel's own candidates too, when one effect is analysed.
-    scored.retain(|e| wanted(&report_of(e).0));
     let mut winners: Vec<usize> = (0..scored.len()).filter(|&i| supported(&scored[i])).collect();
     if let Some(k) = pair_choice(&scored, &winners, &fit, &r, o)? {
         winners.retain(|&i| i != k);
@@ -934,15 +1065,20 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
     let mut experiment = None;
     let mut effects = Vec::new();
     let mut named = None;
-    // Before: the model with its inertias refitted within their prior (the null of every test);
-    // after: the same with the named effect, the inertias refitted with it.
-    let mut before = base.clone();
-    add(&mut before, &fit.nuisance_effort(&Rows::train(&prep).vector(&r)));
+    // After: the model with the named effect, the inertias refitted with it.
     let mut after = before.clone();
     if let Some(&b) = winners.first() {
         let best = &scored[b];
         // Another effect, or the same kind elsewhere (two links' lengths a tracker sees alike).
-        let rival = winners.iter().skip(1).map(|&i| &scored[i]).find(|s| s.label != best.label && (best.score.delta_bic - s.score.delta_bic).abs() < o.ambiguity_bic);
+        // Not a payload on another body (the recording cannot tell them apart: the report gives
+        // them as equivalent placements), nor an effect whose effort shares nothing with the best
+        // one's (a jaw's friction beside a payload on the arm: both real, named in turn).
+        let rival = winners.iter().skip(1).map(|&i| &scored[i]).find(|s| {
+            s.label != best.label
+                && (best.score.delta_bic - s.score.delta_bic).abs() < o.ambiguity_bic
+                && !(best.kind == EffectKind::PayloadMass && s.kind == EffectKind::PayloadMass)
+                && overlap(&prep, &best.score.own, &s.score.own) > RIVAL_OVERLAP
+        });
         if let Some(rv) = rival {
             verdict = "ambiguous";
             experiment = Some(separating_experiment(best.kind, rv.kind));
@@ -967,22 +1103,28 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
             supported: supported(entry),
         })
         .collect();
-    let (f0, f1) = (residual(&prep, &before, true), residual(&prep, &after, true));
-    let (tr, ho) = (0..prep.split, prep.split..prep.t.len());
+    let f1 = residual(&prep, &after, true);
+    let ho = prep.split..prep.t.len();
     let insertion = arm.model.joints.iter().position(|j| j.kind == dvrk_kin::JointType::Prismatic);
     let location = super::locate::locate(&prep, &f0, &before, insertion, &names);
     let joints: Vec<JointRms> = prep
         .active
         .iter()
-        .map(|&k| JointRms {
-            joint: arm.model.joints[k].name.clone(),
-            unit: if arm.model.joints[k].kind == dvrk_kin::JointType::Prismatic { "N" } else { "N·m" },
-            noise: prep.noise[k],
-            band_floor: prep.floor[k],
-            band_rms_before: rms(&f0, k, tr.clone()),
-            band_rms_after: rms(&f1, k, tr.clone()),
-            band_rms_heldout_before: rms(&f0, k, ho.clone()),
-            band_rms_heldout_after: rms(&f1, k, ho.clone()),
+        .map(|&k| {
+            let (b, a) = (rms(&f0, k, tr.clone()), rms(&f1, k, tr.clone()));
+            JointRms {
+                joint: names[k].clone(),
+                unit: unit(k),
+                noise: prep.noise[k],
+                band_floor: prep.floor[k],
+                band_rms_before: b,
+                band_rms_after: a,
+                band_rms_heldout_before: rms(&f0, k, ho.clone()),
+                band_rms_heldout_after: rms(&f1, k, ho.clone()),
+                effort_band_rms: effort_rms[k],
+                share_explained: (b - a) / effort_rms[k].max(1e-300),
+                unexplained: unexplained_guess(&arm.model, &names[k], a / prep.floor[k]),
+            }
         })
         .collect();
     let per_joint = |tab: &Table| prep.active.iter().map(|&k| super::signals::column(tab, k)).collect::<Vec<_>>();

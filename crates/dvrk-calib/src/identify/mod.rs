@@ -215,6 +215,14 @@ pub struct Identification {
     /// Directions of parameter space the data determine better than the prior (the numerical
     /// count of base parameters the recording identifies).
     pub base_parameters: usize,
+    /// The covariance of the inertial parameters (every body's, [`PARAMETERS_PER_BODY`] each,
+    /// in [`Model::bodies`] order; kg, kg m, kg m^2 products), marginal over the effects, at the
+    /// effort sensors' noise: what the recording determines where the model holds, not widened
+    /// for model error as [`Estimate::std`] is. `dvrk discrepancy` weighs its own recording at
+    /// the sensors' noise, so it takes its prior weighed alike: with the long-run variance's
+    /// covariance (about 20 times wider in standard deviation on WPI `one`) the inertias took
+    /// up a 205 g weight and it went unnamed.
+    pub inertial_covariance: DMatrix<f64>,
     pub fit: solve::Fit,
     pub samples: usize,
     /// What the recording could not identify (the prior or the bounds decide those parameters).
@@ -387,7 +395,31 @@ pub fn identify_regression(model: &Model, prior: &[BodyInertia], reg: &Regressio
     let warnings = excitation_warnings(&layout, &estimates, reg, channels);
     let relative_error = relative_errors(reg, &fit.theta);
     let samples = reg.tau.first().map(|t| t.len()).unwrap_or(0);
-    Ok(Identification { layout, channels: channels.to_vec(), joints: model.joints.iter().map(|j| j.name.clone()).collect(), theta: fit.theta.clone(), estimates, relative_error, weights, base_parameters, fit, samples, warnings })
+    let nb = layout.nbodies * PARAMETERS_PER_BODY;
+    let sensor: Vec<f64> = reg.tau.iter().map(|t| 1.0 / sensor_noise_variance(t).max(1e-18)).collect();
+    let at_noise = objective(&sensor).h.cholesky().ok_or_else(|| CalibError::data("identification", "precision at the sensors' noise not positive definite"))?.inverse();
+    let inertial_covariance = at_noise.view((0, 0), (nb, nb)).into_owned();
+    Ok(Identification {
+        layout,
+        channels: channels.to_vec(),
+        joints: model.joints.iter().map(|j| j.name.clone()).collect(),
+        theta: fit.theta.clone(),
+        estimates,
+        relative_error,
+        weights,
+        base_parameters,
+        inertial_covariance,
+        fit,
+        samples,
+        warnings,
+    })
+}
+
+/// The variance of an effort sensor's white noise (N·m^2, N^2) from its raw samples: their
+/// second difference is dominated by it at the recording's rate (`var = 6 sigma^2`).
+fn sensor_noise_variance(raw: &[f64]) -> f64 {
+    let d2: f64 = raw.windows(3).map(|w| (w[2] - 2.0 * w[1] + w[0]).powi(2)).sum();
+    d2 / (6.0 * raw.len().saturating_sub(2).max(1) as f64)
 }
 
 /// Channels that did not move, and the effect parameters the data left to the prior (inertial

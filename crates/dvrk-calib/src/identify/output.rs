@@ -21,7 +21,7 @@ use super::Identification;
 use crate::error::{CalibError, Result};
 use dvrk_kin::dynamics::PARAMETERS_PER_BODY;
 use dvrk_kin::effects::EffectSpec;
-use dvrk_kin::{BodyInertia, DriveSpec, InertialSpec, Model, ModelSpec};
+use dvrk_kin::{BodyInertia, DriveSpec, InertialCovarianceSpec, InertialSpec, Model, ModelSpec};
 use nalgebra::DMatrix;
 use std::collections::BTreeMap;
 
@@ -199,6 +199,14 @@ pub fn identified_model(model: &Model, id: &Identification, processing: &Process
     spec.drive = Some(DriveSpec { damping: 0.0, armature: drive_armature, source: source.clone() });
     spec.effects.extend(effects.iter().cloned());
     spec.inertials = inertials;
+    // How well the recording determined the inertials: a later analysis (`dvrk discrepancy`)
+    // holds them that tightly, so a payload cannot hide in them. Bodies kept at their prior
+    // keep the prior's variance, which the covariance already gives them.
+    spec.inertial_covariance = id.inertial_covariance.clone().cholesky().map(|ch| InertialCovarianceSpec {
+        bodies: model.bodies.iter().map(|b| b.name.clone()).collect(),
+        cholesky: (0..ch.l_dirty().nrows()).map(|i| (0..=i).map(|k| ch.l_dirty()[(i, k)]).collect()).collect(),
+        source: format!("dvrk identify from {recording}: the inertial parameters' covariance at the effort sensors' noise, marginal over the effects"),
+    });
     spec.title = format!("{} (identified from {recording})", spec.title);
     spec.notes = format!(
         "{}\n\nIdentified by `dvrk identify` from {recording}: [[inertials]] for every body (physically consistent: each \

@@ -10,6 +10,8 @@
 //! - `python_mcap`: MCAP files written by the Python `mcap` / `mcap-ros2-support` packages.
 //! - `discrepancy`: hidden-effect recordings: the effect named with its parameters, `none` on
 //!   effect-free ones, bad recordings refused; the detection-rate table (`--ignored`).
+//! - `payload_real`: the WPI insertion-payload recordings: a real 205 g weight named on the
+//!   insertion stage, nothing on the weightless recording's second half.
 //! - `sim_recording`: an MCAP recorded by dvrk-sim (`dvrk sim --out`), read with this crate's reader.
 
 mod util;
@@ -21,6 +23,7 @@ mod identify;
 mod identify_synthetic;
 mod noise_bound;
 mod paper;
+mod payload_real;
 mod perturbed;
 mod python_mcap;
 mod sim_recording;
