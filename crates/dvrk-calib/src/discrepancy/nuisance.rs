@@ -139,6 +139,17 @@ impl Nuisance {
             return Ok(None);
         }
         let (n, scale) = (n.select_columns(&keep), scale.select_columns(&keep));
+        // Only the directions the recording sees matter (`N = U S V^T`: `W` is `U S`'s, the
+        // parameters `scale V theta'`): a full model's 130 columns fall to their numerical rank,
+        // and every fit's projection costs that much less. The Gram matrix's eigenvectors give
+        // `V`; directions with `s^2` under 1e-9 of the prior's weight change no fit.
+        let eig = nalgebra::SymmetricEigen::new(n.tr_mul(&n));
+        let seen: Vec<usize> = (0..eig.eigenvalues.len()).filter(|&i| eig.eigenvalues[i] > 1e-9 * lambda).collect();
+        if seen.is_empty() {
+            return Ok(None);
+        }
+        let v = eig.eigenvectors.select_columns(&seen);
+        let (n, scale) = (&n * &v, &scale * &v);
         let train = prep.split * na;
         let chol = factor(&n, train, lambda)?;
         let (gram, fold_grams) = grams(&n, na);
