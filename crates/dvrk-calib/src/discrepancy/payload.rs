@@ -246,28 +246,22 @@ const PROFILE_STEPS: usize = 40;
 const PROFILE_SPAN: f64 = 30.0;
 
 /// The point of a body that moves least over the recorded motion (m, in the body's first
-/// frame), and the RMS of its motion (m): for a body that turns about a fixed point (the
-/// parallelogram's links about the remote centre) that point, still to round-off.
+/// frame; dvrk-sim's pivot fit of its poses), and the RMS of its motion (m): for a body that
+/// turns about a fixed point (the parallelogram's links about the remote centre) that point,
+/// still to round-off.
 pub fn pivot(model: &Model, body: usize, q: &[Vec<f64>]) -> Result<([f64; 3], f64)> {
     let frame = model.bodies[body].frames[0];
-    // R_t c - m = -o_t over the samples, for the body point c and the world point m.
     let stride = (q.len() / 400).max(1);
     let poses: Vec<_> = q.iter().step_by(stride).map(|qi| model.fk(qi).map(|f| f[frame])).collect::<std::result::Result<_, _>>()?;
-    let mut a = DMatrix::zeros(3 * poses.len(), 6);
-    let mut rhs = DVector::zeros(3 * poses.len());
-    for (i, pose) in poses.iter().enumerate() {
-        let r = pose.rotation.matrix();
-        for row in 0..3 {
-            for col in 0..3 {
-                a[(3 * i + row, col)] = r[(row, col)];
-            }
-            a[(3 * i + row, 3 + row)] = -1.0;
-            rhs[3 * i + row] = -pose.translation.vector[row];
+    Ok(match dvrk_sim::pivot::pivot_fit(&poses) {
+        Some(f) => ([f.tip.x, f.tip.y, f.tip.z], f.rms),
+        // Orientations that fix no point (a body turning about one axis only): the frame's
+        // origin, and how much it moves about its mean.
+        None => {
+            let mean = poses.iter().map(|p| p.translation.vector).sum::<Vector3<f64>>() / poses.len().max(1) as f64;
+            ([0.0; 3], (poses.iter().map(|p| (p.translation.vector - mean).norm_squared()).sum::<f64>() / poses.len().max(1) as f64).sqrt())
         }
-    }
-    let x = a.clone().svd(true, true).solve(&rhs, 1e-9).map_err(|e| crate::error::CalibError::data("payload pivot", e.to_string()))?;
-    let spread = ((&a * &x - &rhs).norm_squared() / poses.len().max(1) as f64).sqrt();
-    Ok(([x[0], x[1], x[2]], spread))
+    })
 }
 
 /// A payload's place and what the recording fixes of it (intervals: the ranges of

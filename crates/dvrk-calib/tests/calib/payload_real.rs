@@ -9,13 +9,7 @@ use dvrk_calib::identify::{identify, output::identified_model, read_wpi_csv, Ide
 use std::path::{Path, PathBuf};
 
 fn recording(file: &str) -> Option<PathBuf> {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/external/wpi-dvrk-dynamics/insertion-payload").join(file);
-    if p.exists() {
-        Some(p)
-    } else {
-        eprintln!("SKIPPED: {} is absent (external data, see ../shared/data/external/README.md)", p.display());
-        None
-    }
+    crate::identify::wpi(&format!("insertion-payload/{file}"))
 }
 
 /// The CAD PSM identified on `path`, as `dvrk identify -o` writes it (compiled back).
