@@ -50,6 +50,10 @@ pub struct HiddenEffectArgs {
     /// names (in a CSV: pose columns NAME.x .. NAME.qw, NAME the topic's body name).
     #[arg(long)]
     pub marker_link: Option<String>,
+    /// Where a hidden payload sits: `any` (a moving body drawn by the seed, near its centre of
+    /// mass) or a frame name; default the tool's yaw link.
+    #[arg(long)]
+    pub payload_link: Option<String>,
     /// Output recording: .mcap or .csv (`dvrk discrepancy --format csv`), written whole or not at
     /// all.
     #[arg(short, long)]
@@ -121,7 +125,7 @@ fn hidden_effect(a: &HiddenEffectArgs) -> Result<()> {
         bail!("-o {}: the recording is written as MCAP (.mcap) or plain CSV (.csv)", a.output.display());
     }
     let marker = a.marker_link.clone().map(|link| dvrk_calib::discrepancy::generate::MarkerOptions { link, ..Default::default() });
-    let o = HiddenOptions { hidden, seed: a.seed, duration: a.duration, effort_noise, position_noise: a.position_noise, enr: a.enr, marker, ..Default::default() };
+    let o = HiddenOptions { hidden, seed: a.seed, duration: a.duration, effort_noise, position_noise: a.position_noise, enr: a.enr, marker, payload_link: a.payload_link.clone(), ..Default::default() };
     let h = hidden_effect(&a.model, &o)?;
     let bytes = match ext.as_str() {
         "csv" => dvrk_calib::discrepancy::csv_log::write(&h.log).into_bytes(),

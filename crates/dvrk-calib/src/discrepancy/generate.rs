@@ -153,7 +153,14 @@ pub struct HiddenOptions {
     pub magnitude: f64,
     /// A tracker on one link (the kinematic channel); `None`: joints only.
     pub marker: Option<MarkerOptions>,
+    /// Where a hidden payload sits: `None` on the tool's yaw link ([`payload_frame`]);
+    /// [`ANY_BODY`] on a moving body drawn by the seed; else on that frame's body. Off the tool,
+    /// within 3 cm of the body's centre of mass in each axis.
+    pub payload_link: Option<String>,
 }
+
+/// [`HiddenOptions::payload_link`]: a body drawn by the seed among every body the joints move.
+pub const ANY_BODY: &str = "any";
 
 /// A motion tracker following a marker body on one link: it sees the link itself (after any
 /// play or compliance of its drive, and without the joint stream's latency).
@@ -177,7 +184,7 @@ impl Default for MarkerOptions {
 
 impl Default for HiddenOptions {
     fn default() -> Self {
-        HiddenOptions { hidden: Hidden::Random, seed: 1, duration: 30.0, truth_dt: 1.25e-4, rate: 1000.0, effort_noise: None, position_noise: POSITION_NOISE, enr: None, inertia_perturbation: 0.03, magnitude: 1.0, marker: None }
+        HiddenOptions { hidden: Hidden::Random, seed: 1, duration: 30.0, truth_dt: 1.25e-4, rate: 1000.0, effort_noise: None, position_noise: POSITION_NOISE, enr: None, inertia_perturbation: 0.03, magnitude: 1.0, marker: None, payload_link: None }
     }
 }
 
@@ -245,7 +252,7 @@ pub(crate) fn counterweight_at(model: &Model, inertials: &dvrk_sim::inertials::I
 
 /// Draw `kind` with realistic magnitudes (times `scale`); a DH length on a link the tracker on
 /// frame `marker` can see.
-fn draw(kind: EffectKind, model: &Model, inertials: &dvrk_sim::inertials::Inertials, rng: &mut ChaCha8Rng, scale: f64, marker: Option<usize>) -> Result<EffectSpec> {
+fn draw(kind: EffectKind, model: &Model, inertials: &dvrk_sim::inertials::Inertials, rng: &mut ChaCha8Rng, scale: f64, marker: Option<usize>, payload_link: Option<&str>) -> Result<EffectSpec> {
     if kind == EffectKind::LinkLength {
         let frames: Vec<usize> = marker.map(|f| super::kinematic::observable_lengths(model, f)).unwrap_or_default().into_iter().map(|(k, _)| k).collect();
         if frames.is_empty() {
@@ -320,8 +327,26 @@ fn draw(kind: EffectKind, model: &Model, inertials: &dvrk_sim::inertials::Inerti
         }
         EffectKind::PayloadMass => {
             p.insert("mass".into(), scale * rng.random_range(0.05..0.2));
-            p.insert("z".into(), rng.random_range(0.0..0.03));
-            (None, Some(FrameRef::Name(payload_frame(model).to_string())))
+            match payload_link {
+                None => {
+                    p.insert("z".into(), rng.random_range(0.0..0.03));
+                    (None, Some(FrameRef::Name(payload_frame(model).to_string())))
+                }
+                Some(link) => {
+                    let b = if link == ANY_BODY {
+                        rng.random_range(0..model.bodies.len())
+                    } else {
+                        let f = model.frame_id(&FrameRef::Name(link.into())).map_err(|e| CalibError::field("payload link", e.to_string()))?;
+                        model.frames[f].body
+                    };
+                    // Near the body's own centre of mass (its first frame's coordinates).
+                    let com = inertials.body_inertias(model).map_err(|e| CalibError::data("inertials", e.to_string()))?[b].com;
+                    for (k, axis) in ["x", "y", "z"].iter().enumerate() {
+                        p.insert((*axis).into(), com[k] + rng.random_range(-0.03..0.03));
+                    }
+                    (None, Some(FrameRef::Name(model.frames[model.bodies[b].frames[0]].name.clone())))
+                }
+            }
         }
         _ => unreachable!("not a hidden kind"),
     };
@@ -525,7 +550,7 @@ pub fn hidden_effect(scene_name: &str, o: &HiddenOptions) -> Result<HiddenRecord
     // drive (a loop latency with a play did on every one of 8 draws of their parameters).
     let mut draws = 0;
     let (specs, log, link, skip) = loop {
-        let specs: Vec<EffectSpec> = kinds.iter().map(|&k| draw(k, &nominal, &scene.arms[0].inertials, &mut rng, o.magnitude, marker_frame)).collect::<Result<_>>()?;
+        let specs: Vec<EffectSpec> = kinds.iter().map(|&k| draw(k, &nominal, &scene.arms[0].inertials, &mut rng, o.magnitude, marker_frame, o.payload_link.as_deref())).collect::<Result<_>>()?;
         let (log, link) = run(&specs, &all)?;
         // Past the fade-in.
         let skip = log.t.iter().position(|t| *t >= FADE_IN).unwrap_or(0);
