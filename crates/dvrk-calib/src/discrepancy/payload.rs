@@ -93,14 +93,14 @@ pub fn best_place(g: &DMatrix<f64>, b: &DVector<f64>) -> Option<([f64; 3], f64)>
         }
     };
     let steps = (REACH / GRID_STEP).floor() as i32;
-    let mut best = ([0.0; 3], 0.0, 0.0);
+    let mut best = ([0.0; 3], 0.0);
     for i in -steps..=steps {
         for j in -steps..=steps {
             for k in -steps..=steps {
                 let p = [i as f64 * GRID_STEP, j as f64 * GRID_STEP, k as f64 * GRID_STEP];
-                let (v, m) = gain(&p);
+                let v = gain(&p).0;
                 if v > best.1 {
-                    best = (p, v, m);
+                    best = (p, v);
                 }
             }
         }
@@ -108,18 +108,23 @@ pub fn best_place(g: &DMatrix<f64>, b: &DVector<f64>) -> Option<([f64; 3], f64)>
     if best.1 <= 0.0 {
         return None;
     }
-    // Pattern search: each axis in turn, the step halved when no move helps, down to 0.1 mm.
-    let mut step = GRID_STEP / 2.0;
+    let (place, _) = pattern_search(best.0, best.1, GRID_STEP / 2.0, &|p| gain(p).0);
+    Some((place, gain(&place).1))
+}
+
+/// Pattern search for the maximum of `f` from `p` (where it is `value`): each axis in turn, a
+/// move kept when it raises `f` (beyond round-off), the step halved when none does, down to 0.1
+/// mm; the place stays in the search box. The place and `f` there.
+fn pattern_search(mut p: [f64; 3], mut value: f64, mut step: f64, f: &dyn Fn(&[f64; 3]) -> f64) -> ([f64; 3], f64) {
     while step > 1e-4 {
         let mut moved = false;
         for axis in 0..3 {
             for sign in [-1.0, 1.0] {
-                let mut p = best.0;
-                p[axis] = (p[axis] + sign * step).clamp(-REACH, REACH);
-                let (v, m) = gain(&p);
-                if v > best.1 * (1.0 + 1e-12) {
-                    best = (p, v, m);
-                    moved = true;
+                let mut q = p;
+                q[axis] = (q[axis] + sign * step).clamp(-REACH, REACH);
+                let v = f(&q);
+                if v > value + 1e-12 * value.abs() {
+                    (p, value, moved) = (q, v, true);
                 }
             }
         }
@@ -127,7 +132,7 @@ pub fn best_place(g: &DMatrix<f64>, b: &DVector<f64>) -> Option<([f64; 3], f64)>
             step /= 2.0;
         }
     }
-    Some((best.0, best.2))
+    (p, value)
 }
 
 /// A body's ten columns' normal equations in the nuisance's metric (`G`, `b`), for the payload's
@@ -213,25 +218,9 @@ pub fn profile(normal: &Normal, place: [f64; 3], mass: f64, pivot: [f64; 3], chi
             if m > upper {
                 break;
             }
-            // Pattern search for the place at this mass.
-            let mut step = GRID_STEP;
-            let mut here = gain(m, &p);
-            while step > 1e-4 {
-                let mut moved = false;
-                for axis in 0..3 {
-                    for sign in [-1.0, 1.0] {
-                        let mut q = p;
-                        q[axis] = (q[axis] + sign * step).clamp(-REACH, REACH);
-                        let v = gain(m, &q);
-                        if v > here {
-                            (p, here, moved) = (q, v, true);
-                        }
-                    }
-                }
-                if !moved {
-                    step /= 2.0;
-                }
-            }
+            // The place that explains most at this mass.
+            let here;
+            (p, here) = pattern_search(p, gain(m, &p), GRID_STEP, &|q| gain(m, q));
             if (best - here) / chi2_unit.max(1e-300) > 3.841 {
                 break;
             }

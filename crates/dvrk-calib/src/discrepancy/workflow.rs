@@ -984,6 +984,7 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
     let tr = 0..prep.split;
     let unit = |k: usize| if arm.model.joints[k].kind == dvrk_kin::JointType::Prismatic { "N" } else { "N·m" };
     let effort_rms: Vec<f64> = (0..nq).map(|k| rms(&prep.effort, k, tr.clone())).collect();
+    let before_rms: Vec<f64> = (0..nq).map(|k| rms(&f0, k, tr.clone())).collect();
     // Per joint, what an effect's effort `effect` (its nuisance's share included) explains.
     let explained = |effect: &Table| -> Vec<JointExplained> {
         let mut with = base.clone();
@@ -992,7 +993,7 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
         prep.active
             .iter()
             .map(|&k| {
-                let (b, a) = (rms(&f0, k, tr.clone()), rms(&f1, k, tr.clone()));
+                let (b, a) = (before_rms[k], rms(&f1, k, tr.clone()));
                 JointExplained { joint: names[k].clone(), unit: unit(k), rms_before: b, rms_after: a, share_of_effort: (b - a) / effort_rms[k].max(1e-300) }
             })
             .collect()
@@ -1111,7 +1112,7 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
         .active
         .iter()
         .map(|&k| {
-            let (b, a) = (rms(&f0, k, tr.clone()), rms(&f1, k, tr.clone()));
+            let (b, a) = (before_rms[k], rms(&f1, k, tr.clone()));
             JointRms {
                 joint: names[k].clone(),
                 unit: unit(k),
