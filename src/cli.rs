@@ -94,7 +94,10 @@ pub struct FkArgs {
     /// `--q` holds actuator positions (encoders), mapped to joints by the model's coupling.
     #[arg(long)]
     pub actuators: bool,
-    /// CSV of configurations (header with columns q1..qN; other columns are ignored).
+    /// CSV of measured configurations: a header with a column per joint, `qK` or the joint's name
+    /// (`outer_yaw`, ...); other columns are ignored. Joints the output frame does not depend on
+    /// (a PSM's jaw for the tool tip) may be left out: they are held at their home. Rows past the
+    /// model's joint limits are evaluated as measured and counted on stderr.
     #[arg(long, requires = "output")]
     pub input: Option<PathBuf>,
     /// CSV of poses x,y,z,qx,qy,qz,qw (m) of `--frame`, one row per input row.
@@ -103,6 +106,9 @@ pub struct FkArgs {
     /// Frame name or paper frame number for `--output` (default: the tool tip).
     #[arg(long)]
     pub frame: Option<String>,
+    /// With `--input`: refuse a row outside the model's joint limits instead of counting it.
+    #[arg(long, requires = "input")]
+    pub strict: bool,
 }
 
 #[derive(Debug, Args)]

@@ -1,6 +1,6 @@
 //! The dVRK's own configuration files and recordings against the models.
 
-use crate::util::{external, random_configurations};
+use crate::util::{dvrk, external, random_configurations};
 use dvrk_kin::check::rotation_angle;
 use dvrk_kin::{compute_frame_placements, load, Data, Model, Pose};
 use nalgebra::{Rotation3, Vector3};
@@ -80,6 +80,55 @@ fn serial_psm_with_si_tool_reproduces_the_dvrk_controller_poses() {
     let base = dvrk_kin::compose::serial_base_transform(&c).unwrap();
     let (med_c, ..) = report("psm (closed loop) --tool 420006", si_tool_errors(&c, &base, &csv));
     assert!(med_s < 2e-6 && med_c < 2e-6);
+}
+
+/// The controller's logged joints through `dvrk fk --input` as logged: six arm columns (the
+/// header renamed `measured_qK` -> `qK` only, no jaw column), one row moved 0.00096 rad past the
+/// wrist yaw's limit as a real log had it. Every row is evaluated (the same figures as the
+/// library test above) and the row past the limit is counted, not refused; `--strict` refuses it.
+#[test]
+fn fk_takes_the_controllers_six_logged_joints_and_counts_a_row_past_a_limit() {
+    let (Some(tool), Some(csv)) = (external("dvrk-config/LARGE_NEEDLE_DRIVER_420006.json"), external("jhu-kinematic-calib/Si_tool_fixed.csv")) else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let (header, rows) = text.split_once('\n').unwrap();
+    let mut rows: Vec<String> = rows.lines().map(String::from).collect();
+    // Row 100's wrist yaw (column 7: traj_index, q1..q6) as the dVRK logged it once, past 1.39626.
+    let mut cells: Vec<String> = rows[100].split(',').map(String::from).collect();
+    cells[6] = "1.3972234107947354".into();
+    rows[100] = cells.join(",");
+    let input = dir.path().join("joints.csv");
+    std::fs::write(&input, format!("{}\n{}\n", header.replace("measured_q", "q"), rows.join("\n"))).unwrap();
+    let output = dir.path().join("poses.csv");
+    let args = ["fk", "psm-serial", "--tool", tool.to_str().unwrap(), "--input", input.to_str().unwrap(), "--output", output.to_str().unwrap()];
+    let out = dvrk(&args);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(stderr.contains("does not depend on q7 (jaw)"), "{stderr}");
+    assert!(stderr.contains("1 of 4473 measured configuration(s) outside the limits") && stderr.contains("outer_wrist_yaw: 1 of 4473 sample(s) outside [-1.39626, 1.39626] rad, at most 9.6"), "{stderr}");
+    // The poses against the controller's, row by row (row 100 left out: its joints were moved).
+    let poses: Vec<Vec<f64>> = std::fs::read_to_string(&output).unwrap().lines().skip(1).map(|l| l.split(',').map(|x| x.parse().unwrap()).collect()).collect();
+    assert_eq!(poses.len(), rows.len());
+    let mut err: Vec<f64> = rows
+        .iter()
+        .zip(&poses)
+        .enumerate()
+        .filter(|(i, _)| *i != 100)
+        .map(|(_, (row, p))| {
+            let v: Vec<f64> = row.split(',').map(|x| x.parse().unwrap()).collect();
+            (Vector3::new(p[0], p[1], p[2]) - Vector3::new(v[7], v[8], v[9])).norm()
+        })
+        .collect();
+    let (med, max) = (median(&mut err), percentile(&mut err, 1.0));
+    eprintln!("dvrk fk psm-serial --tool 420006 --input (six columns): position error median {:.2} um, max {:.1} um", med * 1e6, max * 1e6);
+    assert!(med < 2e-6 && max < 1e-4, "{med} {max}");
+    let mut strict = args.to_vec();
+    strict.push("--strict");
+    let out = dvrk(&strict);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && stderr.contains("line 102") && stderr.contains("outer_wrist_yaw") && stderr.contains("--strict"), "{stderr}");
 }
 
 #[test]

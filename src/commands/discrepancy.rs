@@ -16,11 +16,12 @@ pub struct DiscrepancyArgs {
     /// Joint recording with setpoints and efforts.
     #[arg(long)]
     pub recording: PathBuf,
-    /// mcap (/<ARM>/setpoint_js and /<ARM>/measured_js with efforts), wpi-csv (the WPI dynamics
-    /// recordings: no setpoints, tool channels in actuator space) or csv (header
-    /// time,q1..qN,tau1..tauN[,setpoint1..setpointN]: s, rad or m, N·m or N; without setpoints
-    /// the encoders stand in for them).
-    #[arg(long, default_value = "mcap")]
+    /// auto (told from the file), mcap or bag (the dVRK's /<ARM>/setpoint_js and
+    /// /<ARM>/measured_js with efforts, the jaw on /<ARM>/jaw/..., or every joint on one topic),
+    /// wpi-csv (the WPI dynamics recordings: no setpoints, tool channels in actuator space) or
+    /// csv (header time,q1..qN,tau1..tauN[,setpoint1..setpointN]: s, rad or m, N·m or N; without
+    /// setpoints the encoders stand in for them).
+    #[arg(long, default_value = "auto")]
     pub format: String,
     #[arg(long, default_value = "PSM1")]
     pub arm: String,
@@ -76,7 +77,8 @@ pub fn run(a: &DiscrepancyArgs) -> Result<()> {
     let model = dvrk_kin::load(&a.model, None)?;
     let mut options = Options { tracking: !a.no_tracking, ..Default::default() };
     if let Some(text) = &a.inertia_prior {
-        let v: Vec<f64> = text.split(',').map(|x| x.trim().parse::<f64>()).collect::<std::result::Result<_, _>>().map_err(|_| anyhow::anyhow!("--inertia-prior {text}: expected ROT or ROT,MASS (numbers >= 0)"))?;
+        let v: Vec<f64> =
+            text.split(',').map(|x| x.trim().parse::<f64>()).collect::<std::result::Result<_, _>>().map_err(|_| anyhow::anyhow!("--inertia-prior {text}: expected ROT or ROT,MASS (numbers >= 0)"))?;
         if v.is_empty() || v.len() > 2 || v.iter().any(|x| !(x.is_finite() && *x >= 0.0)) {
             bail!("--inertia-prior {text}: expected ROT or ROT,MASS (finite numbers >= 0)");
         }

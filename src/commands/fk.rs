@@ -15,7 +15,7 @@ pub fn run(args: &FkArgs) -> Result<()> {
             Some(f) => super::frame_arg(&m, "--frame", f)?,
             None => m.tip,
         };
-        return batch(&m, input, output, frame);
+        return batch(&m, input, output, frame, args.strict);
     }
     let q = if args.actuators {
         let text = args.q.as_deref().ok_or_else(|| anyhow!("--actuators: give the actuator positions with --q"))?;
@@ -76,26 +76,46 @@ pub fn run(args: &FkArgs) -> Result<()> {
     Ok(())
 }
 
-/// One frame's pose for every row of a joints CSV.
-fn batch(m: &Model, input: &std::path::Path, output: &std::path::Path, frame: usize) -> Result<()> {
+/// One frame's pose for every row of a joints CSV. A joint's column is `qK` or the joint's name;
+/// a joint the frame does not depend on (the PSM's jaw for the tool tip) may be absent and is
+/// held at its home. Measured rows past the model's limits are evaluated and counted (refused
+/// with `strict`).
+fn batch(m: &Model, input: &std::path::Path, output: &std::path::Path, frame: usize, strict: bool) -> Result<()> {
     let name = input.display().to_string();
     let mut reader = csv::Reader::from_path(input).with_context(|| format!("{name}: cannot read"))?;
     let header = reader.headers().with_context(|| format!("{name}: cannot read the header"))?.clone();
-    let columns: Vec<usize> = (1..=m.nq())
+    let support = m.frame_support(frame);
+    let mut held = Vec::new();
+    let columns: Vec<Option<usize>> = (1..=m.nq())
         .map(|k| {
-            let col = format!("q{k}");
-            header.iter().position(|h| h.trim() == col).ok_or_else(|| {
-                anyhow!("{name}: missing column {col} (model {} has {} joints; header: {})", m.name, m.nq(), header.iter().collect::<Vec<_>>().join(","))
-            })
+            let (col, joint) = (format!("q{k}"), &m.joints[k - 1].name);
+            match header.iter().position(|h| h.trim() == col || h.trim() == joint) {
+                Some(c) => Ok(Some(c)),
+                None if !support[k - 1] => {
+                    held.push(format!("{col} ({joint}) at its home {} {}", m.joints[k - 1].home, m.joints[k - 1].unit()));
+                    Ok(None)
+                }
+                None => Err(anyhow!(
+                    "{name}: missing column {col} or {joint} (frame {} of model {} depends on it; header: {})",
+                    m.frames[frame].name,
+                    m.name,
+                    header.iter().collect::<Vec<_>>().join(",")
+                )),
+            }
         })
         .collect::<Result<_>>()?;
+    if !held.is_empty() {
+        eprintln!("note: {name}: frame {} does not depend on {}: held", m.frames[frame].name, held.join(", "));
+    }
+    let mut tally = dvrk_kin::LimitTally::new(m);
     let mut data = Data::new(m);
-    let mut q = vec![0.0; m.nq()];
+    let mut q = m.home();
     let mut out = String::from("x,y,z,qx,qy,qz,qw\n");
     for (row, record) in reader.records().enumerate() {
         let line = row + 2; // 1-based, after the header
         let record = record.with_context(|| format!("{name}: line {line}: cannot read"))?;
-        for (k, &c) in columns.iter().enumerate() {
+        for (k, c) in columns.iter().enumerate() {
+            let Some(c) = *c else { continue };
             let text = record.get(c).unwrap_or("").trim();
             let x: f64 = text.parse().map_err(|_| anyhow!("{name}: line {line}, column q{}: `{text}` is not a number", k + 1))?;
             if !x.is_finite() {
@@ -103,12 +123,19 @@ fn batch(m: &Model, input: &std::path::Path, output: &std::path::Path, frame: us
             }
             q[k] = x;
         }
-        m.check_q(&q).map_err(|e| anyhow!("{name}: line {line}: {e}"))?;
+        if strict {
+            m.check_q(&q).map_err(|e| anyhow!("{name}: line {line}: {e} (--strict)"))?;
+        }
+        tally.add(m, &q);
         compute_frame_placements(m, &mut data, &q);
         let t = &data.frames[frame];
         let p = t.translation.vector;
         let r = nalgebra::UnitQuaternion::from_rotation_matrix(&t.rotation);
         out.push_str(&format!("{},{},{},{},{},{},{}\n", p.x, p.y, p.z, r.i, r.j, r.k, r.w));
     }
-    crate::io::write_atomic(output, out.as_bytes())
+    crate::io::write_atomic(output, out.as_bytes())?;
+    if let Some(s) = tally.summary(m) {
+        eprintln!("note: {name}: {s}");
+    }
+    Ok(())
 }

@@ -3,19 +3,20 @@
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use dvrk_calib::identify::{output, read_wpi_csv, report, IdentifyOptions, TorqueRecording};
-use dvrk_kin::Model;
-use std::path::{Path, PathBuf};
+use dvrk_calib::identify::{output, recording::read_joint_recording, report, IdentifyOptions};
+use std::path::PathBuf;
 
 #[derive(Debug, Args)]
 pub struct IdentifyArgs {
     /// Joint recording with efforts.
     #[arg(long)]
     pub recording: PathBuf,
-    /// Recording format: wpi-csv (WPI-AIM dvrk_dynamics_identification: q, qd, tau of 7 joints
-    /// at 200 Hz, tool channels 5..7 in actuator space) or mcap (sensor_msgs/JointState with
-    /// efforts on /<ARM>/measured_js, as the dVRK and `dvrk sim --out` record; joint space).
-    #[arg(long, default_value = "wpi-csv")]
+    /// Recording format: auto (told from the file), wpi-csv (WPI-AIM
+    /// dvrk_dynamics_identification: q, qd, tau of 7 joints at 200 Hz, tool channels 5..7 in
+    /// actuator space), mcap or bag (sensor_msgs/JointState with efforts on /<ARM>/measured_js
+    /// and the jaw on /<ARM>/jaw/measured_js, as the dVRK records, or all joints on one topic;
+    /// joint space).
+    #[arg(long, default_value = "auto")]
     pub format: String,
     /// Arm whose /<ARM>/measured_js an MCAP recording carries.
     #[arg(long, default_value = "PSM1")]
@@ -46,14 +47,6 @@ pub struct IdentifyArgs {
     pub json: bool,
 }
 
-fn read(path: &Path, format: &str, model: &Model, arm: &str) -> Result<TorqueRecording> {
-    match format {
-        "wpi-csv" => Ok(read_wpi_csv(path, model)?),
-        "mcap" => Ok(dvrk_calib::identify::recording::read_mcap_joint_states(path, model, arm)?),
-        f => bail!("--format {f}: unknown (valid: wpi-csv, mcap)"),
-    }
-}
-
 pub fn run(args: &IdentifyArgs) -> Result<()> {
     let model = dvrk_kin::load(&args.model, None).with_context(|| format!("--model {}", args.model))?;
     let prior = match &args.inertials {
@@ -66,23 +59,26 @@ pub fn run(args: &IdentifyArgs) -> Result<()> {
     };
     let g = crate::io::parse_list("--gravity", &args.gravity)?;
     let [gx, gy, gz] = g[..] else { bail!("--gravity {}: three components x,y,z (m/s^2)", args.gravity) };
-    // The PSM settings are for the WPI channels (tool actuators); a joint-space recording takes
-    // every effect term on every joint, springs on the tool's.
-    let mut options = if args.format == "wpi-csv" { IdentifyOptions::for_model(&model) } else { IdentifyOptions::full((3.min(model.nq())..model.nq()).collect()) };
+    let format = dvrk_calib::recording_format::resolve(&args.recording, &args.format).with_context(|| format!("--recording {}", args.recording.display()))?;
+    let mut options = IdentifyOptions::for_recording(&model, format);
     if let Some(c) = args.cutoff {
         options.processing.cutoff = c;
         options.processing.channel_cutoff.clear();
     }
     options.processing.gravity = nalgebra::Vector3::new(gx, gy, gz);
-    let rec = read(&args.recording, &args.format, &model, &args.arm)?;
+    let (rec, notes) = read_joint_recording(&args.recording, &args.format, &model, &args.arm)?;
     let inertias = prior.body_inertias(&model)?;
     let held_out = match &args.validate {
-        Some(v) => Some(read(v, &args.format, &model, &args.arm).with_context(|| format!("--validate {}", v.display()))?),
+        Some(v) => Some(read_joint_recording(v, format, &model, &args.arm).with_context(|| format!("--validate {}", v.display()))?.0),
         None => None,
     };
-    let result = dvrk_calib::identify::run::run(&model, &inertias, &rec, held_out.as_ref(), &options, &args.recording.display().to_string(), &args.format)
+    let result = dvrk_calib::identify::run::run(&model, &inertias, &rec, held_out.as_ref(), &options, &args.recording.display().to_string(), format)
         .with_context(|| format!("--recording {}", args.recording.display()))?;
     let (id, rigid, mut summary) = (&result.identification, &result.rigid, result.summary.clone());
+    summary["notes"] = serde_json::json!(notes);
+    for n in &notes {
+        eprintln!("note: {n}");
+    }
     let ablation = &result.ablation;
     if let Some(o) = &args.output {
         let recording = args.recording.display().to_string();
@@ -111,7 +107,13 @@ pub fn run(args: &IdentifyArgs) -> Result<()> {
             Some(period) => format!("the excitation's first period, {period} s"),
             None => "no period found: the whole trimmed recording".to_string(),
         };
-        println!("as published: against the efforts low-passed at {} Hz (order {}), over {:.2}..{:.2} s ({span}), as the WPI authors computed theirs", p["cutoff_hz"], p["order"], p["window_s"][0].as_f64().unwrap_or(f64::NAN), p["window_s"][1].as_f64().unwrap_or(f64::NAN));
+        println!(
+            "as published: against the efforts low-passed at {} Hz (order {}), over {:.2}..{:.2} s ({span}), as the WPI authors computed theirs",
+            p["cutoff_hz"],
+            p["order"],
+            p["window_s"][0].as_f64().unwrap_or(f64::NAN),
+            p["window_s"][1].as_f64().unwrap_or(f64::NAN)
+        );
     }
     println!("physically consistent: {} ({} cutting-plane rounds)", summary["physically_consistent"], id.fit.rounds);
     println!("ablation (cumulative; relative error per channel{}):", if held_out.is_some() { ", fitted / held-out" } else { "" });

@@ -1,9 +1,10 @@
-//! MCAP recordings: ROS 2 (`cdr` messages with `ros2msg` schemas) PoseStamped, TFMessage and
-//! JointState, and Foxglove PoseInFrame / FrameTransform(s) in JSON; read into a
-//! [`Recording`], and written by the synthetic tracker.
+//! MCAP recordings and ROS 1 bags: PoseStamped, TFMessage and JointState (ROS 2 `cdr` or ROS 1
+//! serialization), and Foxglove PoseInFrame / FrameTransform(s) in JSON; read into a
+//! [`Recording`] (through [`crate::message_file`]), and written by the synthetic tracker.
 
 use crate::error::{CalibError, Result};
 use crate::foxglove::{self, FoxglovePose};
+use crate::message_file::{self, Encoding, Message};
 use crate::recording::{BodyTrack, JointTrack, Recording};
 use crate::ros_msgs::{self, Header, JointState, PoseStamped, TransformStamped};
 use dvrk_kin::Pose;
@@ -31,14 +32,33 @@ enum Kind {
     FoxTransforms,
 }
 
-fn kind(schema: &str, encoding: &str) -> Option<Kind> {
+fn kind(schema: &str, encoding: Encoding) -> Option<Kind> {
+    use Encoding::*;
     match (schema, encoding) {
-        ("geometry_msgs/msg/PoseStamped", "cdr") => Some(Kind::PoseStamped),
-        ("tf2_msgs/msg/TFMessage", "cdr") => Some(Kind::Tf),
-        ("sensor_msgs/msg/JointState", "cdr") => Some(Kind::JointState),
-        ("foxglove.PoseInFrame", "json") => Some(Kind::FoxPose),
-        ("foxglove.FrameTransform" | "foxglove.FrameTransforms", "json") => Some(Kind::FoxTransforms),
+        ("geometry_msgs/msg/PoseStamped", Cdr | Ros1) => Some(Kind::PoseStamped),
+        ("tf2_msgs/msg/TFMessage", Cdr | Ros1) => Some(Kind::Tf),
+        ("sensor_msgs/msg/JointState", Cdr | Ros1) => Some(Kind::JointState),
+        ("foxglove.PoseInFrame", Json) => Some(Kind::FoxPose),
+        ("foxglove.FrameTransform" | "foxglove.FrameTransforms", Json) => Some(Kind::FoxTransforms),
         _ => None,
+    }
+}
+
+fn encoding_name(e: Encoding) -> &'static str {
+    match e {
+        Encoding::Cdr => "cdr",
+        Encoding::Ros1 => "ros1",
+        Encoding::Json => "json",
+        Encoding::Other => "other",
+    }
+}
+
+/// A JointState from `m`'s bytes in its wire encoding.
+pub(crate) fn decode_joint_state(m: &Message) -> std::result::Result<JointState, String> {
+    if m.encoding == Encoding::Ros1 {
+        JointState::decode_ros1(m.data)
+    } else {
+        JointState::decode(m.data)
     }
 }
 
@@ -50,35 +70,51 @@ fn pose(position: [f64; 3], q: [f64; 4]) -> std::result::Result<Pose, String> {
     Ok(Pose::from_parts(Translation3::new(position[0], position[1], position[2]), u.to_rotation_matrix()))
 }
 
-/// Read an MCAP file.
+/// Read an MCAP file or a ROS 1 bag (told by its first bytes).
 pub fn read(path: &Path, options: &McapOptions) -> Result<Recording> {
-    let bytes = std::fs::read(path).map_err(|e| CalibError::file(path, format!("cannot read: {e}")))?;
-    parse(&bytes, path, options)
+    let mut r = Reader::new(path, options);
+    let count = message_file::for_each(path, |m| r.visit(m))?;
+    r.finish(count)
 }
 
 /// Read MCAP bytes; `path` names them in errors.
 pub fn parse(bytes: &[u8], path: &Path, options: &McapOptions) -> Result<Recording> {
-    let stream = mcap::MessageStream::new(bytes).map_err(|e| CalibError::file(path, format!("not an MCAP file: {e}")))?;
-    let mut rec = Recording { source: path.display().to_string(), ..Default::default() };
-    let mut bodies: BTreeMap<String, BodyTrack> = BTreeMap::new();
-    let mut topics: BTreeMap<String, (String, String)> = BTreeMap::new();
-    let mut joints: BTreeMap<String, JointTrack> = BTreeMap::new();
-    let mut bad: BTreeMap<String, usize> = BTreeMap::new();
-    let wanted = |topic: &str| options.topics.is_empty() || options.topics.iter().any(|t| t == topic);
-    let mut count = 0usize;
-    for m in stream {
-        let m = m.map_err(|e| match e {
-            mcap::McapError::BadMagic if count == 0 => CalibError::file(path, "not an MCAP file (it does not start with the MCAP magic bytes)"),
-            e => CalibError::file(path, format!("truncated or damaged after {count} message(s): {e}; nothing was fitted (recover the file with `mcap recover`)")),
-        })?;
-        count += 1;
-        let ch = &m.channel;
-        let schema = ch.schema.as_ref().map_or("", |s| s.name.as_str());
-        topics.entry(ch.topic.clone()).or_insert_with(|| (schema.to_string(), ch.message_encoding.clone()));
-        let Some(k) = kind(schema, &ch.message_encoding) else { continue };
-        let log_time = m.log_time as f64 * 1e-9;
+    let mut r = Reader::new(path, options);
+    let count = message_file::for_each_mcap(bytes, path, |m| r.visit(m))?;
+    r.finish(count)
+}
+
+/// What [`read`] gathers message by message.
+struct Reader<'a> {
+    path: &'a Path,
+    options: &'a McapOptions,
+    bodies: BTreeMap<String, BodyTrack>,
+    topics: BTreeMap<String, (String, Encoding)>,
+    joints: BTreeMap<String, JointTrack>,
+    bad: BTreeMap<String, usize>,
+}
+
+impl<'a> Reader<'a> {
+    fn new(path: &'a Path, options: &'a McapOptions) -> Self {
+        Reader { path, options, bodies: BTreeMap::new(), topics: BTreeMap::new(), joints: BTreeMap::new(), bad: BTreeMap::new() }
+    }
+
+    fn visit(&mut self, m: &Message) -> Result<()> {
+        let (path, options) = (self.path, self.options);
+        let bodies = &mut self.bodies;
+        let joints = &mut self.joints;
+        let bad = &mut self.bad;
+        let wanted = |topic: &str| options.topics.is_empty() || options.topics.iter().any(|t| t == topic);
+        let (count, schema) = (m.index, m.schema);
+        let ch_topic = m.topic;
+        self.topics.entry(ch_topic.to_string()).or_insert_with(|| (schema.to_string(), m.encoding));
+        let Some(k) = kind(schema, m.encoding) else {
+            return Ok(());
+        };
+        let ros1 = m.encoding == Encoding::Ros1;
+        let log_time = m.log_time();
         let stamp = |h: f64| if h > 0.0 { h } else { log_time };
-        let what = |e: String| format!("message {count} on {} ({schema}): {e}", ch.topic);
+        let what = |e: String| format!("message {count} on {ch_topic} ({schema}): {e}");
         let mut add = |name: &str, frame: &str, t: f64, p: std::result::Result<Pose, String>| -> Result<()> {
             let tr = bodies.entry(name.to_string()).or_insert_with(|| BodyTrack::new(name, frame));
             match p {
@@ -93,83 +129,90 @@ pub fn parse(bytes: &[u8], path: &Path, options: &McapOptions) -> Result<Recordi
         };
         match k {
             Kind::JointState => {
-                if options.joint_topic.as_ref().is_some_and(|t| t != &ch.topic) {
-                    continue;
+                // The asked-for topic, and its tool's (the dVRK's `/PSM1/jaw/measured_js`).
+                if options.joint_topic.as_ref().is_some_and(|t| t != ch_topic && !crate::joint_states::is_tool_topic_of(t, ch_topic)) {
+                    return Ok(());
                 }
-                let js = JointState::decode(&m.data).map_err(|e| CalibError::file(path, what(e)))?;
-                let jt = joints.entry(ch.topic.clone()).or_insert_with(|| JointTrack { source: ch.topic.clone(), names: js.name.clone(), ..Default::default() });
+                let js = decode_joint_state(m).map_err(|e| CalibError::file(path, what(e)))?;
+                let jt = joints.entry(ch_topic.to_string()).or_insert_with(|| JointTrack { source: ch_topic.to_string(), names: js.name.clone(), ..Default::default() });
                 if js.position.len() != jt.names.len() || js.name != jt.names {
-                    *bad.entry(ch.topic.clone()).or_default() += 1;
-                    continue;
+                    *bad.entry(ch_topic.to_string()).or_default() += 1;
+                    return Ok(());
                 }
                 jt.t.push(stamp(js.header.time()));
                 jt.q.push(js.position);
             }
-            _ if !wanted(&ch.topic) && k != Kind::Tf && k != Kind::FoxTransforms => {}
+            _ if !wanted(ch_topic) && k != Kind::Tf && k != Kind::FoxTransforms => {}
             Kind::PoseStamped => {
-                let p = PoseStamped::decode(&m.data).map_err(|e| CalibError::file(path, what(e)))?;
-                add(&ch.topic, &p.header.frame_id, stamp(p.header.time()), pose(p.position, p.orientation))?;
+                let p = if ros1 { PoseStamped::decode_ros1(m.data) } else { PoseStamped::decode(m.data) }.map_err(|e| CalibError::file(path, what(e)))?;
+                add(ch_topic, &p.header.frame_id, stamp(p.header.time()), pose(p.position, p.orientation))?;
             }
             Kind::FoxPose => {
-                let p = foxglove::decode_pose_in_frame(&m.data).map_err(|e| CalibError::file(path, what(e)))?;
-                add(&ch.topic, &p.frame_id, stamp(p.time), pose(p.position, p.orientation))?;
+                let p = foxglove::decode_pose_in_frame(m.data).map_err(|e| CalibError::file(path, what(e)))?;
+                add(ch_topic, &p.frame_id, stamp(p.time), pose(p.position, p.orientation))?;
             }
             Kind::Tf | Kind::FoxTransforms => {
                 let list: Vec<FoxglovePose> = if k == Kind::Tf {
-                    ros_msgs::decode_tf(&m.data)
+                    (if ros1 { ros_msgs::decode_tf_ros1(m.data) } else { ros_msgs::decode_tf(m.data) })
                         .map_err(|e| CalibError::file(path, what(e)))?
                         .into_iter()
                         .map(|t| FoxglovePose { time: t.header.time(), frame_id: t.header.frame_id, child_frame_id: t.child_frame_id, position: t.translation, orientation: t.rotation })
                         .collect()
                 } else {
-                    foxglove::decode_frame_transforms(&m.data).map_err(|e| CalibError::file(path, what(e)))?
+                    foxglove::decode_frame_transforms(m.data).map_err(|e| CalibError::file(path, what(e)))?
                 };
                 for t in list {
                     // A TF child frame is a body; `--topic` may name it or the topic.
-                    if wanted(&t.child_frame_id) || wanted(&ch.topic) {
+                    if wanted(&t.child_frame_id) || wanted(ch_topic) {
                         add(&t.child_frame_id, &t.frame_id, stamp(t.time), pose(t.position, t.orientation))?;
                     }
                 }
             }
         }
+        Ok(())
     }
-    if count == 0 {
-        return Err(CalibError::file(path, "the MCAP file holds no message"));
-    }
-    let listing = || topics.iter().map(|(t, (s, e))| format!("{t} ({s}, {e})")).collect::<Vec<_>>().join(", ");
-    for t in &options.topics {
-        if !bodies.contains_key(t) && !topics.contains_key(t) {
-            return Err(CalibError::file(path, format!("no topic or TF child frame `{t}`; topics: {}", listing())));
+
+    fn finish(self, count: usize) -> Result<Recording> {
+        let Reader { path, options, bodies, topics, joints, bad } = self;
+        let mut rec = Recording { source: path.display().to_string(), ..Default::default() };
+        if count == 0 {
+            return Err(CalibError::file(path, "the file holds no message"));
         }
-        if topics.get(t).is_some_and(|(s, e)| kind(s, e).is_none()) {
-            let (s, e) = &topics[t];
-            return Err(CalibError::file(path, format!("topic `{t}` carries {s} ({e}); supported: geometry_msgs/msg/PoseStamped, tf2_msgs/msg/TFMessage, sensor_msgs/msg/JointState (cdr), foxglove.PoseInFrame, foxglove.FrameTransform(s) (json)")));
+        let listing = || topics.iter().map(|(t, (s, e))| format!("{t} ({s}, {})", encoding_name(*e))).collect::<Vec<_>>().join(", ");
+        for t in &options.topics {
+            if !bodies.contains_key(t) && !topics.contains_key(t) {
+                return Err(CalibError::file(path, format!("no topic or TF child frame `{t}`; topics: {}", listing())));
+            }
+            if topics.get(t).is_some_and(|(s, e)| kind(s, *e).is_none()) {
+                let (s, e) = &topics[t];
+                return Err(CalibError::file(path, format!("topic `{t}` carries {s} ({}); supported: geometry_msgs/msg/PoseStamped, tf2_msgs/msg/TFMessage, sensor_msgs/msg/JointState (cdr or ros1), foxglove.PoseInFrame, foxglove.FrameTransform(s) (json)", encoding_name(*e))));
+            }
         }
-    }
-    if let Some(jt) = &options.joint_topic {
-        if !joints.contains_key(jt) {
-            return Err(CalibError::file(path, format!("no JointState topic `{jt}`; topics: {}", listing())));
+        if let Some(jt) = &options.joint_topic {
+            if !joints.contains_key(jt) {
+                return Err(CalibError::file(path, format!("no JointState topic `{jt}`; topics: {}", listing())));
+            }
         }
+        let unsupported: Vec<String> = topics.iter().filter(|(_, (s, e))| kind(s, *e).is_none()).map(|(t, (s, _))| format!("{t} ({s})")).collect();
+        if !unsupported.is_empty() {
+            rec.warnings.push(format!("{}: skipped topic(s) of other types: {}", path.display(), unsupported.join(", ")));
+        }
+        for b in bodies.values().filter(|b| b.occluded > 0) {
+            rec.warnings.push(format!("{}: {}: {} message(s) hold NaN; treated as occluded", path.display(), b.name, b.occluded));
+        }
+        for (t, n) in bad {
+            rec.warnings.push(format!("{}: {n} JointState message(s) on {t} changed their joint names or sizes; skipped", path.display()));
+        }
+        rec.bodies = bodies
+            .into_values()
+            .map(|mut b| {
+                b.sort_by_time();
+                b
+            })
+            .collect();
+        rec.joints = crate::joint_states::arm_track(path, joints, &mut rec.warnings)?;
+        Ok(rec)
     }
-    let unsupported: Vec<String> = topics.iter().filter(|(_, (s, e))| kind(s, e).is_none()).map(|(t, (s, _))| format!("{t} ({s})")).collect();
-    if !unsupported.is_empty() {
-        rec.warnings.push(format!("{}: skipped topic(s) of other types: {}", path.display(), unsupported.join(", ")));
-    }
-    for b in bodies.values().filter(|b| b.occluded > 0) {
-        rec.warnings.push(format!("{}: {}: {} message(s) hold NaN; treated as occluded", path.display(), b.name, b.occluded));
-    }
-    for (t, n) in bad {
-        rec.warnings.push(format!("{}: {n} JointState message(s) on {t} changed their joint names or sizes; skipped", path.display()));
-    }
-    rec.bodies = bodies
-        .into_values()
-        .map(|mut b| {
-            b.sort_by_time();
-            b
-        })
-        .collect();
-    rec.joints = joints.into_values().next();
-    Ok(rec)
 }
 
 /// How the synthetic tracker lays out its MCAP.

@@ -1,13 +1,13 @@
 //! Joint trajectories to replay in a simulation (`dvrk sim --trajectory replay:FILE`), read from
 //! a recording:
-//! - MCAP: for each arm of the scene, `/<ARM>/setpoint_js` (what the arm was told), else
-//!   `/<ARM>/measured_js` (what it did); arms with neither hold home. Joints are matched by
-//!   name; joints the topic lacks (the dVRK publishes the PSM jaw on its own topic) hold home.
+//! - MCAP or ROS 1 bag: for each arm of the scene, `/<ARM>/setpoint_js` (what the arm was
+//!   told), else `/<ARM>/measured_js` (what it did), with the jaw's own topic merged
+//!   (`/<ARM>/jaw/setpoint_js`: [`crate::joint_states`]); arms with neither hold home. Joints
+//!   are matched by name; joints the topics lack hold home.
 //! - CSV (the plain format of [`crate::plain_csv`]): `time` and `q1..qN` for the one arm of
 //!   the scene that runs the tracking test.
 
 use crate::error::{CalibError, Result};
-use crate::discrepancy::joint_log::read_joint_states;
 use crate::mcap_io::McapOptions;
 use crate::read::read_recording;
 use crate::recording::JointTrack;
@@ -19,21 +19,17 @@ use std::path::Path;
 
 /// Read the trajectories in `path` for the arms of `scene`.
 pub fn read_replay(path: &Path, scene: &Scene) -> Result<Replay> {
-    let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
     let mut arms = Vec::new();
-    if ext == "mcap" {
-        if !path.exists() {
-            return Err(CalibError::file(path, "no such file"));
-        }
-        // One pass over the file for every arm's two candidate topics.
-        let topic = |arm: &str, kind: &str| format!("/{arm}/{kind}");
-        let wanted: Vec<String> = scene.arms.iter().flat_map(|a| [topic(&a.name, "setpoint_js"), topic(&a.name, "measured_js")]).collect();
-        let (mut found, _) = read_joint_states(path, &wanted.iter().map(String::as_str).collect::<Vec<_>>())?;
+    if crate::message_file::container(path)?.is_some() {
+        // One pass over the file for every arm's topics.
+        let names: Vec<&str> = scene.arms.iter().map(|a| a.name.as_str()).collect();
+        let mut found = crate::joint_states::read_arms(path, &names, &["setpoint_js", "measured_js"])?;
         let mut missing = Vec::new();
         for arm in &scene.arms {
+            let mut states = found.remove(&arm.name).unwrap_or_default();
             // The setpoints (what the arm was told), else the measurements (what it did).
-            let source = ["setpoint_js", "measured_js"].map(|k| topic(&arm.name, k)).into_iter().find(|t| found.contains_key(t));
-            match source.and_then(|t| found.remove(&t).map(|js| (t, js))) {
+            let kind = ["setpoint_js", "measured_js"].into_iter().find(|k| states.kinds.contains_key(*k));
+            match kind.and_then(|k| Some((states.sources.remove(k)?, states.kinds.remove(k)?))) {
                 Some((source, js)) => {
                     let track = JointTrack { source, names: js.names, t: js.t, q: js.position };
                     arms.push((arm.name.clone(), by_name(path, &track, &arm.model)?));

@@ -309,6 +309,21 @@ impl Model {
             .ok_or_else(|| KinError::unknown("joint", name, self.joints.iter().map(|j| j.name.clone())))
     }
 
+    /// The joints whose values move frame `frame` (position in [`Model::frames`]) relative to the
+    /// base: every joint with a coefficient in the joint variable of the frame or one of its
+    /// predecessors (passive frames are affine in the actuated joints, so loops are covered).
+    pub fn frame_support(&self, frame: usize) -> Vec<bool> {
+        let mut moves = vec![false; self.nq()];
+        let mut at = Some(frame);
+        while let Some(f) = at.and_then(|i| self.frames.get(i)) {
+            for (k, _) in f.variable().into_iter().flat_map(|v| v.joints()) {
+                moves[k] = true;
+            }
+            at = f.parent;
+        }
+        moves
+    }
+
     /// The home configuration.
     pub fn home(&self) -> Vec<f64> {
         self.joints.iter().map(|j| j.home).collect()

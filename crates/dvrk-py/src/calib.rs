@@ -62,12 +62,7 @@ pub fn pivot<'py>(py: Python<'py>, poses: PyArrayLikeDyn<'py, f64, AllowTypeChan
 /// direction_std (rad), rms (m), samples, warnings.
 #[pyfunction]
 #[pyo3(signature = (reference, moving, method="sara"))]
-pub fn axis<'py>(
-    py: Python<'py>,
-    reference: PyArrayLikeDyn<'py, f64, AllowTypeChange>,
-    moving: PyArrayLikeDyn<'py, f64, AllowTypeChange>,
-    method: &str,
-) -> Result<Bound<'py, PyAny>> {
+pub fn axis<'py>(py: Python<'py>, reference: PyArrayLikeDyn<'py, f64, AllowTypeChange>, moving: PyArrayLikeDyn<'py, f64, AllowTypeChange>, method: &str) -> Result<Bound<'py, PyAny>> {
     let method = match method {
         "sara" => AxisMethod::Sara,
         "gamage-lasenby" => AxisMethod::GamageLasenby,
@@ -137,29 +132,31 @@ pub fn read_recording<'py>(py: Python<'py>, path: PathBuf, topics: Option<Vec<St
 
 /// Dynamic identification (`dvrk identify`) of a model from a joint recording with efforts: the
 /// JSON summary as a dict (`relative_error`, `rigid_body_only`, `validation` with
-/// `validate`, `ablation`, `effects`, `bodies`, `warnings`, ...). `recording` and `validate`
-/// are wpi-csv files; the prior is the model's built-in inertials.
+/// `validate`, `ablation`, `effects`, `bodies`, `warnings`, `notes`, ...). `recording` and
+/// `validate` are wpi-csv files, or MCAP / ROS 1 bags with `/<arm>/measured_js` (the jaw on
+/// its own topic or not); `format` "auto" tells the format from the file. The prior is the
+/// model's built-in inertials.
 #[pyfunction]
-#[pyo3(signature = (recording, model="psm", format="wpi-csv", validate=None))]
-pub fn identify<'py>(py: Python<'py>, recording: PathBuf, model: &str, format: &str, validate: Option<PathBuf>) -> Result<Bound<'py, PyAny>> {
-    use dvrk_calib::identify::{read_wpi_csv, run, IdentifyOptions};
-    if format != "wpi-csv" {
-        return Err(Error::Input(format!("format `{format}`: only wpi-csv is read yet")));
-    }
+#[pyo3(signature = (recording, model="psm", format="auto", validate=None, arm="PSM1"))]
+pub fn identify<'py>(py: Python<'py>, recording: PathBuf, model: &str, format: &str, validate: Option<PathBuf>, arm: &str) -> Result<Bound<'py, PyAny>> {
+    use dvrk_calib::identify::{recording::read_joint_recording, run, IdentifyOptions};
     let m = dvrk_calib::dvrk_kin::load(model, None)?;
     let summary = py.detach(|| -> Result<serde_json::Value> {
         let prior = dvrk_sim::scene::builtin_inertials(&m.name, &m)?.body_inertias(&m)?;
-        let rec = read_wpi_csv(&recording, &m)?;
-        let held_out = validate.as_ref().map(|v| read_wpi_csv(v, &m)).transpose()?;
-        let options = IdentifyOptions::for_model(&m);
-        let r = run::run(&m, &prior, &rec, held_out.as_ref(), &options, &recording.display().to_string(), format)?;
+        let resolved = dvrk_calib::recording_format::resolve(&recording, format)?;
+        let (rec, notes) = read_joint_recording(&recording, format, &m, arm)?;
+        let held_out = validate.as_ref().map(|v| read_joint_recording(v, resolved, &m, arm).map(|r| r.0)).transpose()?;
+        let options = IdentifyOptions::for_recording(&m, resolved);
+        let mut r = run::run(&m, &prior, &rec, held_out.as_ref(), &options, &recording.display().to_string(), resolved)?;
+        r.summary["notes"] = serde_json::json!(notes);
         Ok(r.summary)
     })?;
     to_py_json(py, &summary)
 }
 
-/// The discrepancy workflow (`dvrk discrepancy`) on a recording of `arm` (`format` "mcap":
-/// `/<arm>/setpoint_js`, `/<arm>/measured_js` with efforts; "wpi-csv"; "csv": `time`, `q1..qN`,
+/// The discrepancy workflow (`dvrk discrepancy`) on a recording of `arm` (`format` "auto": told
+/// from the file; "mcap" or "bag": `/<arm>/setpoint_js`, `/<arm>/measured_js` with efforts, the
+/// jaw on `/<arm>/jaw/...` or not; "wpi-csv"; "csv": `time`, `q1..qN`,
 /// `tau1..tauN`, optional `setpoint1..setpointN`), repeated: each named effect added to the model
 /// and the analysis run again, up to `max_rounds`. `plot` (.png or .svg): the residual before and
 /// after against time, velocity, load and position per moving joint. The report as a dict
@@ -167,7 +164,7 @@ pub fn identify<'py>(py: Python<'py>, recording: PathBuf, model: &str, format: &
 /// `rms_heldout_after`, `noise_floor`, `steps`, `kinematic`, ...). `marker_topic` and
 /// `marker_link` (frame name or paper number) add the kinematic channel.
 #[pyfunction]
-#[pyo3(signature = (recording, model="psm", arm="PSM1", tracking=true, format="mcap", max_rounds=4, plot=None, marker_topic=None, marker_link=None))]
+#[pyo3(signature = (recording, model="psm", arm="PSM1", tracking=true, format="auto", max_rounds=4, plot=None, marker_topic=None, marker_link=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn discrepancy<'py>(
     py: Python<'py>,

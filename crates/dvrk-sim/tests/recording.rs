@@ -59,6 +59,10 @@ fn messages(path: &std::path::Path) -> BTreeMap<String, Vec<(u64, Vec<u8>)>> {
     out
 }
 
+/// The joint names the dVRK publishes on `/PSM1/measured_js` (sawIntuitiveResearchKit's PSM; the
+/// jaw goes on `/PSM1/jaw/measured_js` as `jaw`).
+const DVRK_PSM_JOINTS: [&str; 6] = ["outer_yaw", "outer_pitch", "outer_insertion", "outer_roll", "outer_wrist_pitch", "outer_wrist_yaw"];
+
 /// Every sample on every topic, values equal to the simulated ones, and the tip pose equal to the
 /// model's FK of the recorded joints (the loops closed to 1e-7 m, so to 1e-6 m).
 #[test]
@@ -70,7 +74,8 @@ fn psm_recording_holds_the_simulated_values() {
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1, "no temporary file left");
     let m = messages(&path);
     let topics: Vec<&str> = m.keys().map(|s| s.as_str()).collect();
-    assert_eq!(topics, ["/PSM1/measured_cp", "/PSM1/measured_js", "/PSM1/setpoint_js", "/tf"]);
+    // The dVRK's CRTK layout: the jaw on its own topics.
+    assert_eq!(topics, ["/PSM1/jaw/measured_js", "/PSM1/jaw/setpoint_js", "/PSM1/measured_cp", "/PSM1/measured_js", "/PSM1/setpoint_js", "/tf"]);
     let model = &sim.arms[0].model;
     assert_eq!(m["/tf"].len(), 100 * model.bodies.len());
     let mut unplaced = model.clone();
@@ -80,12 +85,18 @@ fn psm_recording_holds_the_simulated_values() {
         let js = JointState::decode(&m["/PSM1/measured_js"][k].1).unwrap();
         assert_eq!(m["/PSM1/measured_js"][k].0, (t * 1e9).round() as u64);
         assert!((js.header.time() - t).abs() < 1e-9);
-        assert_eq!(js.name, model.joints.iter().map(|j| j.name.clone()).collect::<Vec<_>>());
-        assert_eq!(js.position, e.q[k]);
-        assert_eq!(js.velocity, e.qd[k]);
-        assert_eq!(js.effort, e.effort[k]);
+        assert_eq!(js.name, DVRK_PSM_JOINTS);
+        let jaw = JointState::decode(&m["/PSM1/jaw/measured_js"][k].1).unwrap();
+        assert_eq!(jaw.name, ["jaw"]);
+        assert_eq!(m["/PSM1/jaw/measured_js"][k].0, m["/PSM1/measured_js"][k].0);
+        let joined = |a: &[f64], b: &[f64]| [a, b].concat();
+        assert_eq!(joined(&js.position, &jaw.position), e.q[k]);
+        assert_eq!(joined(&js.velocity, &jaw.velocity), e.qd[k]);
+        assert_eq!(joined(&js.effort, &jaw.effort), e.effort[k]);
         let sp = JointState::decode(&m["/PSM1/setpoint_js"][k].1).unwrap();
-        assert_eq!(sp.position, e.target[k]);
+        let jaw_sp = JointState::decode(&m["/PSM1/jaw/setpoint_js"][k].1).unwrap();
+        assert_eq!(joined(&sp.position, &jaw_sp.position), e.target[k]);
+        let js = JointState { position: joined(&js.position, &jaw.position), ..js };
         let cp = PoseStamped::decode(&m["/PSM1/measured_cp"][k].1).unwrap();
         assert_eq!(cp.header.frame_id, "PSM1_base");
         let [x, y, z, w] = cp.orientation;
@@ -121,9 +132,10 @@ const PY: &str = r#"
 import json, sys
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
-out = {"js": [], "cp": [], "tf": 0, "frame_id": None}
+out = {"js": [], "jaw": [], "cp": [], "tf": 0, "frame_id": None, "topics": [], "names": None, "jaw_names": None}
 with open(sys.argv[1], "rb") as f:
     reader = make_reader(f, decoder_factories=[DecoderFactory()])
+    out["topics"] = sorted((c.topic, reader.get_summary().schemas[c.schema_id].name) for c in reader.get_summary().channels.values())
     for schema, channel, message in reader.iter_messages():
         if channel.topic == "/tf":
             d = json.loads(message.data)
@@ -131,9 +143,13 @@ with open(sys.argv[1], "rb") as f:
             assert d["parent_frame_id"] == "world"
     f.seek(0)
     reader = make_reader(f, decoder_factories=[DecoderFactory()])
-    for schema, channel, message, msg in reader.iter_decoded_messages(topics=["/PSM1/measured_js", "/PSM1/measured_cp"]):
+    for schema, channel, message, msg in reader.iter_decoded_messages(topics=["/PSM1/measured_js", "/PSM1/jaw/measured_js", "/PSM1/measured_cp"]):
         if channel.topic == "/PSM1/measured_js":
+            out["names"] = list(msg.name)
             out["js"].append([msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9] + list(msg.position) + list(msg.velocity) + list(msg.effort))
+        elif channel.topic == "/PSM1/jaw/measured_js":
+            out["jaw_names"] = list(msg.name)
+            out["jaw"].append(list(msg.position) + list(msg.velocity) + list(msg.effort))
         else:
             p = msg.pose
             out["frame_id"] = msg.header.frame_id
@@ -157,13 +173,30 @@ fn python_mcap_ros2_reads_the_recording() {
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     let nb = sim.arms[0].model.bodies.len();
     assert_eq!(v["tf"].as_u64().unwrap() as usize, 100 * nb);
+    // Topic names, types, joint names and frames as the dVRK publishes them.
     assert_eq!(v["frame_id"], "PSM1_base");
+    assert_eq!(v["names"], serde_json::json!(DVRK_PSM_JOINTS));
+    assert_eq!(v["jaw_names"], serde_json::json!(["jaw"]));
+    let js_type = "sensor_msgs/msg/JointState";
+    let want = serde_json::json!([
+        ["/PSM1/jaw/measured_js", js_type],
+        ["/PSM1/jaw/setpoint_js", js_type],
+        ["/PSM1/measured_cp", "geometry_msgs/msg/PoseStamped"],
+        ["/PSM1/measured_js", js_type],
+        ["/PSM1/setpoint_js", js_type],
+        ["/tf", "foxglove.FrameTransform"]
+    ]);
+    assert_eq!(v["topics"], want);
     let js = v["js"].as_array().unwrap();
+    let jaw = v["jaw"].as_array().unwrap();
     let cp = v["cp"].as_array().unwrap();
-    assert_eq!((js.len(), cp.len()), (100, 100));
+    assert_eq!((js.len(), jaw.len(), cp.len()), (100, 100, 100));
     let n = sim.nq();
     for k in 0..100 {
-        let row: Vec<f64> = js[k].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect();
+        // Time, then position, velocity and effort of the six arm joints and the jaw, joined.
+        let arm: Vec<f64> = js[k].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect();
+        let j: Vec<f64> = jaw[k].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect();
+        let row: Vec<f64> = [&arm[..1], &arm[1..7], &j[0..1], &arm[7..13], &j[1..2], &arm[13..19], &j[2..3]].concat();
         assert!((row[0] - e.t[k]).abs() < 1e-9);
         // serde_json's default float parser may miss the last bit of Python's shortest repr:
         // equal to 1e-15 relative, not bitwise.

@@ -52,10 +52,8 @@ impl JointLog {
 pub fn read_wpi_csv(path: &Path, model: &dvrk_kin::Model) -> Result<JointLog> {
     let rec = crate::identify::read_wpi_csv(path, model)?;
     let to_joint = &rec.to_joint;
-    let effort_map = to_joint
-        .transpose()
-        .try_inverse()
-        .ok_or_else(|| CalibError::data(path.display().to_string(), "the tool coupling is singular: actuator efforts cannot be taken to joint space"))?;
+    let effort_map =
+        to_joint.transpose().try_inverse().ok_or_else(|| CalibError::data(path.display().to_string(), "the tool coupling is singular: actuator efforts cannot be taken to joint space"))?;
     let mut log = JointLog { names: model.joints.iter().map(|j| j.name.clone()).collect(), ..Default::default() };
     for i in 0..rec.len() {
         let q = to_joint * nalgebra::DVector::from_column_slice(&rec.q[i]);
@@ -109,93 +107,39 @@ pub fn write_mcap(log: &JointLog, arm: &str) -> Result<Vec<u8>> {
     Ok(w.into_inner().into_inner())
 }
 
-/// The messages of one JointState topic, in file order.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct JointStates {
-    /// Joint names (every message must carry the same).
-    pub names: Vec<String>,
-    /// Header stamps (the log time where a stamp is 0), s.
-    pub t: Vec<f64>,
-    pub position: Vec<Vec<f64>>,
-    /// Empty per message when the message carries none.
-    pub velocity: Vec<Vec<f64>>,
-    pub effort: Vec<Vec<f64>>,
-}
-
-/// Every sensor_msgs/msg/JointState message on the topics `wanted` of an MCAP file, and the
-/// names of all the file's topics (for messages). A wanted topic of another type, a changing
-/// joint list or a damaged file is an error naming the file, topic and message.
-pub fn read_joint_states(path: &Path, wanted: &[&str]) -> Result<(BTreeMap<String, JointStates>, Vec<String>)> {
-    let bytes = std::fs::read(path).map_err(|e| CalibError::file(path, format!("cannot read: {e}")))?;
-    let stream = mcap::MessageStream::new(&bytes).map_err(|e| CalibError::file(path, format!("not an MCAP file: {e}")))?;
-    let mut topics: BTreeMap<String, JointStates> = BTreeMap::new();
-    let mut seen: Vec<String> = Vec::new();
-    for (count, m) in stream.enumerate() {
-        let m = m.map_err(|e| match e {
-            mcap::McapError::BadMagic if count == 0 => CalibError::file(path, "not an MCAP file (it does not start with the MCAP magic bytes)"),
-            e => CalibError::file(path, format!("damaged after {count} message(s): {e}")),
-        })?;
-        let topic = &m.channel.topic;
-        if !seen.contains(topic) {
-            seen.push(topic.clone());
-        }
-        if !wanted.contains(&topic.as_str()) {
-            continue;
-        }
-        let schema = m.channel.schema.as_ref().map_or("", |s| s.name.as_str());
-        if schema != "sensor_msgs/msg/JointState" || m.channel.message_encoding != "cdr" {
-            return Err(CalibError::file(path, format!("topic {topic} carries {schema} ({}); expected sensor_msgs/msg/JointState (cdr)", m.channel.message_encoding)));
-        }
-        let js = JointState::decode(&m.data).map_err(|e| CalibError::file(path, format!("message {} on {topic}: {e}", count + 1)))?;
-        let tp = topics.entry(topic.clone()).or_default();
-        if tp.names.is_empty() {
-            tp.names = js.name.clone();
-        }
-        if js.name != tp.names || js.position.len() != tp.names.len() {
-            return Err(CalibError::file(
-                path,
-                format!("message {} on {topic}: joints {:?} ({} positions), earlier messages had {:?}", count + 1, js.name, js.position.len(), tp.names),
-            ));
-        }
-        let t = if js.header.time() > 0.0 { js.header.time() } else { m.log_time as f64 * 1e-9 };
-        tp.t.push(t);
-        tp.position.push(js.position);
-        tp.velocity.push(js.velocity);
-        tp.effort.push(js.effort);
-    }
-    Ok((topics, seen))
-}
-
-/// Read `/<arm>/setpoint_js` and `/<arm>/measured_js` (with efforts) from an MCAP file. The
+/// Read an arm's setpoints and measurements (with efforts) from an MCAP file or ROS 1 bag, in
+/// the dVRK's layout (`/<arm>/setpoint_js`, `/<arm>/measured_js`, the jaw or gripper on its own
+/// topic, merged by [`crate::joint_states::read_arm`]) or with every joint on one topic. The
 /// setpoints are matched to the measurements by time (the latest setpoint at or before each
-/// measurement). Errors name the file, the topic and the message.
-pub fn read_mcap(path: &Path, arm: &str) -> Result<JointLog> {
-    let (set_topic, meas_topic) = (format!("/{arm}/setpoint_js"), format!("/{arm}/measured_js"));
-    let (mut topics, seen) = read_joint_states(path, &[&set_topic, &meas_topic])?;
-    let Some(meas) = topics.remove(&meas_topic) else {
-        return Err(CalibError::file(path, format!("no topic {meas_topic}; topics: {}", seen.join(", "))));
+/// measurement); without setpoints the encoders stand in for them (said in the notes). Errors
+/// name the file, the topic and the message.
+pub fn read_mcap(path: &Path, arm: &str) -> Result<(JointLog, Vec<String>)> {
+    let (set_kind, meas_kind) = ("setpoint_js", "measured_js");
+    let mut states = crate::joint_states::read_arm(path, arm, &[set_kind, meas_kind])?;
+    let meas_topic = format!("/{arm}/{meas_kind}");
+    let Some(meas) = states.kinds.remove(meas_kind) else {
+        return Err(CalibError::file(path, format!("no topic {meas_topic}; topics: {}", states.listing())));
     };
-    let Some(set) = topics.remove(&set_topic) else {
-        return Err(CalibError::file(path, format!("no topic {set_topic}; topics: {}", seen.join(", "))));
+    let mut notes = std::mem::take(&mut states.notes);
+    let set = match states.kinds.remove(set_kind) {
+        Some(set) if set.names != meas.names => {
+            return Err(CalibError::file(path, format!("/{arm}/{set_kind} joints {:?} differ from {meas_topic} joints {:?}", set.names, meas.names)));
+        }
+        Some(set) => set,
+        None => {
+            notes.push(format!("{}: {}", path.display(), super::csv_log::NO_SETPOINTS));
+            meas.clone()
+        }
     };
-    if set.names != meas.names {
-        return Err(CalibError::file(path, format!("{set_topic} joints {:?} differ from {meas_topic} joints {:?}", set.names, meas.names)));
-    }
     let nq = meas.names.len();
     let mut log = JointLog { names: meas.names, ..Default::default() };
     let mut j = 0;
     for (i, t) in meas.t.iter().enumerate() {
         if meas.effort[i].len() != nq {
-            return Err(CalibError::file(
-                path,
-                format!("{meas_topic} message {}: {} efforts for {nq} joints (the discrepancy workflow needs measured efforts)", i + 1, meas.effort[i].len()),
-            ));
+            return Err(CalibError::file(path, format!("{meas_topic} at t = {t} s: {} efforts for {nq} joints (the discrepancy workflow needs measured efforts)", meas.effort[i].len())));
         }
         if let Some(k) = meas.position[i].iter().chain(&meas.effort[i]).position(|x| !x.is_finite()) {
-            return Err(CalibError::file(path, format!("{meas_topic} message {} (t = {t} s): value {k} is not finite", i + 1)));
-        }
-        if i > 0 && *t <= meas.t[i - 1] {
-            return Err(CalibError::file(path, format!("{meas_topic} message {}: time {t} s does not increase", i + 1)));
+            return Err(CalibError::file(path, format!("{meas_topic} at t = {t} s: value {k} is not finite")));
         }
         while j + 1 < set.t.len() && set.t[j + 1] <= *t + 1e-9 {
             j += 1;
@@ -211,5 +155,5 @@ pub fn read_mcap(path: &Path, arm: &str) -> Result<JointLog> {
     if log.len() < 100 {
         return Err(CalibError::file(path, format!("{} usable samples on {meas_topic} (need at least 100)", log.len())));
     }
-    Ok(log)
+    Ok((log, notes))
 }

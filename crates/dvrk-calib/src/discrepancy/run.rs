@@ -8,18 +8,19 @@ use crate::error::{CalibError, Result};
 use dvrk_kin::Model;
 use std::path::Path;
 
-/// The recording formats `dvrk discrepancy` reads.
-pub const FORMATS: [&str; 3] = ["mcap", "wpi-csv", "csv"];
-
-/// Read `path` in `format` for `model`'s arm `arm`; with what the reader assumed (notes for the
-/// report).
+/// Read `path` in `format` (`auto`: told from the file, [`crate::recording_format`]) for
+/// `model`'s arm `arm`; with what the reader assumed (notes for the report).
 pub fn read_log(path: &Path, format: &str, model: &Model, arm: &str) -> Result<(JointLog, Vec<String>)> {
-    match format {
-        "mcap" => Ok((joint_log::read_mcap(path, arm)?, Vec::new())),
-        "wpi-csv" => Ok((joint_log::read_wpi_csv(path, model)?, vec![format!("{}: {}", path.display(), super::csv_log::NO_SETPOINTS)])),
-        "csv" => super::csv_log::read(path, model).map(|c| (c.log, c.notes)),
-        other => Err(CalibError::field("--format", format!("`{other}` is not a format; valid: {}", FORMATS.join(", ")))),
+    let resolved = crate::recording_format::resolve(path, format)?;
+    let (log, mut notes) = match resolved {
+        "mcap" | "bag" => joint_log::read_mcap(path, arm)?,
+        "wpi-csv" => (joint_log::read_wpi_csv(path, model)?, vec![format!("{}: {}", path.display(), super::csv_log::NO_SETPOINTS)]),
+        _ => super::csv_log::read(path, model).map(|c| (c.log, c.notes))?,
+    };
+    if format == "auto" {
+        notes.insert(0, format!("{}: read as {resolved} (told from the file; --format overrides)", path.display()));
     }
+    Ok((log, notes))
 }
 
 /// The kinematic channel's input: a pose topic and the link (frame name or paper number) its
@@ -36,10 +37,10 @@ pub fn run(path: &Path, format: &str, model: &Model, arm: &str, marker: Option<&
     let (mut log, notes) = read_log(path, format, model, arm)?;
     if let Some(m) = marker {
         let frame = super::markers::marker_frame(model, &m.link)?;
-        log.markers = Some(match format {
-            "mcap" => super::markers::read_mcap(path, &m.topic, frame)?,
+        log.markers = Some(match crate::recording_format::resolve(path, format)? {
+            "mcap" | "bag" => super::markers::read_mcap(path, &m.topic, frame)?,
             "csv" => super::csv_log::read_markers(path, &m.topic, frame)?,
-            other => return Err(CalibError::field("--marker-topic", format!("tracked poses are read from MCAP or CSV recordings; --format {other} has none"))),
+            other => return Err(CalibError::field("--marker-topic", format!("tracked poses are read from MCAP, bag or CSV recordings; a {other} recording has none"))),
         });
     }
     let scene = super::scene_for_arm(arm)?;

@@ -158,6 +158,18 @@ impl IdentifyOptions {
         }
     }
 
+    /// The options for `model` and a recording in `format` (resolved, see
+    /// [`crate::recording_format`]): the WPI channels (tool actuators) take
+    /// [`IdentifyOptions::for_model`]; a joint-space recording (MCAP, bag) takes every effect term
+    /// on every joint, springs on the tool's.
+    pub fn for_recording(model: &Model, format: &str) -> IdentifyOptions {
+        if format == "wpi-csv" {
+            IdentifyOptions::for_model(model)
+        } else {
+            IdentifyOptions::full((3.min(model.nq())..model.nq()).collect())
+        }
+    }
+
     /// The same, with only the effect terms `effects` (joint friction and cross terms kept).
     pub fn with_effects(&self, effects: &[EffectTerm]) -> IdentifyOptions {
         IdentifyOptions { terms: Terms { effects: effects.to_vec(), ..self.terms.clone() }, ..self.clone() }

@@ -79,9 +79,7 @@ pub fn parse_wpi_csv(text: &str, path: &Path, model: &Model) -> Result<TorqueRec
     if n != 7 {
         return Err(CalibError::file(path, format!("wpi-csv holds a PSM's 7 joints; model `{}` has {n}", model.name)));
     }
-    let coupling = model
-        .coupling_matrix()
-        .ok_or_else(|| CalibError::file(path, format!("wpi-csv channels 5..7 are tool actuators, but model `{}` has no tool coupling", model.name)))?;
+    let coupling = model.coupling_matrix().ok_or_else(|| CalibError::file(path, format!("wpi-csv channels 5..7 are tool actuators, but model `{}` has no tool coupling", model.name)))?;
     // Only channels 5..7 were converted to actuators: the roll channel is the joint.
     let mut to_joint = coupling;
     for k in 0..n {
@@ -122,24 +120,27 @@ pub fn parse_wpi_csv(text: &str, path: &Path, model: &Model) -> Result<TorqueRec
 }
 
 /// Read `/<arm>/measured_js` (sensor_msgs/JointState with efforts, as the dVRK and `dvrk sim
-/// --out` record it) from an MCAP file for `model`: joints matched by name (every model joint
-/// must be there), velocities from the messages where they carry them, else by central
-/// differences of the positions. The channels are the model's joints.
-pub fn read_mcap_joint_states(path: &Path, model: &Model, arm: &str) -> Result<TorqueRecording> {
+/// --out` record it) from an MCAP file or ROS 1 bag for `model`, with the jaw or gripper on its
+/// own topic merged by time ([`crate::joint_states::read_arm`]) or on the same topic: joints
+/// matched by name (every model joint must be there), velocities from the messages where they
+/// carry them, else by central differences of the positions. The channels are the model's
+/// joints. With what the reader did (notes for the report).
+pub fn read_mcap_joint_states(path: &Path, model: &Model, arm: &str) -> Result<(TorqueRecording, Vec<String>)> {
+    let mut states = crate::joint_states::read_arm(path, arm, &["measured_js"])?;
     let topic = format!("/{arm}/measured_js");
-    let (mut topics, seen) = crate::discrepancy::joint_log::read_joint_states(path, &[&topic])?;
-    let Some(js) = topics.remove(&topic) else {
-        return Err(CalibError::file(path, format!("no topic {topic}; topics: {}", seen.join(", "))));
+    let Some(js) = states.kinds.remove("measured_js") else {
+        return Err(CalibError::file(path, format!("no topic {topic}; topics: {}", states.listing())));
     };
+    let source = states.sources.remove("measured_js").unwrap_or_else(|| topic.clone());
     let n = model.nq();
     let index: Vec<usize> = model
         .joints
         .iter()
-        .map(|j| js.names.iter().position(|x| *x == j.name).ok_or_else(|| CalibError::file(path, format!("{topic} has no joint `{}` (joints: {})", j.name, js.names.join(", ")))))
+        .map(|j| js.names.iter().position(|x| *x == j.name).ok_or_else(|| CalibError::file(path, format!("{source} has no joint `{}` (joints: {})", j.name, js.names.join(", ")))))
         .collect::<Result<_>>()?;
     let m = js.t.len();
     if m < 100 {
-        return Err(CalibError::file(path, format!("{topic}: {m} messages; identification needs at least 100")));
+        return Err(CalibError::file(path, format!("{source}: {m} messages; identification needs at least 100")));
     }
     let mut rec = TorqueRecording {
         source: path.display().to_string(),
@@ -152,15 +153,12 @@ pub fn read_mcap_joint_states(path: &Path, model: &Model, arm: &str) -> Result<T
     };
     for i in 0..m {
         if js.effort[i].len() != js.names.len() {
-            return Err(CalibError::file(path, format!("{topic} message {}: {} efforts for {} joints (identification needs measured efforts)", i + 1, js.effort[i].len(), js.names.len())));
-        }
-        if i > 0 && js.t[i] <= js.t[i - 1] {
-            return Err(CalibError::file(path, format!("{topic} message {}: time {} s does not increase", i + 1, js.t[i])));
+            return Err(CalibError::file(path, format!("{source} at t = {} s: {} efforts for {} joints (identification needs measured efforts)", js.t[i], js.effort[i].len(), js.names.len())));
         }
         let pick = |v: &[f64]| index.iter().map(|&k| v[k]).collect::<Vec<f64>>();
         let (q, tau) = (pick(&js.position[i]), pick(&js.effort[i]));
         if let Some(x) = q.iter().chain(&tau).find(|x| !x.is_finite()) {
-            return Err(CalibError::file(path, format!("{topic} message {} (t = {} s): {x} is not finite", i + 1, js.t[i])));
+            return Err(CalibError::file(path, format!("{source} at t = {} s: {x} is not finite", js.t[i])));
         }
         rec.q.push(q);
         rec.tau.push(tau);
@@ -174,5 +172,26 @@ pub fn read_mcap_joint_states(path: &Path, model: &Model, arm: &str) -> Result<T
         };
         rec.qd.push(qd);
     }
-    Ok(rec)
+    Ok((rec, states.notes))
+}
+
+/// Read the recording `path` in `format` (`auto`: told from the file, see
+/// [`crate::recording_format`]; `wpi-csv`, `mcap` or `bag`) for `model`, the arm `arm` for
+/// MCAP and bags; with what the reader did (notes for the report).
+pub fn read_joint_recording(path: &Path, format: &str, model: &Model, arm: &str) -> Result<(TorqueRecording, Vec<String>)> {
+    let resolved = crate::recording_format::resolve(path, format)?;
+    let (rec, mut notes) = match resolved {
+        "wpi-csv" => (read_wpi_csv(path, model)?, Vec::new()),
+        "mcap" | "bag" => read_mcap_joint_states(path, model, arm)?,
+        other => {
+            return Err(CalibError::file(
+                path,
+                format!("identification reads wpi-csv, mcap and bag recordings, not {other}{}", if format == "auto" { " (told from the file; give --format)" } else { "" }),
+            ))
+        }
+    };
+    if format == "auto" {
+        notes.insert(0, format!("{}: read as {resolved} (told from the file; --format overrides)", path.display()));
+    }
+    Ok((rec, notes))
 }

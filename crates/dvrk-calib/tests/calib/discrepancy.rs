@@ -177,7 +177,7 @@ fn joint_logs_round_trip_and_bad_recordings_are_refused() {
     let h = trial(Hidden::None, 5, None, 8.0);
     let path = dir.path().join("rec.mcap");
     std::fs::write(&path, joint_log::write_mcap(&h.log, "PSM1").unwrap()).unwrap();
-    let back = joint_log::read_mcap(&path, "PSM1").unwrap();
+    let back = joint_log::read_mcap(&path, "PSM1").unwrap().0;
     assert_eq!(back.names, h.log.names);
     assert_eq!(back.len(), h.log.len());
     assert!((back.effort[100][1] - h.log.effort[100][1]).abs() < 1e-12);
@@ -601,7 +601,7 @@ fn payload_anywhere_table() {
             let free = hidden_effect("psm", &HiddenOptions { hidden: Hidden::None, seed, duration: 30.0, ..Default::default() }).unwrap();
             let path = dir.path().join(format!("free{seed}.mcap"));
             std::fs::write(&path, joint_log::write_mcap(&free.log, "PSM1").unwrap()).unwrap();
-            let rec = read_mcap_joint_states(&path, &psm, "PSM1").unwrap();
+            let rec = read_mcap_joint_states(&path, &psm, "PSM1").unwrap().0;
             let prior = dvrk_sim::scene::builtin_inertials("psm", &psm).unwrap().body_inertias(&psm).unwrap();
             let options = IdentifyOptions::full(Vec::new());
             let (id, _) = identify(&psm, &prior, &rec, &options).unwrap();

@@ -319,7 +319,7 @@ fn a_simulated_recording_gives_back_the_simulators_damping_and_armature() {
     let options = dvrk_sim::RunOptions { duration: 20.0, trajectory: dvrk_sim::run::TrajectoryKind::Sine, sim };
     dvrk_sim::run_recorded(&scene, &options, Some(&dvrk_sim::RecordOptions { path: path.clone(), rate: 200.0 }), |_| {}).unwrap();
     let model = psm();
-    let rec = read_mcap_joint_states(&path, &model, "PSM1").unwrap();
+    let rec = read_mcap_joint_states(&path, &model, "PSM1").unwrap().0;
     assert_eq!(rec.channels[0], "outer_yaw");
     let prior = dvrk_sim::scene::builtin_inertials("psm", &model).unwrap().body_inertias(&model).unwrap();
     let options = IdentifyOptions::full(vec![3, 4, 5, 6]);

@@ -7,6 +7,8 @@
 //! - `identify`: dynamic identification on the real WPI recordings; bad wpi-csv files.
 //! - `identify_synthetic`: 100 seeded synthetic trials inside their 95% intervals; excitation warnings.
 //! - `formats`: MCAP (ROS 2 and Foxglove layouts), plain and raw-marker CSV round trips.
+//! - `dvrk_layout`: the dVRK's CRTK topic layout and ROS 1 bags, written by Python's
+//!   `mcap-ros2-support` and `rosbags` from a real recording: the same results from each.
 //! - `python_mcap`: MCAP files written by the Python `mcap` / `mcap-ros2-support` packages.
 //! - `discrepancy`: hidden-effect recordings: the effect named with its parameters, `none` on
 //!   effect-free ones, bad recordings refused; the detection-rate table (`--ignored`).
@@ -18,6 +20,7 @@ mod util;
 
 mod bad_input;
 mod discrepancy;
+mod dvrk_layout;
 mod formats;
 mod identify;
 mod identify_synthetic;

@@ -33,7 +33,9 @@ fn sim_recording_reads_back_with_the_simulated_values() {
     let options = McapOptions { topics: vec!["/PSM1/measured_cp".into()], joint_topic: Some("/PSM1/measured_js".into()) };
     let r = read_recording(&path, &options).unwrap();
     let j = r.joints.as_ref().unwrap();
-    assert_eq!(j.source, "/PSM1/measured_js");
+    // The dVRK layout: the jaw from its own topic, merged by time.
+    assert_eq!(j.source, "/PSM1/measured_js + /PSM1/jaw/measured_js");
+    assert_eq!(j.names.len(), 7);
     assert_eq!(j.names[0], "outer_yaw");
     assert_eq!(j.t.len(), 100);
     for k in 0..100 {

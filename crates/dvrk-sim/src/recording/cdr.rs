@@ -3,6 +3,10 @@
 //! size counted from the first byte after the header. Strings are a u32 length that counts the
 //! terminating NUL, the bytes and the NUL; sequences are a u32 count and the elements.
 //!
+//! The reader also reads ROS 1's serialization (rosbag v2.0 messages), which is the same
+//! little-endian layout without the encapsulation header and without alignment, and strings
+//! without the NUL: [`CdrReader::ros1`].
+//!
 //! The reader checks every length against the bytes left, so a damaged message is an error
 //! naming the field, never a panic or a huge allocation.
 
@@ -74,12 +78,14 @@ impl CdrWriter {
     }
 }
 
-/// Reads a CDR message (either byte order).
+/// Reads a CDR message (either byte order), or a ROS 1 message.
 #[derive(Debug, Clone)]
 pub struct CdrReader<'a> {
     data: &'a [u8],
     pos: usize,
     little: bool,
+    /// ROS 1: no alignment padding.
+    packed: bool,
 }
 
 impl<'a> CdrReader<'a> {
@@ -93,10 +99,20 @@ impl<'a> CdrReader<'a> {
             (0x00, 0x00) => false,
             (a, b) => return Err(format!("CDR header {a:02x} {b:02x} is not plain CDR (00 00 or 00 01)")),
         };
-        Ok(CdrReader { data: &bytes[4..], pos: 0, little })
+        Ok(CdrReader { data: &bytes[4..], pos: 0, little, packed: false })
+    }
+    /// A ROS 1 message (rosbag v2.0): little endian, packed, no header.
+    pub fn ros1(bytes: &'a [u8]) -> Self {
+        CdrReader { data: bytes, pos: 0, little: true, packed: true }
+    }
+    /// True for a ROS 1 message (its std_msgs/Header starts with a `seq`).
+    pub fn is_ros1(&self) -> bool {
+        self.packed
     }
     fn align(&mut self, n: usize) {
-        self.pos += (n - self.pos % n) % n;
+        if !self.packed {
+            self.pos += (n - self.pos % n) % n;
+        }
     }
     fn take(&mut self, n: usize, field: &str) -> Result<&'a [u8], String> {
         let end = self.pos.checked_add(n).filter(|e| *e <= self.data.len());
@@ -148,7 +164,7 @@ impl<'a> CdrReader<'a> {
     }
     /// A sequence of strings.
     pub fn string_seq(&mut self, field: &str) -> Result<Vec<String>, String> {
-        let n = self.seq_len(field, 5)?;
+        let n = self.seq_len(field, if self.packed { 4 } else { 5 })?;
         (0..n).map(|i| self.string(&format!("{field}[{i}]"))).collect()
     }
 }
@@ -177,6 +193,20 @@ mod tests {
         assert_eq!(r.f64("c").unwrap(), 1.5);
         let e = r.f64("d").unwrap_err();
         assert_eq!(e, "d: the message ends at byte 24 of its payload, 8 more byte(s) needed");
+    }
+
+    #[test]
+    fn ros1_is_packed_and_has_no_header() {
+        let mut b = Vec::new();
+        b.extend_from_slice(&7u32.to_le_bytes());
+        b.extend_from_slice(&2u32.to_le_bytes());
+        b.extend_from_slice(b"ab");
+        b.extend_from_slice(&1.5f64.to_le_bytes());
+        let mut r = CdrReader::ros1(&b);
+        assert_eq!(r.u32("a").unwrap(), 7);
+        assert_eq!(r.string("b").unwrap(), "ab");
+        assert_eq!(r.f64("c").unwrap(), 1.5);
+        assert!(r.u32("d").unwrap_err().starts_with("d: the message ends at byte 18"));
     }
 
     #[test]

@@ -1,6 +1,8 @@
 //! The three ROS 2 messages a tracker recording holds, in CDR: geometry_msgs/msg/PoseStamped
 //! (one rigid body per topic), tf2_msgs/msg/TFMessage (many per message) and
 //! sensor_msgs/msg/JointState (the dVRK's `measured_js`), with their `ros2msg` schema texts.
+//! The decoders also read the same messages as ROS 1 serialized them (`*_ros1`: a bag's
+//! sensor_msgs/JointState and friends differ only in the header's `seq` and the packing).
 
 use super::cdr::{CdrReader, CdrWriter};
 
@@ -34,6 +36,13 @@ impl Header {
         w.string(&self.frame_id);
     }
     fn read(r: &mut CdrReader) -> Result<Self, String> {
+        if r.is_ros1() {
+            // ROS 1: uint32 seq, then time as uint32 secs and nsecs.
+            r.u32("header.seq")?;
+            let sec = r.u32("header.stamp.secs")?;
+            let sec = i32::try_from(sec).map_err(|_| format!("header.stamp.secs: {sec} is past 2038"))?;
+            return Ok(Header { sec, nanosec: r.u32("header.stamp.nsecs")?, frame_id: r.string("header.frame_id")? });
+        }
         Ok(Header { sec: r.i32("header.stamp.sec")?, nanosec: r.u32("header.stamp.nanosec")?, frame_id: r.string("header.frame_id")? })
     }
 }
@@ -90,8 +99,14 @@ impl PoseStamped {
     }
     /// From CDR bytes.
     pub fn decode(bytes: &[u8]) -> Result<Self, String> {
-        let mut r = CdrReader::new(bytes)?;
-        Ok(PoseStamped { header: Header::read(&mut r)?, position: read3(&mut r, "pose.position")?, orientation: read4(&mut r, "pose.orientation")? })
+        Self::read(&mut CdrReader::new(bytes)?)
+    }
+    /// From ROS 1 bytes (geometry_msgs/PoseStamped in a bag).
+    pub fn decode_ros1(bytes: &[u8]) -> Result<Self, String> {
+        Self::read(&mut CdrReader::ros1(bytes))
+    }
+    fn read(r: &mut CdrReader) -> Result<Self, String> {
+        Ok(PoseStamped { header: Header::read(r)?, position: read3(r, "pose.position")?, orientation: read4(r, "pose.orientation")? })
     }
 }
 
@@ -109,16 +124,24 @@ pub fn encode_tf(transforms: &[TransformStamped]) -> Vec<u8> {
 
 /// tf2_msgs/msg/TFMessage from CDR bytes.
 pub fn decode_tf(bytes: &[u8]) -> Result<Vec<TransformStamped>, String> {
-    let mut r = CdrReader::new(bytes)?;
-    // Smallest element: header (4 + 4 + 5) + child id (5) + 7 f64.
-    let n = r.seq_len("transforms", 18 + 56)?;
+    read_tf(&mut CdrReader::new(bytes)?)
+}
+
+/// tf2_msgs/TFMessage from ROS 1 bytes.
+pub fn decode_tf_ros1(bytes: &[u8]) -> Result<Vec<TransformStamped>, String> {
+    read_tf(&mut CdrReader::ros1(bytes))
+}
+
+fn read_tf(r: &mut CdrReader) -> Result<Vec<TransformStamped>, String> {
+    // Smallest element: header (4 + 4 + 4) + child id (4) + 7 f64.
+    let n = r.seq_len("transforms", 16 + 56)?;
     (0..n)
         .map(|i| {
             let f = |s: &str| format!("transforms[{i}].{s}");
-            let header = Header::read(&mut r).map_err(|e| format!("transforms[{i}].{e}"))?;
+            let header = Header::read(r).map_err(|e| format!("transforms[{i}].{e}"))?;
             let child_frame_id = r.string(&f("child_frame_id"))?;
-            let translation = read3(&mut r, &f("transform.translation"))?;
-            let rotation = read4(&mut r, &f("transform.rotation"))?;
+            let translation = read3(r, &f("transform.translation"))?;
+            let rotation = read4(r, &f("transform.rotation"))?;
             Ok(TransformStamped { header, child_frame_id, translation, rotation })
         })
         .collect()
@@ -137,14 +160,14 @@ impl JointState {
     }
     /// From CDR bytes.
     pub fn decode(bytes: &[u8]) -> Result<Self, String> {
-        let mut r = CdrReader::new(bytes)?;
-        Ok(JointState {
-            header: Header::read(&mut r)?,
-            name: r.string_seq("name")?,
-            position: r.f64_seq("position")?,
-            velocity: r.f64_seq("velocity")?,
-            effort: r.f64_seq("effort")?,
-        })
+        Self::read(&mut CdrReader::new(bytes)?)
+    }
+    /// From ROS 1 bytes (sensor_msgs/JointState in a bag).
+    pub fn decode_ros1(bytes: &[u8]) -> Result<Self, String> {
+        Self::read(&mut CdrReader::ros1(bytes))
+    }
+    fn read(r: &mut CdrReader) -> Result<Self, String> {
+        Ok(JointState { header: Header::read(r)?, name: r.string_seq("name")?, position: r.f64_seq("position")?, velocity: r.f64_seq("velocity")?, effort: r.f64_seq("effort")? })
     }
 }
 
@@ -181,10 +204,7 @@ pub fn tf_schema() -> (&'static str, String) {
 
 /// Schema name and `ros2msg` text of sensor_msgs/msg/JointState.
 pub fn joint_state_schema() -> (&'static str, String) {
-    (
-        "sensor_msgs/msg/JointState",
-        format!("std_msgs/Header header\nstring[] name\nfloat64[] position\nfloat64[] velocity\nfloat64[] effort\n{}", header_defs()),
-    )
+    ("sensor_msgs/msg/JointState", format!("std_msgs/Header header\nstring[] name\nfloat64[] position\nfloat64[] velocity\nfloat64[] effort\n{}", header_defs()))
 }
 
 #[cfg(test)]

@@ -1,9 +1,13 @@
-//! The MCAP writer of a run. Per arm (`PSM1`; a SUJ arm `SUJ-PSM1` publishes under `/SUJ/PSM1`):
+//! The MCAP writer of a run, in the dVRK's CRTK layout. Per arm (`PSM1`; a SUJ arm `SUJ-PSM1`
+//! publishes under `/SUJ/PSM1`):
 //!
-//! - `/PSM1/measured_js`, sensor_msgs/msg/JointState: measured position (rad, m), velocity
-//!   (rad/s, m/s) and effort (N·m, N; the actuator's applied effort: the sim has no torque sensor);
+//! - `/PSM1/measured_js`, sensor_msgs/msg/JointState: the arm's joints (a PSM's six, without the
+//!   jaw), measured position (rad, m), velocity (rad/s, m/s) and effort (N·m, N; the actuator's
+//!   applied effort: the sim has no torque sensor);
 //! - `/PSM1/setpoint_js`, sensor_msgs/msg/JointState: the actuator's target position, velocity
 //!   feed-forward and applied effort;
+//! - `/PSM1/jaw/measured_js` and `/PSM1/jaw/setpoint_js`: the same for the jaw (joint `jaw`), on
+//!   its own topics as the dVRK publishes it (an arm without a jaw has none);
 //! - `/PSM1/measured_cp`, geometry_msgs/msg/PoseStamped: the tool tip (the model's `tip` frame)
 //!   in the arm's base frame `PSM1_base`, which is the base of the arm's serial dVRK kinematics
 //!   (the RCM frame of a PSM or ECM, as the dVRK reports it) or frame 0 for other models;
@@ -51,13 +55,25 @@ enum BaseRef {
     Body(usize, usize, Pose),
 }
 
+/// The joint names the dVRK publishes on a sub-topic of their own (`/PSM1/jaw/measured_js`).
+pub const TOOL_JOINTS: [&str; 2] = ["jaw", "gripper"];
+
+/// One JointState topic pair (measured, setpoint) and the model joints it carries.
+#[derive(Debug, Clone)]
+struct JointChannels {
+    measured_js: u16,
+    setpoint_js: u16,
+    /// Model joint indices, in the message's order.
+    joints: Vec<usize>,
+    names: Vec<String>,
+}
+
 /// Channels and constant placements of one arm.
 #[derive(Debug, Clone)]
 struct ArmChannels {
-    measured_js: u16,
-    setpoint_js: u16,
+    /// The arm's own joints first, then each tool joint's topics.
+    topics: Vec<JointChannels>,
     measured_cp: u16,
-    names: Vec<String>,
     base_frame_id: String,
     base: BaseRef,
     /// The tip frame's body and its placement in that body.
@@ -137,11 +153,21 @@ impl Recorder {
             let fk = m.fk(&m.home())?;
             let tip_body = m.frames[m.tip].body;
             let tip_rel = fk[m.bodies[tip_body].frames[0]].inverse() * fk[m.tip];
+            let is_tool = |k: &usize| TOOL_JOINTS.contains(&m.joints[*k].name.as_str());
+            let mut groups: Vec<(String, Vec<usize>)> = vec![(ns.clone(), (0..m.nq()).filter(|k| !is_tool(k)).collect())];
+            groups.extend((0..m.nq()).filter(is_tool).map(|k| (format!("{ns}/{}", m.joints[k].name), vec![k])));
+            let mut topics = Vec::with_capacity(groups.len());
+            for (prefix, joints) in groups {
+                topics.push(JointChannels {
+                    measured_js: w.add_channel(js_schema, &format!("/{prefix}/measured_js"), "cdr", &meta).map_err(io)?,
+                    setpoint_js: w.add_channel(js_schema, &format!("/{prefix}/setpoint_js"), "cdr", &meta).map_err(io)?,
+                    names: joints.iter().map(|k| m.joints[*k].name.clone()).collect(),
+                    joints,
+                });
+            }
             arms.push(ArmChannels {
-                measured_js: w.add_channel(js_schema, &format!("/{ns}/measured_js"), "cdr", &meta).map_err(io)?,
-                setpoint_js: w.add_channel(js_schema, &format!("/{ns}/setpoint_js"), "cdr", &meta).map_err(io)?,
+                topics,
                 measured_cp: w.add_channel(cp_schema, &format!("/{ns}/measured_cp"), "cdr", &meta).map_err(io)?,
-                names: m.joints.iter().map(|j| j.name.clone()).collect(),
                 base_frame_id: format!("{}_base", arm.name.replace('-', "_")),
                 base,
                 tip_body,
@@ -199,26 +225,28 @@ impl Recorder {
         for a in 0..self.arms.len() {
             let arm = &sim.arms[a];
             let (off, n) = (arm.q_offset, arm.model.nq());
-            let effort: Vec<f64> = arm.actuators.iter().map(|x| x.effort).collect();
+            let (q, qd) = (&sim.q()[off..off + n], &sim.qd()[off..off + n]);
             let c = &self.arms[a];
-            let measured = JointState {
-                header: Header::at(t, ""),
-                name: c.names.clone(),
-                position: sim.q()[off..off + n].to_vec(),
-                velocity: sim.qd()[off..off + n].to_vec(),
-                effort: effort.clone(),
-            };
-            let setpoint = JointState {
-                header: Header::at(t, ""),
-                name: c.names.clone(),
-                position: arm.actuators.iter().map(|x| x.target).collect(),
-                velocity: arm.actuators.iter().map(|x| x.target_velocity).collect(),
-                effort,
-            };
+            let mut messages = Vec::with_capacity(2 * c.topics.len());
+            for g in &c.topics {
+                let pick = |f: &dyn Fn(usize) -> f64| g.joints.iter().map(|&k| f(k)).collect::<Vec<f64>>();
+                let effort = pick(&|k| arm.actuators[k].effort);
+                let measured = JointState { header: Header::at(t, ""), name: g.names.clone(), position: pick(&|k| q[k]), velocity: pick(&|k| qd[k]), effort: effort.clone() };
+                let setpoint = JointState {
+                    header: Header::at(t, ""),
+                    name: g.names.clone(),
+                    position: pick(&|k| arm.actuators[k].target),
+                    velocity: pick(&|k| arm.actuators[k].target_velocity),
+                    effort,
+                };
+                messages.push((g.measured_js, measured.encode()));
+                messages.push((g.setpoint_js, setpoint.encode()));
+            }
             let cp = PoseStamped::from_pose(t, &c.base_frame_id, &self.tip_in_base(sim, a));
-            let (mj, sj, mc) = (c.measured_js, c.setpoint_js, c.measured_cp);
-            self.write(mj, t, &measured.encode())?;
-            self.write(sj, t, &setpoint.encode())?;
+            let mc = c.measured_cp;
+            for (ch, bytes) in messages {
+                self.write(ch, t, &bytes)?;
+            }
             self.write(mc, t, &cp.encode())?;
         }
         for a in 0..self.arms.len() {

@@ -1,0 +1,251 @@
+//! Recorded message files, read message by message whatever the container: MCAP (ROS 2 `cdr`,
+//! Foxglove `json`, or ROS 1 messages converted by `mcap convert`) and ROS 1 bags (v2.0,
+//! uncompressed, bz2 or lz4 chunks, read with the `rosbag` crate). Every reader of recordings
+//! (poses, joint states) walks a file through [`for_each`], so a format is added once.
+//!
+//! The container is told by the file's first bytes, not its name. Type names are given in
+//! ROS 2's spelling (`sensor_msgs/msg/JointState`) whatever the file used
+//! (`sensor_msgs/JointState` in a bag), with the wire [`Encoding`] beside them.
+
+use crate::error::{CalibError, Result};
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// MCAP's magic bytes.
+const MCAP_MAGIC: &[u8] = b"\x89MCAP0\r\n";
+/// A ROS 1 bag's version line.
+const BAG_MAGIC: &[u8] = b"#ROSBAG V2.0\n";
+
+/// The container of a recording.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Container {
+    /// An MCAP file.
+    Mcap,
+    /// A ROS 1 bag (v2.0).
+    Bag,
+}
+
+/// How a message's bytes are serialized.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Encoding {
+    /// ROS 2's CDR (with its encapsulation header).
+    Cdr,
+    /// ROS 1's serialization (packed little endian).
+    Ros1,
+    /// JSON (Foxglove schemas).
+    Json,
+    /// Anything else (skipped by every reader).
+    Other,
+}
+
+/// One recorded message.
+#[derive(Debug, Clone, Copy)]
+pub struct Message<'a> {
+    /// Its number in the file (1-based, in file order), for messages.
+    pub index: usize,
+    /// The topic (`/PSM1/measured_js`).
+    pub topic: &'a str,
+    /// The type in ROS 2's spelling (`sensor_msgs/msg/JointState`), or the file's own name for
+    /// non-ROS schemas (`foxglove.PoseInFrame`); empty when the channel has no schema.
+    pub schema: &'a str,
+    /// The wire encoding.
+    pub encoding: Encoding,
+    /// When the recorder logged it (ns since the epoch, or since the recording's start).
+    pub log_time_ns: u64,
+    /// The serialized message.
+    pub data: &'a [u8],
+}
+
+impl Message<'_> {
+    /// The log time (s).
+    pub fn log_time(&self) -> f64 {
+        self.log_time_ns as f64 * 1e-9
+    }
+}
+
+/// The container of `path` from its first bytes; `None` for anything else (CSV, text).
+pub fn container(path: &Path) -> Result<Option<Container>> {
+    use std::io::Read;
+    let mut head = [0u8; 13];
+    let mut f = std::fs::File::open(path).map_err(|e| match e.kind() {
+        std::io::ErrorKind::NotFound => CalibError::file(path, "no such file"),
+        _ => CalibError::file(path, format!("cannot read: {e}")),
+    })?;
+    let n = f.read(&mut head).map_err(|e| CalibError::file(path, format!("cannot read: {e}")))?;
+    Ok(container_of(&head[..n]))
+}
+
+/// The container of bytes that start a file.
+pub fn container_of(head: &[u8]) -> Option<Container> {
+    if head.starts_with(MCAP_MAGIC) {
+        Some(Container::Mcap)
+    } else if head.starts_with(BAG_MAGIC) {
+        Some(Container::Bag)
+    } else {
+        None
+    }
+}
+
+/// ROS 2's spelling of a type: `pkg/Type` becomes `pkg/msg/Type`.
+pub fn ros2_type_name(name: &str) -> String {
+    match name.split_once('/') {
+        Some((pkg, ty)) if !ty.contains('/') => format!("{pkg}/msg/{ty}"),
+        _ => name.to_string(),
+    }
+}
+
+fn encoding(name: &str) -> Encoding {
+    match name {
+        "cdr" => Encoding::Cdr,
+        "ros1" => Encoding::Ros1,
+        "json" => Encoding::Json,
+        _ => Encoding::Other,
+    }
+}
+
+/// Call `visit` on every message of the MCAP or bag file `path`, in file order; returns how many
+/// there were. A file that is neither, or is damaged, is an error naming the file; an error of
+/// `visit` stops the walk and is returned as it is.
+pub fn for_each(path: &Path, visit: impl FnMut(&Message) -> Result<()>) -> Result<usize> {
+    match container(path)? {
+        Some(Container::Mcap) => {
+            let bytes = std::fs::read(path).map_err(|e| CalibError::file(path, format!("cannot read: {e}")))?;
+            for_each_mcap(&bytes, path, visit)
+        }
+        Some(Container::Bag) => for_each_bag(path, visit),
+        None if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("bag")) => Err(CalibError::file(path, "not a ROS 1 bag (it does not start with `#ROSBAG V2.0`)")),
+        None => Err(CalibError::file(path, "not an MCAP file (it does not start with the MCAP magic bytes) nor a ROS 1 bag")),
+    }
+}
+
+/// [`for_each`] over the bytes of an MCAP file; `path` names them in errors.
+pub fn for_each_mcap(bytes: &[u8], path: &Path, mut visit: impl FnMut(&Message) -> Result<()>) -> Result<usize> {
+    let stream = mcap::MessageStream::new(bytes).map_err(|e| CalibError::file(path, format!("not an MCAP file: {e}")))?;
+    let mut count = 0usize;
+    // Type names, normalised once per channel.
+    let mut names: BTreeMap<u16, String> = BTreeMap::new();
+    for m in stream {
+        let m = m.map_err(|e| match e {
+            mcap::McapError::BadMagic if count == 0 => CalibError::file(path, "not an MCAP file (it does not start with the MCAP magic bytes)"),
+            e => CalibError::file(path, format!("truncated or damaged after {count} message(s): {e}; nothing was fitted (recover the file with `mcap recover`)")),
+        })?;
+        count += 1;
+        let ch = &m.channel;
+        let enc = encoding(&ch.message_encoding);
+        let schema = names.entry(ch.id).or_insert_with(|| {
+            let s = ch.schema.as_ref().map_or("", |s| s.name.as_str());
+            if enc == Encoding::Ros1 {
+                ros2_type_name(s)
+            } else {
+                s.to_string()
+            }
+        });
+        visit(&Message { index: count, topic: &ch.topic, schema, encoding: enc, log_time_ns: m.log_time, data: &m.data })?;
+    }
+    Ok(count)
+}
+
+/// The bag header's `index_pos` (where the index section starts), checked against the file's
+/// length: the `rosbag` crate slices the file there, and a cut or unclosed bag would make it
+/// panic.
+fn bag_index_pos(bytes: &[u8], file_len: usize, path: &Path) -> Result<usize> {
+    let damaged = || CalibError::file(path, "a ROS 1 bag whose header record is damaged");
+    let u32_at = |at: usize| -> Option<usize> { bytes.get(at..at + 4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as usize) };
+    let start = BAG_MAGIC.len();
+    let header_len = u32_at(start).ok_or_else(damaged)?;
+    let header = bytes.get(start + 4..start + 4 + header_len).ok_or_else(damaged)?;
+    let mut at = 0;
+    while at + 4 <= header.len() {
+        let n = u32::from_le_bytes([header[at], header[at + 1], header[at + 2], header[at + 3]]) as usize;
+        let field = header.get(at + 4..at + 4 + n).ok_or_else(damaged)?;
+        if let Some(v) = field.strip_prefix(b"index_pos=") {
+            let v: [u8; 8] = v.try_into().map_err(|_| damaged())?;
+            let pos = u64::from_le_bytes(v) as usize;
+            if pos == 0 {
+                return Err(CalibError::file(path, "a ROS 1 bag without an index (its recording was not closed); `rosbag reindex` repairs it"));
+            }
+            if pos > file_len || pos < start + 4 + header_len {
+                return Err(CalibError::file(
+                    path,
+                    format!("a truncated ROS 1 bag: its index should start at byte {pos} of {file_len} (was the copy or the recording cut short? `rosbag reindex` repairs a cut recording)"),
+                ));
+            }
+            return Ok(pos);
+        }
+        at += 4 + n;
+    }
+    Err(damaged())
+}
+
+/// [`for_each`] over a ROS 1 bag.
+fn for_each_bag(path: &Path, mut visit: impl FnMut(&Message) -> Result<()>) -> Result<usize> {
+    {
+        // The header record (4 kB in bags rosbag writes) is all the check needs.
+        use std::io::Read;
+        let cannot = |e: std::io::Error| CalibError::file(path, format!("cannot read: {e}"));
+        let f = std::fs::File::open(path).map_err(cannot)?;
+        let file_len = f.metadata().map_err(cannot)?.len() as usize;
+        let mut head = Vec::new();
+        f.take(1 << 16).read_to_end(&mut head).map_err(cannot)?;
+        bag_index_pos(&head, file_len, path)?;
+    }
+    let bag = rosbag::RosBag::new(path).map_err(|e| CalibError::file(path, format!("not a readable ROS 1 bag: {e}")))?;
+    let mut connections: BTreeMap<u32, (String, String)> = BTreeMap::new();
+    let mut count = 0usize;
+    let damaged = |count: usize, e: rosbag::Error| CalibError::file(path, format!("damaged after {count} message(s): {}", e.to_string().trim_start_matches("rosbag::Error: ")));
+    for record in bag.chunk_records() {
+        let rosbag::ChunkRecord::Chunk(chunk) = record.map_err(|e| damaged(count, e))? else {
+            continue;
+        };
+        for m in chunk.messages() {
+            match m.map_err(|e| damaged(count, e))? {
+                rosbag::MessageRecord::Connection(c) => {
+                    connections.insert(c.id, (c.topic.to_string(), ros2_type_name(c.tp)));
+                }
+                rosbag::MessageRecord::MessageData(d) => {
+                    count += 1;
+                    let Some((topic, schema)) = connections.get(&d.conn_id) else {
+                        return Err(CalibError::file(path, format!("message {count} is on connection {} that no connection record announces", d.conn_id)));
+                    };
+                    visit(&Message { index: count, topic, schema, encoding: Encoding::Ros1, log_time_ns: d.time, data: d.data })?;
+                }
+            }
+        }
+    }
+    Ok(count)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn type_names_take_ros2_spelling() {
+        assert_eq!(ros2_type_name("sensor_msgs/JointState"), "sensor_msgs/msg/JointState");
+        assert_eq!(ros2_type_name("sensor_msgs/msg/JointState"), "sensor_msgs/msg/JointState");
+        assert_eq!(ros2_type_name("foxglove.PoseInFrame"), "foxglove.PoseInFrame");
+    }
+
+    #[test]
+    fn containers_are_told_by_their_first_bytes() {
+        assert_eq!(container_of(b"\x89MCAP0\r\nrest"), Some(Container::Mcap));
+        assert_eq!(container_of(b"#ROSBAG V2.0\n"), Some(Container::Bag));
+        assert_eq!(container_of(b"#ROSBAG V1.2\n"), None);
+        assert_eq!(container_of(b"time,q1"), None);
+    }
+
+    #[test]
+    fn a_cut_bag_is_named_not_a_panic() {
+        let mut b = BAG_MAGIC.to_vec();
+        let field = [b"index_pos=".as_slice(), &5000u64.to_le_bytes()].concat();
+        let header = [(field.len() as u32).to_le_bytes().as_slice(), &field].concat();
+        b.extend_from_slice(&(header.len() as u32).to_le_bytes());
+        b.extend_from_slice(&header);
+        b.extend_from_slice(&[0u8; 100]);
+        let e = bag_index_pos(&b, b.len(), Path::new("cut.bag")).unwrap_err().to_string();
+        assert!(e.contains("cut.bag") && e.contains("truncated ROS 1 bag") && e.contains("byte 5000 of 139"), "{e}");
+        assert_eq!(bag_index_pos(&b, 6000, Path::new("whole.bag")).unwrap(), 5000);
+        let e = bag_index_pos(&b[..20], 6000, Path::new("cut.bag")).unwrap_err().to_string();
+        assert!(e.contains("header record is damaged"), "{e}");
+    }
+}

@@ -1,0 +1,71 @@
+//! Which format a joint recording is in, told from the file itself: `--format auto` (the
+//! default of `dvrk identify` and `dvrk discrepancy`) resolves here.
+
+use crate::error::{CalibError, Result};
+use crate::message_file::{self, Container};
+use std::path::Path;
+
+/// What `--format` may say.
+pub const FORMATS: [&str; 5] = ["auto", "mcap", "bag", "wpi-csv", "csv"];
+
+/// Columns of a wpi-csv row: q, qd, tau of a PSM's 7 joints.
+const WPI_COLUMNS: usize = 21;
+
+/// `format`, or for `auto` the format of `path`: `mcap` or `bag` by the first bytes; for text,
+/// `wpi-csv` when the first row is 21 numbers (no header), else `csv` (the plain format with a
+/// header). An unknown `format` is an error naming the flag.
+pub fn resolve(path: &Path, format: &str) -> Result<&'static str> {
+    if let Some(f) = FORMATS.iter().find(|f| **f == format && **f != "auto") {
+        return Ok(f);
+    }
+    if format != "auto" {
+        return Err(CalibError::field("--format", format!("`{format}` is not a format; valid: {}", FORMATS.join(", "))));
+    }
+    if !path.exists() {
+        return Err(CalibError::file(path, "no such file"));
+    }
+    match message_file::container(path)? {
+        Some(Container::Mcap) => return Ok("mcap"),
+        Some(Container::Bag) => return Ok("bag"),
+        None => {}
+    }
+    use std::io::{BufRead, BufReader};
+    let f = std::fs::File::open(path).map_err(|e| CalibError::file(path, format!("cannot read: {e}")))?;
+    for line in BufReader::new(f).lines().take(50) {
+        let Ok(line) = line else {
+            return Err(CalibError::file(path, "neither MCAP, a ROS 1 bag nor text (CSV); give --format"));
+        };
+        let line = line.trim();
+        if line.is_empty() || line.starts_with('#') {
+            continue;
+        }
+        let cells: Vec<&str> = line.split(',').collect();
+        let numbers = cells.iter().all(|c| c.trim().parse::<f64>().is_ok());
+        return Ok(if numbers && cells.len() == WPI_COLUMNS { "wpi-csv" } else { "csv" });
+    }
+    Err(CalibError::file(path, "holds no data row to tell its format from; give --format"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn formats_are_told_by_their_content() {
+        let dir = tempfile::tempdir().unwrap();
+        let write = |name: &str, bytes: &[u8]| {
+            let p = dir.path().join(name);
+            std::fs::write(&p, bytes).unwrap();
+            p
+        };
+        let wpi = write("a.txt", format!("{}\n", vec!["0.5"; 21].join(",")).as_bytes());
+        assert_eq!(resolve(&wpi, "auto").unwrap(), "wpi-csv");
+        let csv = write("b.csv", b"# joints: a\ntime,q1,tau1\n0,0,0\n");
+        assert_eq!(resolve(&csv, "auto").unwrap(), "csv");
+        let bag = write("c.dat", b"#ROSBAG V2.0\nrest");
+        assert_eq!(resolve(&bag, "auto").unwrap(), "bag");
+        assert_eq!(resolve(&bag, "wpi-csv").unwrap(), "wpi-csv");
+        let e = resolve(&bag, "rosbag").unwrap_err().to_string();
+        assert!(e.contains("--format") && e.contains("`rosbag`"), "{e}");
+    }
+}
