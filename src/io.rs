@@ -1,6 +1,6 @@
 //! Input parsing and atomic output for the commands.
 
-use anyhow::{anyhow, bail, Context, Result};
+use anyhow::{anyhow, bail, Result};
 use std::io::Write;
 use std::path::Path;
 
@@ -19,16 +19,22 @@ pub fn parse_list(flag: &str, text: &str) -> Result<Vec<f64>> {
         .collect()
 }
 
-/// Write `contents` to `path` whole or not at all: a temporary file beside it, then a rename.
+/// Write `contents` to `path` whole or not at all (dvrk-kin's one output discipline: a temporary
+/// file beside it, then a rename).
 pub fn write_atomic(path: &Path, contents: &[u8]) -> Result<()> {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    let mut tmp = tempfile::NamedTempFile::new_in(dir).with_context(|| format!("{}: cannot create a file in {}", path.display(), dir.display()))?;
-    tmp.write_all(contents).with_context(|| format!("{}: cannot write", path.display()))?;
-    tmp.persist(path).map_err(|e| anyhow!("{}: cannot write: {}", path.display(), e.error))?;
-    Ok(())
+    Ok(dvrk_kin::atomic::write_atomic(path, contents)?)
+}
+
+/// Stage `contents` for `path` (written, not yet visible): commit with
+/// [`dvrk_kin::atomic::commit_all`] once every output of the command is staged.
+pub fn stage(path: &Path, contents: &[u8]) -> Result<dvrk_kin::atomic::Staged> {
+    Ok(dvrk_kin::atomic::Staged::write(path, contents)?)
+}
+
+/// Check a command's outputs before any work (see [`dvrk_kin::atomic::check_outputs`]).
+pub fn check_outputs(inputs: &[(&str, &Path)], outputs: &[(&str, Option<&Path>)]) -> Result<()> {
+    let outputs: Vec<(&str, &Path)> = outputs.iter().filter_map(|(f, p)| p.map(|p| (*f, p))).collect();
+    Ok(dvrk_kin::atomic::check_outputs(inputs, &outputs)?)
 }
 
 /// Print a line to stdout; a closed pipe (`dvrk ... | head`) ends the program quietly.

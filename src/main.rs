@@ -6,6 +6,7 @@
 mod cli;
 mod commands;
 mod io;
+mod signals;
 
 use clap::Parser;
 use std::process::ExitCode;
@@ -24,6 +25,7 @@ impl std::error::Error for CheckFailed {}
 
 fn main() -> ExitCode {
     let args = cli::Cli::parse();
+    signals::install();
     match commands::run(args) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) if e.is::<CheckFailed>() => {

@@ -6,4 +6,5 @@ mod bad_input;
 mod cli;
 mod dvrk_files;
 mod kinematics;
+mod outputs;
 mod paper_tables;

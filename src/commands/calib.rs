@@ -91,6 +91,7 @@ pub fn run(c: &CalibCommand) -> Result<()> {
 }
 
 fn pivot(a: &PivotArgs) -> Result<()> {
+    crate::io::check_outputs(&[("--recording", &a.recording)], &[("--plot", a.plot.as_deref())])?;
     let method: PivotMethod = a.method.parse().map_err(|e| anyhow!("--method: {e}"))?;
     // All topics are read so that `--topic` may be a short name (`end` for /mocap/end/pose).
     let rec = read_recording(&a.recording, &McapOptions::default())?;
@@ -142,6 +143,7 @@ fn pivot(a: &PivotArgs) -> Result<()> {
 }
 
 fn axes(a: &AxesArgs) -> Result<()> {
+    crate::io::check_outputs(&[("--recording", &a.recording), ("--config", &a.config)], &[("-o", a.output.as_deref()), ("--plot", a.plot.as_deref())])?;
     let text = std::fs::read_to_string(&a.config).with_context(|| format!("{}: cannot read", a.config.display()))?;
     let cfg = AxesConfig::from_toml(&text, &a.config)?;
     let method = a.method.as_deref().map(str::parse).transpose().map_err(|e| anyhow!("--method: {e}"))?;
@@ -151,13 +153,15 @@ fn axes(a: &AxesArgs) -> Result<()> {
     let dh = if has_psm { Some(psm_dh(&report).map_err(|e| anyhow!("{}: {e}", a.recording.display()))?) } else { None };
     let v = dvrk_calib::report_json::axes_json(&report, dh.as_ref());
     let text = serde_json::to_string_pretty(&v)?;
+    let mut staged = Vec::new();
     if let Some(o) = &a.output {
-        crate::io::write_atomic(o, format!("{text}\n").as_bytes())?;
+        staged.push(crate::io::stage(o, format!("{text}\n").as_bytes())?);
     }
     if let Some(p) = &a.plot {
         let image = dvrk_calib::plot::axis_residuals(&report)?;
-        crate::io::write_atomic(p, &image.encode(p)?)?;
+        staged.push(crate::io::stage(p, &image.encode(p)?)?);
     }
+    dvrk_kin::atomic::commit_all(staged)?;
     if a.json {
         outln!("{text}");
         return Ok(());
@@ -203,6 +207,7 @@ fn print_axes(r: &AxesReport, dh: Option<&PsmDh>, path: &Path) {
 }
 
 fn apply(a: &ApplyArgs) -> Result<()> {
+    crate::io::check_outputs(&[("--axes", &a.axes), ("--model", std::path::Path::new(&a.model))], &[("-o", Some(&a.output))])?;
     let text = std::fs::read_to_string(&a.axes).with_context(|| format!("{}: cannot read", a.axes.display()))?;
     let update = dvrk_calib::report_json::psm_update_from_json(&text, &a.axes)?;
     let model = dvrk_kin::load(&a.model, None)?;

@@ -74,6 +74,11 @@ pub fn run(a: &DiscrepancyArgs) -> Result<()> {
     if let Some(p) = &a.plot {
         dvrk_calib::plot::check_path(p)?;
     }
+    let model_path = std::path::Path::new(&a.model);
+    crate::io::check_outputs(
+        &[("--recording", &a.recording), ("--model", model_path)],
+        &[("--report", Some(&a.report)), ("-o", a.output.as_deref()), ("--plot", a.plot.as_deref())],
+    )?;
     let model = dvrk_kin::load(&a.model, None)?;
     let mut options = Options { tracking: !a.no_tracking, ..Default::default() };
     if let Some(text) = &a.inertia_prior {
@@ -92,18 +97,20 @@ pub fn run(a: &DiscrepancyArgs) -> Result<()> {
         Some(p) => Some(dvrk_calib::discrepancy::plot::figure(&out.residuals, &a.recording.display().to_string())?.encode(p)?),
         None => None,
     };
-    crate::io::write_atomic(&a.report, format!("{}\n", serde_json::to_string_pretty(r)?).as_bytes())?;
+    // Every output staged, then all committed together.
+    let mut staged = vec![crate::io::stage(&a.report, format!("{}\n", serde_json::to_string_pretty(r)?).as_bytes())?];
     if let Some(path) = &a.output {
         if !out.named.is_empty() {
             let text = model_text_with(&a.model, &out.named)?;
             // Check it loads before writing it.
             dvrk_kin::load::load_toml_text(&text, path, None, None).with_context(|| format!("{}: the updated model does not load", path.display()))?;
-            crate::io::write_atomic(path, text.as_bytes())?;
+            staged.push(crate::io::stage(path, text.as_bytes())?);
         }
     }
     if let (Some(p), Some(image)) = (&a.plot, &image) {
-        crate::io::write_atomic(p, image).with_context(|| format!("--plot {}", p.display()))?;
+        staged.push(crate::io::stage(p, image).with_context(|| format!("--plot {}", p.display()))?);
     }
+    dvrk_kin::atomic::commit_all(staged)?;
     let named = r.effects.iter().map(|e| e.label()).collect::<Vec<_>>().join(", ");
     outln!("{}: {}{}; report in {}", a.recording.display(), r.verdict, if named.is_empty() { String::new() } else { format!(": {named}") }, a.report.display());
     // Per joint in its own unit: what is left, and how much of the joint's effort was explained.

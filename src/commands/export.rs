@@ -4,6 +4,9 @@ use crate::cli::{ExportArgs, ExportFormat};
 use anyhow::Result;
 
 pub fn run(args: &ExportArgs) -> Result<()> {
+    let mut inputs = vec![("MODEL", std::path::Path::new(&args.model.model))];
+    inputs.extend(args.model.tool.as_deref().map(|t| ("--tool", t)));
+    crate::io::check_outputs(&inputs, &[("-o", Some(&args.output))])?;
     let text = match args.format {
         ExportFormat::Urdf => {
             if args.q.is_some() {

@@ -11,6 +11,7 @@ pub fn run(args: &FkArgs) -> Result<()> {
         if args.q.is_some() {
             bail!("--q: give either --q or --input, not both");
         }
+        crate::io::check_outputs(&[("--input", input), ("MODEL", std::path::Path::new(&args.model.model))], &[("--output", Some(output))])?;
         let frame = match &args.frame {
             Some(f) => super::frame_arg(&m, "--frame", f)?,
             None => m.tip,

@@ -48,6 +48,10 @@ pub struct IdentifyArgs {
 }
 
 pub fn run(args: &IdentifyArgs) -> Result<()> {
+    let mut inputs = vec![("--recording", args.recording.as_path()), ("--model", std::path::Path::new(&args.model))];
+    inputs.extend(args.validate.as_deref().map(|v| ("--validate", v)));
+    inputs.extend(args.inertials.as_deref().map(|v| ("--inertials", v)));
+    crate::io::check_outputs(&inputs, &[("-o", args.output.as_deref())])?;
     let model = dvrk_kin::load(&args.model, None).with_context(|| format!("--model {}", args.model))?;
     let prior = match &args.inertials {
         Some(p) => {

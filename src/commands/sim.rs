@@ -77,6 +77,13 @@ pub fn run(args: &SimArgs) -> Result<()> {
             bail!("--solver-iterations {n}: must be in 1..=1000");
         }
     }
+    // Outputs are checked before any work: none is an input or another output, each in an
+    // existing directory.
+    let replay = args.trajectory.strip_prefix("replay:").map(std::path::Path::new);
+    let mut inputs: Vec<(&str, &std::path::Path)> = vec![("--scene", std::path::Path::new(&args.scene))];
+    inputs.extend(replay.map(|p| ("--trajectory replay:", p)));
+    inputs.extend(args.model.iter().filter_map(|m| m.split_once('=')).map(|(_, f)| ("--model", std::path::Path::new(f))));
+    crate::io::check_outputs(&inputs, &[("--out", args.out.as_deref()), ("--plot", args.plot.as_deref())])?;
     let mut scene = Scene::load(&args.scene).with_context(|| format!("--scene {}", args.scene))?;
     for m in &args.model {
         let Some((arm, file)) = m.split_once('=') else { bail!("--model {m}: expected ARM=MODEL (a built-in model or a file), e.g. PSM1=my-psm.toml") };
@@ -124,10 +131,15 @@ pub fn run(args: &SimArgs) -> Result<()> {
         if scene.camera.is_none() {
             bail!("--frames-dir {}: scene {} has no camera (full-camera has one)", d.display(), args.scene);
         }
-        std::fs::create_dir_all(d).with_context(|| format!("--frames-dir {}", d.display()))?;
+        // The directory itself is made if absent, never its parents.
+        if !d.is_dir() {
+            std::fs::create_dir(d).with_context(|| format!("--frames-dir {}: cannot create it (its parent must exist)", d.display()))?;
+        }
     }
-    let outputs = Outputs { record: record.as_ref(), trace_rate, frames_dir: args.frames_dir.as_deref() };
-    let (summary, trace) = dvrk_sim::run_with(&scene, &options, &outputs, |f| {
+    // A long run stops cleanly on SIGINT/SIGTERM: its recording holds what ran.
+    let stop = crate::signals::stop_flag();
+    let outputs = Outputs { record: record.as_ref(), trace_rate, frames_dir: args.frames_dir.as_deref(), stop: Some(stop) };
+    let run = dvrk_sim::run_staged(&scene, &options, &outputs, |f| {
         if tty {
             let n = (f * 40.0).round() as usize;
             eprint!("\r[{}{}] {:3.0}%", "#".repeat(n), " ".repeat(40 - n.min(40)), f * 100.0);
@@ -137,11 +149,24 @@ pub fn run(args: &SimArgs) -> Result<()> {
     if tty {
         eprintln!();
     }
+    let (summary, trace) = (run.summary, run.trace);
+    if stop.load(std::sync::atomic::Ordering::SeqCst) {
+        eprintln!("stopped by a signal after {:.3} s of simulated time: the outputs hold the run up to then", summary.duration);
+    }
+    // A run that went non-finite replaces no output; otherwise every output is committed together.
+    if !summary.finite {
+        if args.json {
+            println!("{}", serde_json::to_string(&summary)?);
+        }
+        bail!("the simulation went non-finite (at most {:.6e} m loop-closure gap, at {:.3} s); no output was written", summary.max_closure_error, summary.max_closure_time);
+    }
+    let mut staged: Vec<dvrk_kin::atomic::Staged> = run.recording.into_iter().collect();
     if let (Some(p), Some(trace)) = (&args.plot, &trace) {
         let title = format!("{} {}: commanded blue, measured orange, error green", summary.scene, summary.trajectory);
         let image = trace.figure(&title);
-        crate::io::write_atomic(p, &image.encode(p)?).with_context(|| format!("--plot {}", p.display()))?;
+        staged.push(crate::io::stage(p, &image.encode(p)?).with_context(|| format!("--plot {}", p.display()))?);
     }
+    dvrk_kin::atomic::commit_all(staged)?;
     if args.json {
         println!("{}", serde_json::to_string(&summary)?);
         return Ok(());
@@ -179,9 +204,6 @@ pub fn run(args: &SimArgs) -> Result<()> {
     }
     for n in &summary.notes {
         println!("note: {n}");
-    }
-    if !summary.finite {
-        bail!("the simulation went non-finite");
     }
     Ok(())
 }

@@ -124,6 +124,7 @@ fn hidden_effect(a: &HiddenEffectArgs) -> Result<()> {
     if ext != "mcap" && ext != "csv" {
         bail!("-o {}: the recording is written as MCAP (.mcap) or plain CSV (.csv)", a.output.display());
     }
+    crate::io::check_outputs(&[("--model", std::path::Path::new(&a.model))], &[("-o", Some(&a.output)), ("--answer", Some(&a.answer))])?;
     let marker = a.marker_link.clone().map(|link| dvrk_calib::discrepancy::generate::MarkerOptions { link, ..Default::default() });
     let o = HiddenOptions { hidden, seed: a.seed, duration: a.duration, effort_noise, position_noise: a.position_noise, enr: a.enr, marker, payload_link: a.payload_link.clone(), ..Default::default() };
     let h = hidden_effect(&a.model, &o)?;
@@ -131,8 +132,8 @@ fn hidden_effect(a: &HiddenEffectArgs) -> Result<()> {
         "csv" => dvrk_calib::discrepancy::csv_log::write(&h.log).into_bytes(),
         _ => joint_log::write_mcap(&h.log, &dvrk_sim::Scene::load(&a.model)?.arms[0].name)?,
     };
-    crate::io::write_atomic(&a.output, &bytes)?;
-    crate::io::write_atomic(&a.answer, format!("{}\n", serde_json::to_string_pretty(&h.answer)?).as_bytes())?;
+    let staged = vec![crate::io::stage(&a.output, &bytes)?, crate::io::stage(&a.answer, format!("{}\n", serde_json::to_string_pretty(&h.answer)?).as_bytes())?];
+    dvrk_kin::atomic::commit_all(staged)?;
     let what = match h.answer.effects.is_empty() {
         true => "no effect".to_string(),
         false => h.answer.effects.iter().map(|e| format!("{} (ENR {:.1})", e.spec.name, e.enr)).collect::<Vec<_>>().join(" and "),
@@ -142,6 +143,10 @@ fn hidden_effect(a: &HiddenEffectArgs) -> Result<()> {
 }
 
 fn mocap(a: &MocapArgs) -> Result<()> {
+    crate::io::check_outputs(
+        &[("--model", std::path::Path::new(&a.model))],
+        &[("-o", Some(&a.output)), ("--config-out", a.config_out.as_deref()), ("--truth", a.truth.as_deref())],
+    )?;
     let model = dvrk_kin::load(&a.model, None)?;
     let motion: SynthMotion = a.motion.parse().map_err(|e| anyhow!("--motion: {e}"))?;
     let amp = crate::io::parse_list("--amplitude", &a.amplitude)?;
@@ -174,9 +179,9 @@ fn mocap(a: &MocapArgs) -> Result<()> {
         "csv" => dvrk_calib::plain_csv::write(&rec).into_bytes(),
         _ => bail!("-o {}: unknown format `.{ext}`; valid: .mcap, .csv", a.output.display()),
     };
-    crate::io::write_atomic(&a.output, &bytes)?;
+    let mut staged = vec![crate::io::stage(&a.output, &bytes)?];
     if let Some(c) = &a.config_out {
-        crate::io::write_atomic(c, scenario.axes_config_toml().as_bytes())?;
+        staged.push(crate::io::stage(c, scenario.axes_config_toml().as_bytes())?);
     }
     if let Some(t) = &a.truth {
         let clusters: Vec<_> = scenario
@@ -191,8 +196,9 @@ fn mocap(a: &MocapArgs) -> Result<()> {
             "rcm": scenario.rcm.map(|r| [r.x, r.y, r.z]),
             "clusters": clusters,
         });
-        crate::io::write_atomic(t, format!("{}\n", serde_json::to_string_pretty(&v)?).as_bytes())?;
+        staged.push(crate::io::stage(t, format!("{}\n", serde_json::to_string_pretty(&v)?).as_bytes())?);
     }
+    dvrk_kin::atomic::commit_all(staged)?;
     let frames = scenario.t.len();
     let seen: usize = rec.bodies.iter().map(|b| b.len()).sum();
     outln!(

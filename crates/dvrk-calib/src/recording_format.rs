@@ -8,12 +8,10 @@ use std::path::Path;
 /// What `--format` may say.
 pub const FORMATS: [&str; 5] = ["auto", "mcap", "bag", "wpi-csv", "csv"];
 
-/// Columns of a wpi-csv row: q, qd, tau of a PSM's 7 joints.
-const WPI_COLUMNS: usize = 21;
-
 /// `format`, or for `auto` the format of `path`: `mcap` or `bag` by the first bytes; for text,
-/// `wpi-csv` when the first row is 21 numbers (no header), else `csv` (the plain format with a
-/// header). An unknown `format` is an error naming the flag.
+/// `wpi-csv` when the first row is numbers only (no header: the wpi-csv reader then checks its
+/// 21 columns), else `csv` (the plain format, which has a header). An unknown `format` is an
+/// error naming the flag.
 pub fn resolve(path: &Path, format: &str) -> Result<&'static str> {
     if let Some(f) = FORMATS.iter().find(|f| **f == format && **f != "auto") {
         return Ok(f);
@@ -41,7 +39,7 @@ pub fn resolve(path: &Path, format: &str) -> Result<&'static str> {
         }
         let cells: Vec<&str> = line.split(',').collect();
         let numbers = cells.iter().all(|c| c.trim().parse::<f64>().is_ok());
-        return Ok(if numbers && cells.len() == WPI_COLUMNS { "wpi-csv" } else { "csv" });
+        return Ok(if numbers { "wpi-csv" } else { "csv" });
     }
     Err(CalibError::file(path, "holds no data row to tell its format from; give --format"))
 }
@@ -62,6 +60,8 @@ mod tests {
         assert_eq!(resolve(&wpi, "auto").unwrap(), "wpi-csv");
         let csv = write("b.csv", b"# joints: a\ntime,q1,tau1\n0,0,0\n");
         assert_eq!(resolve(&csv, "auto").unwrap(), "csv");
+        let short = write("d.csv", b"0.1,0.2\n");
+        assert_eq!(resolve(&short, "auto").unwrap(), "wpi-csv", "headerless numbers: the wpi-csv reader names the column count");
         let bag = write("c.dat", b"#ROSBAG V2.0\nrest");
         assert_eq!(resolve(&bag, "auto").unwrap(), "bag");
         assert_eq!(resolve(&bag, "wpi-csv").unwrap(), "wpi-csv");

@@ -1,31 +1,240 @@
-//! Writing a file whole or not at all, so that a failed or interrupted write never leaves a
-//! partial output behind (exports, camera frames, recordings written by the Python package).
+//! Outputs written whole or not at all, the one discipline every writer follows (exports, the
+//! CLI's outputs, camera frames, recordings, the Python package):
+//!
+//! - an output is checked before any work ([`check_outputs`]): its directory must exist (no
+//!   directory is created), it must not be a directory, and it must be neither an input nor
+//!   another output of the same command;
+//! - it is written to a temporary file beside its target ([`Staged`]), and renamed over the target
+//!   only when everything the command writes is ready ([`commit_all`]); a command with several
+//!   outputs commits all of them or none;
+//! - a staged file that is dropped is removed, and a signal handler can remove every staged file
+//!   of the process ([`remove_all_staged`]);
+//! - every output gets the same mode (0644 before the umask).
 
 use crate::error::{KinError, Result};
 use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+
+/// Temporary files of this process not yet committed or removed (for signal handlers).
+static STAGED: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+fn registry() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
+    STAGED.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// Remove every staged file of this process (from a SIGINT/SIGTERM handler: nothing half-written
+/// is left behind). Returns how many were removed.
+pub fn remove_all_staged() -> usize {
+    let mut list = registry();
+    let n = list.iter().filter(|p| std::fs::remove_file(p).is_ok()).count();
+    list.clear();
+    n
+}
+
+fn file_error(path: &Path, what: &str, e: std::io::Error) -> KinError {
+    KinError::File { path: path.into(), message: format!("cannot {what}: {e}") }
+}
+
+/// A file written beside its target, waiting to be renamed over it. Dropped uncommitted, it is
+/// removed.
+#[derive(Debug)]
+pub struct Staged {
+    tmp: PathBuf,
+    target: PathBuf,
+    live: bool,
+}
+
+impl Staged {
+    /// The temporary path for `target` (hidden, in the same directory, named for the process).
+    pub fn temp_path(target: &Path) -> PathBuf {
+        let file = target.file_name().map_or("out".into(), |n| n.to_string_lossy().into_owned());
+        target.with_file_name(format!(".{file}.{}.tmp", std::process::id()))
+    }
+
+    /// Create the temporary file for `target` (mode 0644 before the umask) and register it.
+    pub fn create(target: &Path) -> Result<(Staged, std::fs::File)> {
+        let tmp = Self::temp_path(target);
+        let mut options = std::fs::OpenOptions::new();
+        options.write(true).create(true).truncate(true);
+        #[cfg(unix)]
+        std::os::unix::fs::OpenOptionsExt::mode(&mut options, 0o644);
+        let file = options.open(&tmp).map_err(|e| file_error(target, "write", e))?;
+        registry().push(tmp.clone());
+        Ok((Staged { tmp, target: target.to_path_buf(), live: true }, file))
+    }
+
+    /// Stage `bytes` for `target`: written and synced, not yet visible.
+    pub fn write(target: &Path, bytes: &[u8]) -> Result<Staged> {
+        use std::io::Write;
+        let (staged, mut f) = Self::create(target)?;
+        f.write_all(bytes).and_then(|_| f.sync_all()).map_err(|e| file_error(target, "write", e))?;
+        Ok(staged)
+    }
+
+    /// The destination.
+    pub fn target(&self) -> &Path {
+        &self.target
+    }
+
+    /// The temporary file.
+    pub fn temp(&self) -> &Path {
+        &self.tmp
+    }
+
+    /// Rename the file over its target.
+    pub fn commit(mut self) -> Result<()> {
+        let r = std::fs::rename(&self.tmp, &self.target).map_err(|e| file_error(&self.target, "replace", e));
+        self.forget();
+        if r.is_err() {
+            let _ = std::fs::remove_file(&self.tmp);
+        }
+        r
+    }
+
+    fn forget(&mut self) {
+        self.live = false;
+        registry().retain(|p| p != &self.tmp);
+    }
+}
+
+impl Drop for Staged {
+    fn drop(&mut self) {
+        if self.live {
+            let _ = std::fs::remove_file(&self.tmp);
+            self.forget();
+        }
+    }
+}
+
+/// Commit staged files together: nothing is renamed unless every one was staged (the caller
+/// stages all first); then each is renamed in turn.
+pub fn commit_all(staged: Vec<Staged>) -> Result<()> {
+    staged.into_iter().try_for_each(Staged::commit)
+}
 
 /// Write `bytes` to `path` atomically: a temporary file in the same directory, then a rename.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let err =
-        |what: &str, e: std::io::Error| KinError::File { path: path.into(), message: format!("cannot {what}: {e}") };
+    Staged::write(path, bytes)?.commit()
+}
+
+/// The file's identity: its canonical path (the directory resolved, the name kept), and
+/// (device, inode) where it exists, so hard links and `./x` vs `x` are the same file.
+fn identity(path: &Path) -> (Option<PathBuf>, Option<(u64, u64)>) {
     let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-        _ => PathBuf::from("."),
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
     };
-    let file = path.file_name().map_or("out".into(), |n| n.to_string_lossy().into_owned());
-    let tmp = dir.join(format!(".{file}.{}.tmp", std::process::id()));
-    let result = (|| {
-        use std::io::Write;
-        let mut f = std::fs::File::create(&tmp)?;
-        f.write_all(bytes)?;
-        f.sync_all()
-    })();
-    if let Err(e) = result {
-        let _ = std::fs::remove_file(&tmp);
-        return Err(err("write", e));
+    let canon = std::fs::canonicalize(dir).ok().zip(path.file_name()).map(|(d, n)| d.join(n));
+    #[cfg(unix)]
+    let inode = {
+        use std::os::unix::fs::MetadataExt;
+        std::fs::metadata(path).ok().map(|m| (m.dev(), m.ino()))
+    };
+    #[cfg(not(unix))]
+    let inode = None;
+    (canon, inode)
+}
+
+fn same_file(a: &Path, b: &Path) -> bool {
+    let (ca, ia) = identity(a);
+    let (cb, ib) = identity(b);
+    (ia.is_some() && ia == ib) || (ca.is_some() && ca == cb)
+}
+
+/// Check a command's outputs before it does any work: each `(flag, path)` of `outputs` must be
+/// in an existing directory, must not be a directory, and must be neither one of `inputs` nor an
+/// earlier output. Errors name the flag, the path and the clash.
+pub fn check_outputs(inputs: &[(&str, &Path)], outputs: &[(&str, &Path)]) -> Result<()> {
+    let field = |flag: &str, path: &Path, message: String| KinError::File { path: path.into(), message: format!("{flag}: {message}") };
+    for (i, (flag, path)) in outputs.iter().enumerate() {
+        if path.as_os_str().is_empty() || path.file_name().is_none() {
+            return Err(field(flag, path, "not a file name".into()));
+        }
+        if path.is_dir() {
+            return Err(field(flag, path, "is a directory; give a file name".into()));
+        }
+        let dir = match path.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d,
+            _ => Path::new("."),
+        };
+        if !dir.is_dir() {
+            return Err(field(flag, path, format!("directory {} does not exist (outputs never create directories)", dir.display())));
+        }
+        if let Some((f, p)) = inputs.iter().find(|(_, p)| same_file(path, p)) {
+            return Err(field(flag, path, format!("is the input {f} {}; an output never overwrites an input", p.display())));
+        }
+        if let Some((f, _)) = outputs[..i].iter().find(|(_, p)| same_file(path, p)) {
+            return Err(field(flag, path, format!("is also the output {f}; give each output its own file")));
+        }
     }
-    std::fs::rename(&tmp, path).map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        err("replace", e)
-    })
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn staged_files_appear_only_on_commit_and_vanish_when_dropped() {
+        let dir = std::env::temp_dir().join(format!("dvrk-atomic-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let (a, b) = (dir.join("a.txt"), dir.join("b.txt"));
+        std::fs::write(&a, "old").unwrap();
+        let sa = Staged::write(&a, b"new a").unwrap();
+        let sb = Staged::write(&b, b"new b").unwrap();
+        assert_eq!(std::fs::read_to_string(&a).unwrap(), "old");
+        assert!(sa.temp().exists() && !b.exists());
+        drop(sb);
+        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 2, "b's temporary file is gone");
+        commit_all(vec![sa]).unwrap();
+        assert_eq!(std::fs::read_to_string(&a).unwrap(), "new a");
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            let mode = std::fs::metadata(&a).unwrap().permissions().mode() & 0o777;
+            assert_eq!(mode & 0o600, 0o600, "{mode:o}");
+            assert_eq!(mode & 0o044, 0o044 & !umask_of(&dir), "{mode:o}");
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// The umask's bits, read off a file created with 0o644.
+    #[cfg(unix)]
+    fn umask_of(dir: &Path) -> u32 {
+        use std::os::unix::fs::PermissionsExt;
+        let p = dir.join("umask");
+        let mut o = std::fs::OpenOptions::new();
+        o.write(true).create(true);
+        std::os::unix::fs::OpenOptionsExt::mode(&mut o, 0o644);
+        drop(o.open(&p).unwrap());
+        let m = std::fs::metadata(&p).unwrap().permissions().mode() & 0o777;
+        std::fs::remove_file(&p).unwrap();
+        0o644 & !m
+    }
+
+    #[test]
+    fn outputs_clashing_with_inputs_or_each_other_are_refused() {
+        let dir = std::env::temp_dir().join(format!("dvrk-outputs-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let input = dir.join("in.csv");
+        std::fs::write(&input, "x").unwrap();
+        let dotted = dir.join(".").join("in.csv");
+        let e = check_outputs(&[("--input", &input)], &[("--output", &dotted)]).unwrap_err().to_string();
+        assert!(e.contains("--output: is the input --input") && e.contains("never overwrites an input"), "{e}");
+        let (a, b) = (dir.join("a.json"), dir.join("a.json"));
+        let e = check_outputs(&[], &[("--report", &a), ("-o", &b)]).unwrap_err().to_string();
+        assert!(e.contains("-o: is also the output --report"), "{e}");
+        let e = check_outputs(&[], &[("--out", &dir.join("no/such/x.mcap"))]).unwrap_err().to_string();
+        assert!(e.contains("does not exist (outputs never create directories)"), "{e}");
+        let e = check_outputs(&[], &[("--out", &dir)]).unwrap_err().to_string();
+        assert!(e.contains("is a directory"), "{e}");
+        #[cfg(unix)]
+        {
+            let link = dir.join("link.csv");
+            std::fs::hard_link(&input, &link).unwrap();
+            assert!(check_outputs(&[("--input", &input)], &[("--output", &link)]).is_err());
+        }
+        check_outputs(&[("--input", &input)], &[("--output", &dir.join("out.csv")), ("--plot", &dir.join("p.png"))]).unwrap();
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }

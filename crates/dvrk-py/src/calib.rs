@@ -183,6 +183,8 @@ pub fn discrepancy<'py>(
     let m = dvrk_calib::dvrk_kin::load(model, None)?;
     if let Some(p) = &plot {
         check_path(p)?;
+        // The CLI's output discipline: never over an input, never into a missing directory.
+        dvrk_calib::dvrk_kin::atomic::check_outputs(&[("recording", &recording)], &[("plot", p)])?;
     }
     let marker = match (marker_topic, marker_link) {
         (Some(topic), Some(link)) => Some(run::MarkerSource { topic, link }),
@@ -212,6 +214,7 @@ pub fn synth_hidden_effect<'py>(py: Python<'py>, path: PathBuf, effect: &str, se
     use dvrk_calib::discrepancy::{hidden_effect, joint_log, Hidden, HiddenOptions};
     let hidden: Hidden = effect.parse().map_err(|e: String| Error::Input(format!("effect: {e}")))?;
     let marker = marker_link.map(|link| MarkerOptions { link, ..Default::default() });
+    dvrk_calib::dvrk_kin::atomic::check_outputs(&[], &[("path", &path)])?;
     let answer = py.detach(|| -> Result<serde_json::Value> {
         let h = hidden_effect(scene, &HiddenOptions { hidden, seed, duration, marker, ..Default::default() })?;
         let bytes = match path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {

@@ -123,6 +123,18 @@ pub struct Outputs<'a> {
     pub trace_rate: Option<f64>,
     /// Write each camera frame as PNG files here ([`crate::camera::write_frame_files`]).
     pub frames_dir: Option<&'a std::path::Path>,
+    /// Stop early once this is set (a SIGINT handler's flag): the run ends after the step under
+    /// way, and its summary (with a note) and recording cover the time that ran.
+    pub stop: Option<&'a std::sync::atomic::AtomicBool>,
+}
+
+/// A finished run: its summary, its trace, and its recording complete but not yet moved over its
+/// destination ([`dvrk_kin::atomic::Staged`]: commit it with the command's other outputs).
+#[derive(Debug)]
+pub struct Run {
+    pub summary: Summary,
+    pub trace: Option<Trace>,
+    pub recording: Option<dvrk_kin::atomic::Staged>,
 }
 
 /// Commanded and measured positions of the tracked joints sampled over a run (for Figure 10).
@@ -201,12 +213,23 @@ pub fn run_traced(
     trace_rate: Option<f64>,
     progress: impl FnMut(f64),
 ) -> Result<(Summary, Option<Trace>)> {
-    run_with(scene, options, &Outputs { record, trace_rate, frames_dir: None }, progress)
+    run_with(scene, options, &Outputs { record, trace_rate, ..Default::default() }, progress)
 }
 
 /// [`run_traced`] with every output; the scene's camera (if any) renders at its own rate inside
-/// the loop whether or not its frames are written.
-pub fn run_with(scene: &Scene, options: &RunOptions, outputs: &Outputs, mut progress: impl FnMut(f64)) -> Result<(Summary, Option<Trace>)> {
+/// the loop whether or not its frames are written. The recording is moved over its destination
+/// only when the run stayed finite (a failed run replaces nothing).
+pub fn run_with(scene: &Scene, options: &RunOptions, outputs: &Outputs, progress: impl FnMut(f64)) -> Result<(Summary, Option<Trace>)> {
+    let run = run_staged(scene, options, outputs, progress)?;
+    if let Some(r) = run.recording.filter(|_| run.summary.finite) {
+        let path = r.target().display().to_string();
+        r.commit().map_err(|e| SimError::Io { path, source: std::io::Error::other(e.to_string()) })?;
+    }
+    Ok((run.summary, run.trace))
+}
+
+/// [`run_with`], the recording left staged for the caller to commit with its other outputs.
+pub fn run_staged(scene: &Scene, options: &RunOptions, outputs: &Outputs, mut progress: impl FnMut(f64)) -> Result<Run> {
     let (record, trace_rate) = (outputs.record, outputs.trace_rate);
     if let Some(d) = outputs.frames_dir {
         if scene.camera.is_none() {
@@ -332,6 +355,7 @@ pub fn run_with(scene: &Scene, options: &RunOptions, outputs: &Outputs, mut prog
         (stride, Trace { t: Vec::with_capacity(cap), joints })
     });
     let start = Instant::now();
+    let mut done = steps;
     for s in 0..steps {
         let t = (s + 1) as f64 * sim.dt;
         for (a, traj) in trajectories.iter().enumerate() {
@@ -395,11 +419,14 @@ pub fn run_with(scene: &Scene, options: &RunOptions, outputs: &Outputs, mut prog
         if s % every == 0 {
             progress(s as f64 / steps as f64);
         }
+        if outputs.stop.is_some_and(|f| f.load(std::sync::atomic::Ordering::Relaxed)) && s + 1 < steps {
+            done = s + 1;
+            notes.push(format!("stopped at {:.3} s of the {:.3} s asked for; the summary and the recording cover what ran", done as f64 * sim.dt, steps as f64 * sim.dt));
+            break;
+        }
     }
     let wall = start.elapsed().as_secs_f64();
-    if let Some(r) = recorder {
-        r.finish()?;
-    }
+    let recording = recorder.map(|r| r.finish_staged()).transpose()?;
     progress(1.0);
     let mut joints = Vec::with_capacity(n);
     for arm in &sim.arms {
@@ -409,19 +436,19 @@ pub fn run_with(scene: &Scene, options: &RunOptions, outputs: &Outputs, mut prog
                 arm: arm.name.clone(),
                 joint: j.name.clone(),
                 unit: j.unit(),
-                rms_error: (sum_sq[i] / steps as f64).sqrt(),
+                rms_error: (sum_sq[i] / done as f64).sqrt(),
                 max_error: max_err[i],
                 max_effort: max_eff[i],
             });
         }
     }
-    let simulated = steps as f64 * sim.dt;
+    let simulated = done as f64 * sim.dt;
     let summary = Summary {
         scene: scene.name.clone(),
         trajectory: options.trajectory.label(),
         duration: simulated,
         dt: sim.dt,
-        steps,
+        steps: done,
         solver: options.sim.solver_settings(scene),
         group_pgs_iterations: sim.group_pgs_iterations(),
         loops: options.sim.loops,
@@ -442,5 +469,5 @@ pub fn run_with(scene: &Scene, options: &RunOptions, outputs: &Outputs, mut prog
             time_per_frame: c.render_seconds / c.frames.max(1) as f64,
         }),
     };
-    Ok((summary, trace.map(|(_, t)| t)))
+    Ok(Run { summary, trace: trace.map(|(_, t)| t), recording })
 }

@@ -20,6 +20,12 @@ pub fn read_log(path: &Path, format: &str, model: &Model, arm: &str) -> Result<(
     if format == "auto" {
         notes.insert(0, format!("{}: read as {resolved} (told from the file; --format overrides)", path.display()));
     }
+    // Measured data past the model's limits is analysed as measured, and said.
+    let mut tally = dvrk_kin::LimitTally::new(model);
+    for q in &log.position {
+        tally.add(model, q);
+    }
+    notes.extend(tally.summary(model).map(|s| format!("{}: {s}", path.display())));
     Ok((log, notes))
 }
 

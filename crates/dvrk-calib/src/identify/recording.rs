@@ -193,5 +193,11 @@ pub fn read_joint_recording(path: &Path, format: &str, model: &Model, arm: &str)
     if format == "auto" {
         notes.insert(0, format!("{}: read as {resolved} (told from the file; --format overrides)", path.display()));
     }
+    // Measured data past the model's limits is fitted as measured, and said.
+    let mut tally = dvrk_kin::LimitTally::new(model);
+    for q in &rec.q {
+        tally.add(model, (&rec.to_joint * nalgebra::DVector::from_column_slice(q)).as_slice());
+    }
+    notes.extend(tally.summary(model).map(|s| format!("{}: {s}", path.display())));
     Ok((rec, notes))
 }

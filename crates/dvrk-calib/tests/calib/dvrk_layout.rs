@@ -122,3 +122,16 @@ fn bad_bags_are_named() {
     let e = read_joint_recording(&cut, "auto", &psm, "PSM1").unwrap_err().to_string();
     assert!(e.contains("cut.bag") && e.contains("truncated ROS 1 bag") && !e.contains('\n'), "{e}");
 }
+
+/// The real WPI arm's jaw goes up to 4.3 mrad past the limit the model holds (1.39626 rad) on
+/// 509 of the 5999 samples of `one`: the recording is identified as measured, and the notes
+/// count it (measured: jaw, 509 samples, at most 4.252e-3 rad).
+#[test]
+fn a_real_recording_past_a_limit_is_fitted_and_counted() {
+    let Some(one) = crate::identify::wpi("psm_one_results.csv") else { return };
+    let psm = dvrk_kin::load("psm", None).unwrap();
+    let (rec, notes) = read_joint_recording(&one, "auto", &psm, "PSM1").unwrap();
+    assert_eq!(rec.len(), 5999);
+    let note = notes.iter().find(|n| n.contains("outside the limits")).unwrap_or_else(|| panic!("{notes:?}"));
+    assert!(note.contains("509 of 5999 measured configuration(s)") && note.contains("jaw: 509 of 5999 sample(s) outside [-0.698132, 1.39626] rad, at most 4.252e-3 rad past"), "{note}");
+}

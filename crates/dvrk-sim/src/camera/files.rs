@@ -4,7 +4,6 @@
 
 use super::stereo::{Eye, StereoCamera};
 use crate::error::{Result, SimError};
-use std::io::Write;
 use std::path::Path;
 
 /// Write the camera's current frame (number `camera.frames`) into `dir`; `buf` and `scratch` are
@@ -27,13 +26,7 @@ fn png_error(dir: &Path, e: png::EncodingError) -> SimError {
     SimError::Io { path: dir.display().to_string(), source: std::io::Error::other(e.to_string()) }
 }
 
-/// Write `bytes` to a temporary file beside `path`, then rename it over `path`.
+/// Write `bytes` whole or not at all (dvrk-kin's one output discipline).
 pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let io = |p: &Path, e| SimError::Io { path: p.display().to_string(), source: e };
-    let name = path.file_name().map(|n| n.to_string_lossy().to_string()).unwrap_or_default();
-    let tmp = path.with_file_name(format!(".{name}.{}.tmp", std::process::id()));
-    let mut f = std::fs::File::create(&tmp).map_err(|e| io(&tmp, e))?;
-    f.write_all(bytes).map_err(|e| io(&tmp, e))?;
-    drop(f);
-    std::fs::rename(&tmp, path).map_err(|e| io(path, e))
+    dvrk_kin::atomic::write_atomic(path, bytes).map_err(|e| SimError::Io { path: path.display().to_string(), source: std::io::Error::other(e.to_string()) })
 }

@@ -26,6 +26,7 @@ use crate::camera::{Eye, StereoCamera};
 use crate::recording::{camera_msgs, frame_transform};
 use crate::recording::ros_msgs::{self, Header, JointState, PoseStamped};
 use crate::sim::Sim;
+use dvrk_kin::atomic::Staged;
 use dvrk_kin::Pose;
 use nalgebra::{Point3, UnitQuaternion};
 use std::collections::BTreeMap;
@@ -84,6 +85,8 @@ struct ArmChannels {
 /// Writes a run as MCAP; see the module documentation for the topics.
 pub struct Recorder {
     writer: Option<mcap::Writer<BufWriter<File>>>,
+    /// The file being written (removed if the recorder is dropped unfinished).
+    staged: Option<Staged>,
     tmp: PathBuf,
     path: PathBuf,
     /// Steps between samples.
@@ -121,9 +124,9 @@ impl Recorder {
         }
         let stride = (1.0 / (rate * sim.dt)).round().max(1.0) as u64;
         let path = options.path.clone();
-        let name = path.file_name().ok_or_else(|| SimError::Io { path: path.display().to_string(), source: std::io::Error::other("not a file path") })?;
-        let tmp = path.with_file_name(format!(".{}.{}.tmp", name.to_string_lossy(), std::process::id()));
-        let file = File::create(&tmp).map_err(|e| SimError::Io { path: tmp.display().to_string(), source: e })?;
+        dvrk_kin::atomic::check_outputs(&[], &[("recording", &path)]).map_err(|e| SimError::Io { path: path.display().to_string(), source: std::io::Error::other(e.to_string()) })?;
+        let (staged, file) = Staged::create(&path).map_err(|e| SimError::Io { path: path.display().to_string(), source: std::io::Error::other(e.to_string()) })?;
+        let tmp = staged.temp().to_path_buf();
         let mut w = mcap::Writer::with_options(BufWriter::new(file), mcap::WriteOptions::new().profile("ros2")).map_err(|e| mcap_error(&tmp, e))?;
         let meta = BTreeMap::new();
         let io = |e| mcap_error(&tmp, e);
@@ -175,7 +178,7 @@ impl Recorder {
             });
             body_names.push(m.bodies.iter().map(|b| format!("{}/{}", arm.name, b.name)).collect());
         }
-        Ok(Recorder { writer: Some(w), tmp, path, stride, arms, tf, body_names, sequence: BTreeMap::new(), samples: 0, camera: None })
+        Ok(Recorder { writer: Some(w), staged: Some(staged), tmp, path, stride, arms, tf, body_names, sequence: BTreeMap::new(), samples: 0, camera: None })
     }
 
     /// Simulated time between samples (s) for a sim of time step `dt`.
@@ -318,24 +321,21 @@ impl Recorder {
     }
 
     /// Close the file and move it to its destination.
-    pub fn finish(mut self) -> Result<PathBuf> {
+    pub fn finish(self) -> Result<PathBuf> {
+        let path = self.path.clone();
+        self.finish_staged()?.commit().map_err(|e| SimError::Io { path: path.display().to_string(), source: std::io::Error::other(e.to_string()) })?;
+        Ok(path)
+    }
+
+    /// Close the file, complete and synced, but leave it staged beside its destination: the caller
+    /// commits it with its other outputs (all or none), or drops it.
+    pub fn finish_staged(mut self) -> Result<Staged> {
         if let Some(mut w) = self.writer.take() {
             w.finish().map_err(|e| mcap_error(&self.tmp, e))?;
             let buf = w.into_inner();
             let file = buf.into_inner().map_err(|e| SimError::Io { path: self.tmp.display().to_string(), source: e.into_error() })?;
             file.sync_all().map_err(|e| SimError::Io { path: self.tmp.display().to_string(), source: e })?;
         }
-        std::fs::rename(&self.tmp, &self.path).map_err(|e| SimError::Io { path: self.path.display().to_string(), source: e })?;
-        Ok(self.path.clone())
-    }
-}
-
-impl Drop for Recorder {
-    /// An unfinished recording (an error mid-run) leaves no file behind.
-    fn drop(&mut self) {
-        if self.writer.is_some() {
-            self.writer = None;
-            let _ = std::fs::remove_file(&self.tmp);
-        }
+        self.staged.take().ok_or_else(|| SimError::Build("the recording was already finished".into()))
     }
 }

@@ -1,0 +1,165 @@
+//! One output discipline (issue 45): nothing a user has is lost. Each case is one the hostile-input
+//! probe found: an output on an input, a failed run replacing outputs, a second output failing
+//! after the first was replaced, temporary files left by a signal, directories created, modes.
+
+use crate::util::{dvrk_err, dvrk_ok, tempdir};
+use std::path::Path;
+
+fn read(p: &Path) -> Vec<u8> {
+    std::fs::read(p).unwrap()
+}
+
+fn listing(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+    v.sort();
+    v
+}
+
+/// An output that is an input (or another output) is refused before any work; the input is kept.
+#[test]
+fn an_output_on_an_input_is_refused_and_the_input_kept() {
+    let dir = tempdir();
+    let same = dir.path().join("same.csv");
+    std::fs::write(&same, "q1,q2,q3,q4,q5,q6,q7\n0,0,0.1,0,0,0,0\n").unwrap();
+    let s = same.to_str().unwrap();
+    let e = dvrk_err(&["fk", "psm", "--input", s, "--output", s]);
+    assert!(e.contains("--output: is the input --input") && e.contains("never overwrites an input"), "{e}");
+    // The same file by another name.
+    let dotted = format!("{}/./same.csv", dir.path().display());
+    let e = dvrk_err(&["fk", "psm", "--input", s, "--output", &dotted]);
+    assert!(e.contains("is the input --input"), "{e}");
+    assert_eq!(read(&same), b"q1,q2,q3,q4,q5,q6,q7\n0,0,0.1,0,0,0,0\n");
+    let model = dir.path().join("p.toml");
+    std::fs::copy(Path::new(env!("CARGO_MANIFEST_DIR")).join("models/psm.toml"), &model).unwrap();
+    let before = read(&model);
+    let m = model.to_str().unwrap();
+    let e = dvrk_err(&["export", "urdf", m, "-o", m]);
+    assert!(e.contains("-o: is the input MODEL"), "{e}");
+    assert_eq!(read(&model), before);
+    let x = dir.path().join("x.json");
+    let e = dvrk_err(&["synth", "hidden-effect", "--seed", "1", "-o", x.with_extension("mcap").to_str().unwrap(), "--answer", x.with_extension("mcap").to_str().unwrap()]);
+    assert!(e.contains("--answer: is also the output -o"), "{e}");
+    let e = dvrk_err(&["discrepancy", "--model", "psm", "--recording", s, "--report", s]);
+    assert!(e.contains("--report: is the input --recording"), "{e}");
+    assert_eq!(read(&same), b"q1,q2,q3,q4,q5,q6,q7\n0,0,0.1,0,0,0,0\n");
+    assert_eq!(listing(dir.path()), ["p.toml", "same.csv"]);
+}
+
+/// A run that goes non-finite exits 1 (with `--json` too) and replaces none of its outputs.
+#[test]
+fn a_failed_run_replaces_nothing() {
+    let dir = tempdir();
+    // The PSM scene with a derivative gain its inertia cannot carry (kd dt / I >> 2): it diverges.
+    let text = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("models/scenes/psm.toml")).unwrap();
+    let blow: String = text
+        .lines()
+        .map(|l| match l {
+            l if l.starts_with("kd = ") => "kd = [5000.0, 5000.0, 5000.0, 5000.0, 5000.0, 5000.0, 5000.0]".to_string(),
+            l if l.starts_with("armature = ") => "armature = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]".to_string(),
+            l => l.to_string(),
+        })
+        .collect::<Vec<_>>()
+        .join("\n");
+    let scene = dir.path().join("blow.toml");
+    std::fs::write(&scene, blow).unwrap();
+    let (out, plot) = (dir.path().join("o.mcap"), dir.path().join("p.png"));
+    std::fs::write(&out, "old recording").unwrap();
+    std::fs::write(&plot, "old plot").unwrap();
+    for json in [false, true] {
+        let mut args = vec!["sim", "--scene", scene.to_str().unwrap(), "--duration", "1", "--out", out.to_str().unwrap(), "--plot", plot.to_str().unwrap()];
+        if json {
+            args.push("--json");
+        }
+        let e = dvrk_err(&args);
+        assert!(e.contains("went non-finite") && e.contains("no output was written"), "{e}");
+        assert_eq!(read(&out), b"old recording");
+        assert_eq!(read(&plot), b"old plot");
+        assert_eq!(listing(dir.path()), ["blow.toml", "o.mcap", "p.png"], "no temporary file left");
+    }
+}
+
+/// A command with two outputs checks both before any work: the second's bad directory leaves the
+/// first as it was. Outputs never create directories, and a directory is not a file.
+#[test]
+fn two_outputs_are_all_or_nothing_and_no_directory_is_made() {
+    let dir = tempdir();
+    let rec = dir.path().join("rec.mcap");
+    std::fs::write(&rec, "keep me").unwrap();
+    let missing = dir.path().join("no/such/answer.json");
+    let e = dvrk_err(&["synth", "hidden-effect", "--seed", "1", "-o", rec.to_str().unwrap(), "--answer", missing.to_str().unwrap()]);
+    assert!(e.contains("--answer") && e.contains("does not exist (outputs never create directories)"), "{e}");
+    assert_eq!(read(&rec), b"keep me");
+    assert!(!dir.path().join("no").exists());
+    let e = dvrk_err(&["sim", "--scene", "psm", "--duration", "0.1", "--out", dir.path().to_str().unwrap()]);
+    assert!(e.contains("--out") && e.contains("is a directory"), "{e}");
+    assert_eq!(listing(dir.path()), ["rec.mcap"]);
+    // Both outputs of a good run appear, with one mode.
+    let (mcap, answer) = (dir.path().join("h.mcap"), dir.path().join("h.json"));
+    dvrk_ok(&["synth", "hidden-effect", "--seed", "1", "--duration", "6", "-o", mcap.to_str().unwrap(), "--answer", answer.to_str().unwrap()]);
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        let mode = |p: &Path| std::fs::metadata(p).unwrap().permissions().mode() & 0o777;
+        assert_eq!(mode(&mcap), mode(&answer));
+        let sim = dir.path().join("s.mcap");
+        dvrk_ok(&["sim", "--scene", "psm", "--duration", "0.1", "--out", sim.to_str().unwrap()]);
+        assert_eq!(mode(&sim), mode(&answer));
+        assert_eq!(mode(&sim) & 0o600, 0o600);
+    }
+}
+
+/// SIGINT during `dvrk sim --out` stops the run: the recording is finished, valid and shorter,
+/// said on stderr, and no temporary file is left.
+#[cfg(unix)]
+#[test]
+fn a_signal_finishes_the_recording_and_leaves_no_temporary_file() {
+    let dir = tempdir();
+    let out = dir.path().join("long.mcap");
+    let child = std::process::Command::new(env!("CARGO_BIN_EXE_dvrk"))
+        .args(["sim", "--scene", "psm", "--duration", "600", "--out", out.to_str().unwrap(), "--json"])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Wait until the run is under way (its temporary file exists), then interrupt it.
+    let started = std::time::Instant::now();
+    while listing(dir.path()).is_empty() && started.elapsed().as_secs() < 60 {
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    std::thread::sleep(std::time::Duration::from_millis(1500));
+    let kill = std::process::Command::new("kill").args(["-INT", &child.id().to_string()]).status().unwrap();
+    assert!(kill.success());
+    let output = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(output.status.success(), "{stderr}");
+    assert!(stderr.contains("stopping after this step"), "{stderr}");
+    let v: serde_json::Value = serde_json::from_slice(&output.stdout).unwrap();
+    let duration = v["duration"].as_f64().unwrap();
+    assert!(duration > 0.0 && duration < 600.0, "{duration}");
+    assert!(v["notes"].as_array().unwrap().iter().any(|n| n.as_str().unwrap().starts_with("stopped at")), "{}", v["notes"]);
+    assert_eq!(listing(dir.path()), ["long.mcap"], "no temporary file left");
+    // Valid: our reader takes it, with about 100 samples per simulated second.
+    let rec = dvrk_calib::read_recording(&out, &dvrk_calib::McapOptions { topics: vec!["/PSM1/measured_cp".into()], joint_topic: None }).unwrap();
+    let n = rec.body("/PSM1/measured_cp").unwrap().len() as f64;
+    assert!((n - 100.0 * duration).abs() <= 2.0, "{n} samples for {duration} s");
+}
+
+/// SIGINT during a command that cannot stop early removes its unfinished outputs.
+#[cfg(unix)]
+#[test]
+fn a_signal_to_another_command_leaves_nothing_half_written() {
+    let dir = tempdir();
+    let out = dir.path().join("big.mcap");
+    let answer = dir.path().join("big.json");
+    // A long synthetic recording: the signal lands while it is generated or written.
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_dvrk"))
+        .args(["synth", "hidden-effect", "--seed", "3", "--duration", "600", "-o", out.to_str().unwrap(), "--answer", answer.to_str().unwrap()])
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(1500));
+    std::process::Command::new("kill").args(["-INT", &child.id().to_string()]).status().unwrap();
+    let status = child.wait().unwrap();
+    assert_eq!(status.code(), Some(130));
+    assert!(listing(dir.path()).is_empty(), "{:?}", listing(dir.path()));
+}
