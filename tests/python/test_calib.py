@@ -101,3 +101,35 @@ def test_bad_calibration_input():
         dvrk_twin.pivot(poses, method="magic")
     with pytest.raises(FileNotFoundError):
         dvrk_twin.read_recording("/nonexistent/rec.mcap")
+
+
+def test_read_recording_takes_the_dvrk_layout(tmp_path):
+    """A PSM as the dVRK publishes it, written by mcap-ros2-support: six arm joints on
+    /PSM1/measured_js at 200 Hz, the jaw on /PSM1/jaw/measured_js at 100 Hz. The jaw comes back
+    merged onto the arm's time stamps, interpolated."""
+    mcap_ros2_writer = pytest.importorskip("mcap_ros2.writer")
+    sep = "=" * 80 + "\n"
+    header = sep + "MSG: std_msgs/Header\nbuiltin_interfaces/Time stamp\nstring frame_id\n" + sep + "MSG: builtin_interfaces/Time\nint32 sec\nuint32 nanosec\n"
+    js = "std_msgs/Header header\nstring[] name\nfloat64[] position\nfloat64[] velocity\nfloat64[] effort\n" + header
+    arm = ["outer_yaw", "outer_pitch", "outer_insertion", "outer_roll", "outer_wrist_pitch", "outer_wrist_yaw"]
+    path = tmp_path / "dvrk.mcap"
+    t0 = 1_700_000_000 * 10**9
+    with open(path, "wb") as f:
+        w = mcap_ros2_writer.Writer(output=f)
+        schema = w.register_msgdef("sensor_msgs/msg/JointState", js)
+        for i in range(201):
+            ns = t0 + i * 5_000_000
+            stamp = {"sec": ns // 10**9, "nanosec": ns % 10**9}
+            q = [0.01 * i, -0.1, 0.12, 0.0, 0.0, 0.0]
+            w.write_message("/PSM1/measured_js", schema, {"header": {"stamp": stamp, "frame_id": ""}, "name": arm, "position": q, "velocity": [], "effort": []}, log_time=ns, publish_time=ns)
+            if i % 2 == 0:
+                jaw = {"header": {"stamp": stamp, "frame_id": ""}, "name": ["jaw"], "position": [0.5 + 0.002 * i], "velocity": [], "effort": []}
+                w.write_message("/PSM1/jaw/measured_js", schema, jaw, log_time=ns, publish_time=ns)
+        w.finish()
+    rec = dvrk_twin.read_recording(path)
+    joints = rec["joints"]
+    assert joints["names"] == arm + ["jaw"]
+    assert joints["q"].shape == (201, 7)
+    # The jaw at the arm's odd samples, between two of its own messages: interpolated.
+    assert np.allclose(joints["q"][:, 6], 0.5 + 0.002 * np.arange(201), atol=1e-12)
+    assert np.allclose(joints["q"][:, 0], 0.01 * np.arange(201))

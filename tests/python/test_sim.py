@@ -56,3 +56,34 @@ def test_bad_commands_are_rejected():
         dvrk_twin.Sim.from_scene("no-such-scene")
     with pytest.raises(ValueError, match="duration"):
         dvrk_twin.run_scene("psm", -1.0)
+
+
+def diverging_scene(tmp_path):
+    """The PSM scene with a derivative gain its inertia cannot carry (kd dt / I >> 2)."""
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[2] / "models" / "scenes" / "psm.toml").read_text()
+    lines = []
+    for line in text.splitlines():
+        if line.startswith("kd = "):
+            line = "kd = [5000.0, 5000.0, 5000.0, 5000.0, 5000.0, 5000.0, 5000.0]"
+        elif line.startswith("armature = "):
+            line = "armature = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]"
+        lines.append(line)
+    path = tmp_path / "blow.toml"
+    path.write_text("\n".join(lines) + "\n")
+    return str(path)
+
+
+def test_a_diverging_simulation_raises_and_never_reads_as_closed(tmp_path):
+    scene = diverging_scene(tmp_path)
+    with pytest.raises(dvrk_twin.DvrkError, match="went non-finite"):
+        dvrk_twin.run_scene(scene, 1.0)
+    sim = dvrk_twin.Sim.from_scene(scene)
+    sim.set_target(0, 0.3)
+    with pytest.raises(dvrk_twin.DvrkError, match=r"went non-finite at t = .* s: joint \d+"):
+        sim.step(1000)
+    # The state is left as it is, and its loop-closure gap reads as open (NaN or large), not 0.
+    assert not (np.all(np.isfinite(sim.q)) and np.all(np.isfinite(sim.qd)))
+    gap = sim.closure_error
+    assert np.isnan(gap) or gap > 1e-3, gap

@@ -110,12 +110,15 @@ impl PySim {
         self.sim.closure_error()
     }
 
-    /// Advance `n` steps of `dt`.
+    /// Advance `n` steps of `dt`. Raises `DvrkError` at the first step whose state is not
+    /// finite (a NaN state is never returned as if it were a result).
     #[pyo3(signature = (n=1))]
-    fn step(&mut self, n: usize) {
+    fn step(&mut self, n: usize) -> Result<()> {
         for _ in 0..n {
             self.sim.step();
+            self.sim.check_finite()?;
         }
+        Ok(())
     }
 
     /// Control mode of a joint: "pid", "position" or "effort".
@@ -182,6 +185,10 @@ pub fn run_scene<'py>(
     let s = Scene::load(scene)?;
     let opts = RunOptions { duration, trajectory, sim: options(loops, solver_iterations)? };
     let summary = py.detach(|| dvrk_sim::run(&s, &opts, |_| {}))?;
+    if !summary.finite {
+        let message = format!("scene {scene}: largest loop-closure gap {:.6e} m at {:.6e} s (`dvrk sim` exits 1 alike)", summary.max_closure_error, summary.max_closure_time);
+        return Err(dvrk_sim::SimError::Diverged { time: summary.max_closure_time, message }.into());
+    }
     let text = serde_json::to_string(&summary).map_err(|e| Error::Input(e.to_string()))?;
     Ok(py.import("json")?.call_method1("loads", (text,))?)
 }

@@ -18,6 +18,9 @@ pub enum SimError {
     Io { path: String, source: std::io::Error },
     #[error(transparent)]
     Kin(#[from] dvrk_kin::KinError),
+    /// The state went non-finite (a scene or command the integrator cannot carry).
+    #[error("the simulation went non-finite at t = {time:.6e} s: {message}")]
+    Diverged { time: f64, message: String },
     /// The physics engine refused to build part of the model.
     #[error("building the rapier model: {0}")]
     Build(String),

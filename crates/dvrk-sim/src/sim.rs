@@ -1028,10 +1028,24 @@ impl Sim {
                 let bodies = &self.worlds[arm.world].bodies;
                 let pa = bodies[c.a].position().transform_point(c.pa);
                 let pb = bodies[c.b].position().transform_point(c.pb);
-                worst = worst.max((pa - pb).length());
+                let gap = (pa - pb).length();
+                // A non-finite state is not a closed loop: NaN, never hidden by `max`.
+                if gap.is_nan() {
+                    return f64::NAN;
+                }
+                worst = worst.max(gap);
             }
         }
         worst
+    }
+
+    /// An error naming the first joint whose position or velocity is not finite, if any.
+    pub fn check_finite(&self) -> Result<()> {
+        let (q, qd) = (self.q(), self.qd());
+        match (0..q.len()).find(|&i| !(q[i].is_finite() && qd[i].is_finite())) {
+            None => Ok(()),
+            Some(i) => Err(SimError::Diverged { time: self.time, message: format!("joint {i} at q = {}, qd = {} (the state is left as it is)", q[i], qd[i]) }),
+        }
     }
 
     /// Effort applied at the last step by joint `i`'s actuator (N·m, N).

@@ -75,7 +75,8 @@ fn psm_recording_holds_the_simulated_values() {
     let m = messages(&path);
     let topics: Vec<&str> = m.keys().map(|s| s.as_str()).collect();
     // The dVRK's CRTK layout: the jaw on its own topics.
-    assert_eq!(topics, ["/PSM1/jaw/measured_js", "/PSM1/jaw/setpoint_js", "/PSM1/measured_cp", "/PSM1/measured_js", "/PSM1/setpoint_js", "/tf"]);
+    assert_eq!(topics, ["/PSM1/jaw/measured_js", "/PSM1/jaw/setpoint_js", "/PSM1/measured_cp", "/PSM1/measured_js", "/PSM1/operating_state", "/PSM1/setpoint_js", "/tf"]);
+    assert_eq!(m["/PSM1/operating_state"].len(), 1);
     let model = &sim.arms[0].model;
     assert_eq!(m["/tf"].len(), 100 * model.bodies.len());
     let mut unplaced = model.clone();
@@ -132,7 +133,7 @@ const PY: &str = r#"
 import json, sys
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
-out = {"js": [], "jaw": [], "cp": [], "tf": 0, "frame_id": None, "topics": [], "names": None, "jaw_names": None}
+out = {"js": [], "jaw": [], "cp": [], "tf": 0, "frame_id": None, "topics": [], "names": None, "jaw_names": None, "state": None}
 with open(sys.argv[1], "rb") as f:
     reader = make_reader(f, decoder_factories=[DecoderFactory()])
     out["topics"] = sorted((c.topic, reader.get_summary().schemas[c.schema_id].name) for c in reader.get_summary().channels.values())
@@ -143,8 +144,10 @@ with open(sys.argv[1], "rb") as f:
             assert d["parent_frame_id"] == "world"
     f.seek(0)
     reader = make_reader(f, decoder_factories=[DecoderFactory()])
-    for schema, channel, message, msg in reader.iter_decoded_messages(topics=["/PSM1/measured_js", "/PSM1/jaw/measured_js", "/PSM1/measured_cp"]):
-        if channel.topic == "/PSM1/measured_js":
+    for schema, channel, message, msg in reader.iter_decoded_messages(topics=["/PSM1/measured_js", "/PSM1/jaw/measured_js", "/PSM1/measured_cp", "/PSM1/operating_state"]):
+        if channel.topic == "/PSM1/operating_state":
+            out["state"] = [msg.state, msg.is_homed, msg.is_busy]
+        elif channel.topic == "/PSM1/measured_js":
             out["names"] = list(msg.name)
             out["js"].append([msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9] + list(msg.position) + list(msg.velocity) + list(msg.effort))
         elif channel.topic == "/PSM1/jaw/measured_js":
@@ -183,10 +186,12 @@ fn python_mcap_ros2_reads_the_recording() {
         ["/PSM1/jaw/setpoint_js", js_type],
         ["/PSM1/measured_cp", "geometry_msgs/msg/PoseStamped"],
         ["/PSM1/measured_js", js_type],
+        ["/PSM1/operating_state", "crtk_msgs/msg/OperatingState"],
         ["/PSM1/setpoint_js", js_type],
         ["/tf", "foxglove.FrameTransform"]
     ]);
     assert_eq!(v["topics"], want);
+    assert_eq!(v["state"], serde_json::json!(["ENABLED", true, false]));
     let js = v["js"].as_array().unwrap();
     let jaw = v["jaw"].as_array().unwrap();
     let cp = v["cp"].as_array().unwrap();

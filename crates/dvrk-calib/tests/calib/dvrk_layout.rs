@@ -92,7 +92,8 @@ fn identify_and_discrepancy_agree_across_layouts_and_containers() {
     }
 }
 
-/// The pivot calibration from a PoseStamped topic in an MCAP and in an lz4 bag.
+/// The pivot calibration from a PoseStamped topic in an MCAP and in an lz4 bag, and from a TF
+/// child frame in a bz2 bag.
 #[test]
 fn pivot_from_a_bag_equals_pivot_from_mcap() {
     let Some(dir) = fixtures() else { return };
@@ -104,6 +105,12 @@ fn pivot_from_a_bag_equals_pivot_from_mcap() {
     };
     let (m, b) = (fit("pivot.mcap"), fit("pivot_lz4.bag"));
     assert_eq!((m.pivot, m.tip, m.rms), (b.pivot, b.tip, b.rms));
+    // The same poses as a TF child frame in a bz2 bag.
+    let rec = read_recording(&file(dir, "pivot_tf.bag"), &McapOptions::default()).unwrap();
+    let end = rec.body("end").unwrap();
+    assert_eq!(end.frame_id, "optitrack");
+    let tf = pivot_calibration(&end.poses, &PivotOptions::default()).unwrap();
+    assert_eq!((tf.pivot, tf.tip, tf.rms), (m.pivot, m.tip, m.rms));
     assert!((b.pivot - nalgebra::Vector3::new(0.3, -0.2, 1.1)).norm() < 1e-9, "{:?}", b.pivot);
 }
 

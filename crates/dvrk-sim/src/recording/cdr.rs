@@ -52,6 +52,10 @@ impl CdrWriter {
         self.align(8);
         self.buf.extend_from_slice(&v.to_le_bytes());
     }
+    /// A bool (one byte, no alignment).
+    pub fn bool(&mut self, v: bool) {
+        self.buf.push(v as u8);
+    }
     /// A string: length with the NUL, bytes, NUL.
     pub fn string(&mut self, s: &str) {
         self.u32(s.len() as u32 + 1);

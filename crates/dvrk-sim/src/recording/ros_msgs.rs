@@ -171,6 +171,33 @@ impl JointState {
     }
 }
 
+/// crtk_msgs/msg/OperatingState: the arm's CRTK state (`DISABLED`, `ENABLED`, `PAUSED`, `FAULT`),
+/// whether it is homed and busy.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct OperatingState {
+    pub header: Header,
+    pub state: String,
+    pub is_homed: bool,
+    pub is_busy: bool,
+}
+
+impl OperatingState {
+    /// CDR bytes.
+    pub fn encode(&self) -> Vec<u8> {
+        let mut w = CdrWriter::new();
+        self.header.write(&mut w);
+        w.string(&self.state);
+        w.bool(self.is_homed);
+        w.bool(self.is_busy);
+        w.finish()
+    }
+}
+
+/// Schema name and `ros2msg` text of crtk_msgs/msg/OperatingState.
+pub fn operating_state_schema() -> (&'static str, String) {
+    ("crtk_msgs/msg/OperatingState", format!("std_msgs/Header header\nstring state\nbool is_homed\nbool is_busy\n{}", header_defs()))
+}
+
 const SEP: &str = "================================================================================\n";
 
 fn header_defs() -> String {

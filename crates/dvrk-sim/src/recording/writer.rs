@@ -8,6 +8,8 @@
 //!   feed-forward and applied effort;
 //! - `/PSM1/jaw/measured_js` and `/PSM1/jaw/setpoint_js`: the same for the jaw (joint `jaw`), on
 //!   its own topics as the dVRK publishes it (an arm without a jaw has none);
+//! - `/PSM1/operating_state`, crtk_msgs/msg/OperatingState: `ENABLED`, homed, not busy, once at
+//!   the first sample (the dVRK publishes it when it changes, and a simulated arm starts enabled);
 //! - `/PSM1/measured_cp`, geometry_msgs/msg/PoseStamped: the tool tip (the model's `tip` frame)
 //!   in the arm's base frame `PSM1_base`, which is the base of the arm's serial dVRK kinematics
 //!   (the RCM frame of a PSM or ECM, as the dVRK reports it) or frame 0 for other models;
@@ -75,6 +77,7 @@ struct ArmChannels {
     /// The arm's own joints first, then each tool joint's topics.
     topics: Vec<JointChannels>,
     measured_cp: u16,
+    operating_state: u16,
     base_frame_id: String,
     base: BaseRef,
     /// The tip frame's body and its placement in that body.
@@ -134,6 +137,8 @@ impl Recorder {
         let js_schema = w.add_schema(n, "ros2msg", t.as_bytes()).map_err(io)?;
         let (n, t) = ros_msgs::pose_stamped_schema();
         let cp_schema = w.add_schema(n, "ros2msg", t.as_bytes()).map_err(io)?;
+        let (n, t) = ros_msgs::operating_state_schema();
+        let state_schema = w.add_schema(n, "ros2msg", t.as_bytes()).map_err(io)?;
         let tf_schema = w.add_schema("foxglove.FrameTransform", "jsonschema", frame_transform::SCHEMA.as_bytes()).map_err(io)?;
         let tf = w.add_channel(tf_schema, "/tf", "json", &meta).map_err(io)?;
         let mut arms = Vec::with_capacity(sim.arms.len());
@@ -171,6 +176,7 @@ impl Recorder {
             arms.push(ArmChannels {
                 topics,
                 measured_cp: w.add_channel(cp_schema, &format!("/{ns}/measured_cp"), "cdr", &meta).map_err(io)?,
+                operating_state: w.add_channel(state_schema, &format!("/{ns}/operating_state"), "cdr", &meta).map_err(io)?,
                 base_frame_id: format!("{}_base", arm.name.replace('-', "_")),
                 base,
                 tip_body,
@@ -247,6 +253,10 @@ impl Recorder {
             }
             let cp = PoseStamped::from_pose(t, &c.base_frame_id, &self.tip_in_base(sim, a));
             let mc = c.measured_cp;
+            if self.samples == 0 {
+                let state = ros_msgs::OperatingState { header: Header::at(t, ""), state: "ENABLED".into(), is_homed: true, is_busy: false };
+                messages.insert(0, (c.operating_state, state.encode()));
+            }
             for (ch, bytes) in messages {
                 self.write(ch, t, &bytes)?;
             }

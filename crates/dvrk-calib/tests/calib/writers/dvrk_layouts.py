@@ -11,7 +11,8 @@ README gives, and written with other people's code:
 - dvrk.bag, dvrk_bz2.bag, dvrk_lz4.bag (rosbags): dvrk.mcap's content as ROS 1 bags;
 - jaw_only.bag: the jaw's topics without the arm's (a damaged recording);
 - pivot.mcap and pivot_lz4.bag: a marker turning about a fixed point as PoseStamped on
-  /vrpn/end/pose (the pivot calibration's input).
+  /vrpn/end/pose (the pivot calibration's input); pivot_tf.bag: the same poses as the TF child
+  frame `end` on /tf (tf2_msgs/TFMessage, bz2 chunks).
 """
 import math
 import sys
@@ -20,7 +21,7 @@ from pathlib import Path
 import numpy as np
 from mcap_ros2.writer import Writer as Ros2Writer
 from rosbags.rosbag1 import Writer as BagWriter
-from rosbags.typesys import Stores, get_typestore
+from rosbags.typesys import Stores, get_typestore, get_types_from_msg
 
 ARM = ["outer_yaw", "outer_pitch", "outer_insertion", "outer_roll", "outer_wrist_pitch", "outer_wrist_yaw"]
 # Tool actuators 5..7 -> joints (the WPI README's M).
@@ -87,6 +88,8 @@ def write_bag(path, items, compression=None):
 
 
 TS = get_typestore(Stores.ROS1_NOETIC)
+# tf2_msgs is not in the Noetic store's defaults: its one-line definition, registered.
+TS.register(get_types_from_msg("geometry_msgs/TransformStamped[] transforms", "tf2_msgs/msg/TFMessage"))
 
 
 def ros1_header(ns, frame=""):
@@ -143,6 +146,13 @@ def main():
         for ns, p, quat in poses
     ]
     write_bag(out / "pivot_lz4.bag", pose_items, BagWriter.CompressionFormat.LZ4)
+    TFMessage, TransformStamped = TS.types["tf2_msgs/msg/TFMessage"], TS.types["geometry_msgs/msg/TransformStamped"]
+    Transform, Vector3 = TS.types["geometry_msgs/msg/Transform"], TS.types["geometry_msgs/msg/Vector3"]
+    tf_items = [
+        ("/tf", "tf2_msgs/msg/TFMessage", ns, TFMessage(transforms=[TransformStamped(header=ros1_header(ns, "optitrack"), child_frame_id="end", transform=Transform(translation=Vector3(*map(float, p)), rotation=Quaternion(*quat)))]))
+        for ns, p, quat in poses
+    ]
+    write_bag(out / "pivot_tf.bag", tf_items, BagWriter.CompressionFormat.BZ2)
 
 
 if __name__ == "__main__":
