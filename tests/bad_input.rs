@@ -63,6 +63,8 @@ fn bad_files_and_flags_are_errors_not_panics() {
     assert_one_line(&dvrk_err(&["ik", "psm", "--pose", "0,0,0,0,0"]), &["--pose", "7"]);
     assert_one_line(&dvrk_err(&["model", "check", "ecm", "--tool", "x.json"]), &["x.json"]);
     assert_one_line(&dvrk_err(&["model", "check", "psm", "--samples", "0"]), &["--samples"]);
+    // Issue 45: 10^12 configurations were a 24 TB allocation and an abort.
+    assert_one_line(&dvrk_err(&["model", "check", "psm", "--samples", "1000000000000"]), &["--samples", "1000000000000", "1..=10000000"]);
     // CSV input: a missing column, a word, a NaN.
     for (content, expect) in [
         ("q1,q2,q3\n0,0,0.1\n", vec!["q4", "missing column"]),

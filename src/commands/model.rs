@@ -119,9 +119,8 @@ pub fn show(args: &ModelArgs) -> Result<()> {
 }
 
 pub fn check(args: &CheckArgs) -> Result<()> {
-    if args.samples == 0 {
-        anyhow::bail!("--samples: must be at least 1");
-    }
+    // The library's own check, before the model is loaded (Python's Model.check takes the same).
+    dvrk_kin::check::check_samples(args.samples).map_err(|e| anyhow::anyhow!("--{e}"))?;
     let m = super::load(&args.model)?;
     let c = dvrk_kin::check::check_model(&m, args.samples)?;
     if args.json {

@@ -376,6 +376,11 @@ def test_check_samples_argument():
     report = Model.load("mtml").check(samples=10)
     assert report["samples"] == 10 and report["ok"] is True
     assert report["rcm"] is None and report["max_closure_residual_m"] is None
+    # The CLI's bounds (one function behind both): nothing checked is not "ok", and 10**12
+    # configurations are refused, not allocated.
+    for n in (0, 10**12):
+        with pytest.raises(dvrk_twin.DvrkError, match=r"samples = .*: must be in 1\.\.=10000000"):
+            Model.load("psm").check(samples=n)
 
 
 # ---------------------------------------------------------------- bad input

@@ -59,8 +59,22 @@ pub const SERIAL_TOL: f64 = 1e-9;
 /// A closure Jacobian singular value below this (m/rad) means a loop is close to flattening.
 pub const CONDITIONING_MIN: f64 = 1e-3;
 
-/// Evaluate a model over `samples` configurations spread over its joint range.
+/// Most configurations [`check_model`] takes: each costs a configuration vector in memory
+/// (8 bytes per joint) and an FK; 10^7 is a few hundred MB and minutes, more is a mistake.
+pub const MAX_CHECK_SAMPLES: usize = 10_000_000;
+
+/// A sample count [`check_model`] takes, or an error saying the range.
+pub fn check_samples(samples: usize) -> Result<()> {
+    if !(1..=MAX_CHECK_SAMPLES).contains(&samples) {
+        return Err(KinError::Value { what: "samples".into(), value: samples as f64, message: format!("must be in 1..={MAX_CHECK_SAMPLES} (each is a configuration evaluated and kept in memory)") });
+    }
+    Ok(())
+}
+
+/// Evaluate a model over `samples` configurations spread over its joint range (1 to
+/// [`MAX_CHECK_SAMPLES`]; the CLI and Python both come through this check).
 pub fn check_model(model: &Model, samples: usize) -> Result<ModelCheck> {
+    check_samples(samples)?;
     let mut data = Data::new(model);
     let configs = sample_configurations(&model.joints, samples);
     let mut closure = None;
