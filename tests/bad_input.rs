@@ -64,7 +64,16 @@ fn bad_files_and_flags_are_errors_not_panics() {
     assert_one_line(&dvrk_err(&["model", "check", "ecm", "--tool", "x.json"]), &["x.json"]);
     assert_one_line(&dvrk_err(&["model", "check", "psm", "--samples", "0"]), &["--samples"]);
     // Issue 45: 10^12 configurations were a 24 TB allocation and an abort.
-    assert_one_line(&dvrk_err(&["model", "check", "psm", "--samples", "1000000000000"]), &["--samples", "1000000000000", "1..=10000000"]);
+    assert_one_line(&dvrk_err(&["model", "check", "psm", "--samples", "1000000000000"]), &["--samples = 1.000000e12", "1..=10000000"]);
+    // Huge numbers in messages in {:.6e} form, and durations bounded before any allocation.
+    assert_one_line(&dvrk_err(&["fk", "psm", "--q", "1e300,0,0.1,0,0,0,0"]), &["outer_yaw = 1.000000e300", "limits"]);
+    assert_one_line(&dvrk_err(&["synth", "hidden-effect", "--duration", "1e12", "-o", "/tmp/never.mcap", "--answer", "/tmp/never.json"]), &["duration", "1.000000e12", "1800 s"]);
+    assert_one_line(&dvrk_err(&["sim", "--scene", "psm", "--duration", "1e300", "--plot", "/tmp/never.png"]), &["traced samples", "5.000000e301"]);
+    let dir = crate::util::tempdir();
+    let scene = dir.path().join("tiny-dt.toml");
+    let text = std::fs::read_to_string(std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("models/scenes/psm.toml")).unwrap();
+    std::fs::write(&scene, text.replace("dt = 0.001", "dt = 1e-12")).unwrap();
+    assert_one_line(&dvrk_err(&["sim", "--scene", scene.to_str().unwrap()]), &["tiny-dt.toml", "dt", "1.000000e-12 s is not in [1e-6, 0.1]"]);
     // CSV input: a missing column, a word, a NaN.
     for (content, expect) in [
         ("q1,q2,q3\n0,0,0.1\n", vec!["q4", "missing column"]),

@@ -84,7 +84,8 @@ pub fn run(args: &SimArgs) -> Result<()> {
     inputs.extend(replay.map(|p| ("--trajectory replay:", p)));
     inputs.extend(args.model.iter().filter_map(|m| m.split_once('=')).map(|(_, f)| ("--model", std::path::Path::new(f))));
     crate::io::check_outputs(&inputs, &[("--out", args.out.as_deref()), ("--plot", args.plot.as_deref())])?;
-    let mut scene = Scene::load(&args.scene).with_context(|| format!("--scene {}", args.scene))?;
+    // The scene error names the file and field: one line, the flag in front.
+    let mut scene = Scene::load(&args.scene).map_err(|e| anyhow::anyhow!("--scene: {e}"))?;
     for m in &args.model {
         let Some((arm, file)) = m.split_once('=') else { bail!("--model {m}: expected ARM=MODEL (a built-in model or a file), e.g. PSM1=my-psm.toml") };
         let a = scene.arm_index(arm).with_context(|| format!("--model {m}"))?;

@@ -32,7 +32,7 @@ pub enum KinError {
     #[error("unknown {what} `{name}`; valid: {valid}")]
     Unknown { what: String, name: String, valid: String },
     /// A value that is not finite, or outside its limits.
-    #[error("{what} = {value}: {message}")]
+    #[error("{what} = {}: {message}", fmt_number(*value))]
     Value { what: String, value: f64, message: String },
     /// Inverse kinematics found no solution.
     #[error("inverse kinematics: {0}")]
@@ -63,3 +63,13 @@ impl KinError {
 
 /// Result alias of this crate.
 pub type Result<T, E = KinError> = std::result::Result<T, E>;
+
+/// A number for an error message: as written when it is of a usual size, in `{:.6e}` form when it
+/// is very large or very small (an input of 1e300 is not printed as 301 digits).
+pub fn fmt_number(x: f64) -> String {
+    if x == 0.0 || !x.is_finite() || (1e-4..1e7).contains(&x.abs()) {
+        format!("{x}")
+    } else {
+        format!("{x:.6e}")
+    }
+}

@@ -11,7 +11,7 @@ pub enum SimError {
     #[error("{file}: {field}: {message}")]
     Field { file: String, field: String, message: String },
     /// A run-time value (command, gain, option) is not acceptable.
-    #[error("{what} = {value}: {message}")]
+    #[error("{what} = {}: {message}", dvrk_kin::fmt_number(*value))]
     Value { what: String, value: f64, message: String },
     /// Reading or writing a file failed.
     #[error("{path}: {source}")]

@@ -243,6 +243,11 @@ pub fn run_staged(scene: &Scene, options: &RunOptions, outputs: &Outputs, mut pr
         if !(r.is_finite() && r > 0.0) {
             return Err(SimError::value("trace rate (Hz)", r, "must be a positive finite number"));
         }
+        // The trace is kept in memory (two numbers per traced joint and sample): bounded before
+        // anything is allocated.
+        if options.duration * r > 1e7 {
+            return Err(SimError::value("traced samples (duration x plot rate)", options.duration * r, "at most 1e7 are kept in memory for the plot; lower the plot rate"));
+        }
     }
     if !(options.duration.is_finite() && options.duration > 0.0) {
         return Err(SimError::value("duration (s)", options.duration, "must be a positive finite number"));

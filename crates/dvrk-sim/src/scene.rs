@@ -312,8 +312,9 @@ impl Scene {
     /// Parse a scene file's text; `file` names it in errors, `dir` resolves relative inertials paths.
     pub fn parse(text: &str, file: &str, dir: Option<&std::path::Path>) -> Result<Scene> {
         let f: SceneFile = toml::from_str(text).map_err(|e| SimError::field(file, "(syntax)", e.to_string()))?;
-        if !(f.dt.is_finite() && f.dt > 0.0 && f.dt <= 0.1) {
-            return Err(SimError::field(file, "dt", format!("{} s is not in (0, 0.1]", f.dt)));
+        // Below a microsecond a second of simulated time is a million steps: a typo, not a scene.
+        if !(f.dt.is_finite() && (1e-6..=0.1).contains(&f.dt)) {
+            return Err(SimError::field(file, "dt", format!("{} s is not in [1e-6, 0.1]", dvrk_kin::fmt_number(f.dt))));
         }
         for (name, v, min) in [
             ("solver_iterations", f.solver_iterations, 1),

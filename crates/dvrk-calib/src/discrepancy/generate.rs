@@ -472,10 +472,14 @@ pub fn simulate(scene: &Scene, excitation: &MultiSine, duration: f64, rate: f64)
     Ok((log, link))
 }
 
+/// The longest recording [`hidden_effect`] makes (s): 30 min, about 2 GB while it is made.
+pub const MAX_DURATION: f64 = 1800.0;
+
 /// Generate a hidden-effect recording of scene `scene_name` (its first arm).
 pub fn hidden_effect(scene_name: &str, o: &HiddenOptions) -> Result<HiddenRecording> {
-    if !(o.duration.is_finite() && o.duration >= 5.0) {
-        return Err(CalibError::field("duration", format!("{} s: at least 5 s", o.duration)));
+    // The generator keeps its whole recording in memory, about 1.2 MB per simulated second.
+    if !(o.duration.is_finite() && (5.0..=MAX_DURATION).contains(&o.duration)) {
+        return Err(CalibError::field("duration", format!("{} s: from 5 s to {MAX_DURATION} s (the generator keeps about 1.2 MB per simulated second in memory)", dvrk_kin::fmt_number(o.duration))));
     }
     if !(o.truth_dt.is_finite() && o.truth_dt > 0.0 && o.truth_dt <= 1e-3) {
         return Err(CalibError::field("truth dt", format!("{} s: must be in (0, 0.001]", o.truth_dt)));
