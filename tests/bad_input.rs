@@ -74,6 +74,10 @@ fn bad_files_and_flags_are_errors_not_panics() {
     let text = std::fs::read_to_string(std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("models/scenes/psm.toml")).unwrap();
     std::fs::write(&scene, text.replace("dt = 0.001", "dt = 1e-12")).unwrap();
     assert_one_line(&dvrk_err(&["sim", "--scene", scene.to_str().unwrap()]), &["tiny-dt.toml", "dt", "1.000000e-12 s is not in [1e-6, 0.1]"]);
+    // A replay row with a NaN setpoint was dropped silently (issue 45): now named.
+    let replay = dir.path().join("replay.csv");
+    std::fs::write(&replay, "time,q1,q2,q3,q4,q5,q6,q7\n0,0.2,0.1,0.12,0,0,0,0\n0.5,nan,0.1,0.12,0,0,0,0\n1,0.3,0.1,0.12,0,0,0,0\n").unwrap();
+    assert_one_line(&dvrk_err(&["sim", "--scene", "psm", "--trajectory", &format!("replay:{}", replay.display())]), &["replay.csv", "line 3", "every joint's setpoint"]);
     // CSV input: a missing column, a word, a NaN.
     for (content, expect) in [
         ("q1,q2,q3\n0,0,0.1\n", vec!["q4", "missing column"]),

@@ -97,7 +97,7 @@ pub fn run(args: &SimArgs) -> Result<()> {
         "hold" => TrajectoryKind::Hold,
         t if t.starts_with("replay:") => {
             let path = std::path::Path::new(&t["replay:".len()..]);
-            TrajectoryKind::Replay(dvrk_calib::replay::read_replay(path, &scene).with_context(|| format!("--trajectory {t}"))?)
+            TrajectoryKind::Replay(dvrk_calib::replay::read_replay(path, &scene).map_err(|e| anyhow::anyhow!("--trajectory {t}: {e}"))?)
         }
         t => bail!("--trajectory {t}: unknown (valid: sine, hold, replay:FILE)"),
     };

@@ -253,7 +253,7 @@ pub fn arm_track(path: &Path, mut tracks: BTreeMap<String, crate::recording::Joi
             }
         }
     }
-    Ok(Some(crate::recording::JointTrack { source: sources.join(" + "), names: states.names, t: states.t, q: states.position }))
+    Ok(Some(crate::recording::JointTrack { source: sources.join(" + "), names: states.names, t: states.t, q: states.position, ..Default::default() }))
 }
 
 /// Order `js` in time and say what that took, and where its times came from.

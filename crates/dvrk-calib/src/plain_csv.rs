@@ -157,11 +157,16 @@ pub fn parse(text: &str, path: &Path) -> Result<Recording> {
             if q.iter().all(|x| x.is_finite()) {
                 jt.t.push(t);
                 jt.q.push(q);
+            } else {
+                jt.skipped_lines.push(line as usize);
             }
         }
     }
     if rows == 0 {
         return Err(CalibError::file(path, "the header is followed by no data row"));
+    }
+    if let Some(first) = jt.skipped_lines.first() {
+        rec.warnings.push(format!("{}: {} row(s) without a finite value in every joint column (first: line {first}) left out of the joints", path.display(), jt.skipped_lines.len()));
     }
     for (name, n) in nan_rows {
         rec.warnings.push(format!("{}: rigid body `{name}`: {n} row(s) hold NaN; treated as occluded", path.display()));

@@ -90,6 +90,8 @@ pub struct JointTrack {
     pub t: Vec<f64>,
     /// Positions per sample (rad, m), each `names.len()` long.
     pub q: Vec<Vec<f64>>,
+    /// Lines (1-based) of a CSV's rows left out for an empty or NaN joint value.
+    pub skipped_lines: Vec<usize>,
 }
 
 /// Everything read from one recording.

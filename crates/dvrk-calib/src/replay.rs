@@ -31,7 +31,7 @@ pub fn read_replay(path: &Path, scene: &Scene) -> Result<Replay> {
             let kind = ["setpoint_js", "measured_js"].into_iter().find(|k| states.kinds.contains_key(*k));
             match kind.and_then(|k| Some((states.sources.remove(k)?, states.kinds.remove(k)?))) {
                 Some((source, js)) => {
-                    let track = JointTrack { source, names: js.names, t: js.t, q: js.position };
+                    let track = JointTrack { source, names: js.names, t: js.t, q: js.position, ..Default::default() };
                     arms.push((arm.name.clone(), by_name(path, &track, &arm.model)?));
                 }
                 None => missing.push(arm.name.as_str()),
@@ -53,6 +53,10 @@ pub fn read_replay(path: &Path, scene: &Scene) -> Result<Replay> {
                 format!("a CSV holds one arm's joints, but scene {} tracks {} arms ({}); use an MCAP recording with /<ARM>/setpoint_js topics", scene.name, names.len(), names.join(", ")),
             ));
         };
+        // A setpoint cannot be made up: a row without every joint is an error, not a gap.
+        if let Some(line) = track.skipped_lines.first() {
+            return Err(CalibError::file(path, format!("line {line}: a replay needs every joint's setpoint on every row ({} row(s) lack a finite value)", track.skipped_lines.len())));
+        }
         let nq = arm.model.nq();
         if track.names.len() != nq {
             return Err(CalibError::file(path, format!("{} joint columns, arm {} has {nq} joints", track.names.len(), arm.name)));

@@ -269,7 +269,7 @@ impl Scenario {
             rec.bodies.push(body);
             rec.markers.push(markers);
         }
-        rec.joints = Some(JointTrack { source: "/PSM1/measured_js".into(), names: self.joint_names.clone(), t: self.t.clone(), q: self.q.clone() });
+        rec.joints = Some(JointTrack { source: "/PSM1/measured_js".into(), names: self.joint_names.clone(), t: self.t.clone(), q: self.q.clone(), ..Default::default() });
         rec
     }
 
