@@ -74,6 +74,13 @@ fn bad_files_and_flags_are_errors_not_panics() {
     let text = std::fs::read_to_string(std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("models/scenes/psm.toml")).unwrap();
     std::fs::write(&scene, text.replace("dt = 0.001", "dt = 1e-12")).unwrap();
     assert_one_line(&dvrk_err(&["sim", "--scene", scene.to_str().unwrap()]), &["tiny-dt.toml", "dt", "1.000000e-12 s is not in [1e-6, 0.1]"]);
+    // 30,000 levels of nesting overflowed the stack (exit 134): refused before parsing.
+    let deep_json = dir.path().join("deep.json");
+    std::fs::write(&deep_json, format!("{}{}", "[".repeat(30000), "]".repeat(30000))).unwrap();
+    assert_one_line(&dvrk_err(&["model", "check", deep_json.to_str().unwrap()]), &["deep.json", "nested 30000 levels deep"]);
+    let deep_urdf = dir.path().join("deep.urdf");
+    std::fs::write(&deep_urdf, format!("<robot name=\"r\">{}{}</robot>", "<a>".repeat(30000), "</a>".repeat(30000))).unwrap();
+    assert_one_line(&dvrk_err(&["model", "check", deep_urdf.to_str().unwrap()]), &["deep.urdf", "nested 30001 levels deep"]);
     // A replay row with a NaN setpoint was dropped silently (issue 45): now named.
     let replay = dir.path().join("replay.csv");
     std::fs::write(&replay, "time,q1,q2,q3,q4,q5,q6,q7\n0,0.2,0.1,0.12,0,0,0,0\n0.5,nan,0.1,0.12,0,0,0,0\n1,0.3,0.1,0.12,0,0,0,0\n").unwrap();

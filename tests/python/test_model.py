@@ -386,6 +386,18 @@ def test_check_samples_argument():
 # ---------------------------------------------------------------- bad input
 
 
+def test_deeply_nested_files_raise_instead_of_crashing(tmp_path):
+    # 30,000 levels took the interpreter down with SIGSEGV (issue 45).
+    deep = tmp_path / "deep.urdf"
+    deep.write_text('<robot name="r">' + "<a>" * 30000 + "</a>" * 30000 + "</robot>")
+    with pytest.raises(DvrkError, match="nested 30001 levels deep"):
+        Model.load(str(deep))
+    deep_json = tmp_path / "deep.json"
+    deep_json.write_text("[" * 30000 + "]" * 30000)
+    with pytest.raises(DvrkError, match="nested 30000 levels deep"):
+        Model.load(str(deep_json))
+
+
 def test_wrong_q_length(psm):
     for call in (psm.fk, psm.jacobian, psm.closure_residual, psm.pivot_residual):
         with pytest.raises(ValueError, match="expected 7, got 6") as e:

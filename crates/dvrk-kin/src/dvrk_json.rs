@@ -16,6 +16,10 @@ pub fn read_json(path: &Path) -> Result<Json> {
 
 /// Parse dVRK JSON text; `path` names it in errors.
 pub fn parse_json(text: &str, path: &Path) -> Result<Json> {
+    // json5's parser recurses per level: a deep file is refused before it can overflow the stack.
+    if let Some(m) = crate::nesting::too_deep(crate::nesting::json_depth(text)) {
+        return Err(KinError::File { path: path.into(), message: format!("not a dVRK JSON file: {m}") });
+    }
     json5::from_str(text).map_err(|e| KinError::File { path: path.into(), message: format!("not valid JSON: {e}") })
 }
 

@@ -37,6 +37,7 @@ mod jacobian;
 pub mod limits;
 pub mod load;
 mod model;
+pub mod nesting;
 pub mod rcm;
 pub mod sdf;
 pub mod so3;

@@ -119,6 +119,10 @@ pub fn import_urdf_file(path: &Path) -> Result<Model> {
 /// closures, no RCM; the tip is the last frame.
 pub fn import_urdf_str(text: &str, name_hint: &str) -> Result<Model> {
     let err = |m: String| KinError::File { path: PathBuf::from(name_hint), message: m };
+    // urdf-rs recurses per element: a deep file is refused before it can overflow the stack.
+    if let Some(m) = crate::nesting::too_deep(crate::nesting::xml_depth(text)) {
+        return Err(err(format!("not a readable URDF: {m}")));
+    }
     let robot = urdf_rs::read_from_string(text).map_err(|e| err(format!("not a readable URDF: {e}")))?;
     build_model(&robot, name_hint).map_err(err)
 }
