@@ -44,6 +44,11 @@ pub fn resolve(path: &Path, format: &str) -> Result<&'static str> {
     Err(CalibError::file(path, "holds no data row to tell its format from; give --format"))
 }
 
+/// The note a reader adds when `format` was `auto`: what the file was read as.
+pub fn auto_note(path: &Path, format: &str, resolved: &str) -> Option<String> {
+    (format == "auto").then(|| format!("{}: read as {resolved} (told from the file; --format overrides)", path.display()))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

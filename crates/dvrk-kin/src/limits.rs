@@ -24,6 +24,15 @@ impl LimitTally {
         LimitTally { samples: 0, samples_outside: 0, joints: vec![(0, 0.0); model.nq()] }
     }
 
+    /// The tally of every configuration of `configs` (each the model's joints, in order).
+    pub fn of<Q: AsRef<[f64]>>(model: &Model, configs: impl IntoIterator<Item = Q>) -> Self {
+        let mut t = Self::new(model);
+        for q in configs {
+            t.add(model, q.as_ref());
+        }
+        t
+    }
+
     /// Count configuration `q` (the model's joints, in order; extra values are ignored); true
     /// when a joint is outside its limits.
     pub fn add(&mut self, model: &Model, q: &[f64]) -> bool {

@@ -17,15 +17,9 @@ pub fn read_log(path: &Path, format: &str, model: &Model, arm: &str) -> Result<(
         "wpi-csv" => (joint_log::read_wpi_csv(path, model)?, vec![format!("{}: {}", path.display(), super::csv_log::NO_SETPOINTS)]),
         _ => super::csv_log::read(path, model).map(|c| (c.log, c.notes))?,
     };
-    if format == "auto" {
-        notes.insert(0, format!("{}: read as {resolved} (told from the file; --format overrides)", path.display()));
-    }
+    notes.splice(0..0, crate::recording_format::auto_note(path, format, resolved));
     // Measured data past the model's limits is analysed as measured, and said.
-    let mut tally = dvrk_kin::LimitTally::new(model);
-    for q in &log.position {
-        tally.add(model, q);
-    }
-    notes.extend(tally.summary(model).map(|s| format!("{}: {s}", path.display())));
+    notes.extend(dvrk_kin::LimitTally::of(model, &log.position).summary(model).map(|s| format!("{}: {s}", path.display())));
     Ok((log, notes))
 }
 

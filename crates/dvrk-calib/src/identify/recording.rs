@@ -190,14 +190,9 @@ pub fn read_joint_recording(path: &Path, format: &str, model: &Model, arm: &str)
             ))
         }
     };
-    if format == "auto" {
-        notes.insert(0, format!("{}: read as {resolved} (told from the file; --format overrides)", path.display()));
-    }
+    notes.splice(0..0, crate::recording_format::auto_note(path, format, resolved));
     // Measured data past the model's limits is fitted as measured, and said.
-    let mut tally = dvrk_kin::LimitTally::new(model);
-    for q in &rec.q {
-        tally.add(model, (&rec.to_joint * nalgebra::DVector::from_column_slice(q)).as_slice());
-    }
-    notes.extend(tally.summary(model).map(|s| format!("{}: {s}", path.display())));
+    let joints = rec.q.iter().map(|q| &rec.to_joint * nalgebra::DVector::from_column_slice(q));
+    notes.extend(dvrk_kin::LimitTally::of(model, joints).summary(model).map(|s| format!("{}: {s}", path.display())));
     Ok((rec, notes))
 }
