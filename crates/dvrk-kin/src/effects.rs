@@ -13,6 +13,13 @@
 //!   the model's parameter of that name, and its mass `mass`, the body's inertia scaled with it:
 //!   the same block, heavier or lighter); the counterweight is the body a frame moving by `mu`
 //!   carries;
+//! - actuator space (the tool's cable-driven wrist, the MTM's elbow and platform): friction and
+//!   springs at an actuator, `actuator_coulomb_friction`, `actuator_viscous_friction`,
+//!   `actuator_spring`, and its motor's reflected inertia, `motor_inertia`, each on `actuator`
+//!   (1-based, a column of the model's coupling `q = C a`). An actuator moves by
+//!   `a = (C^-1 q)_k` and its force reaches the joints by virtual work as `C^-T f`: one actuator's
+//!   friction loads every joint its cables couple. A model without a coupling has its actuators
+//!   on its joints (`C = I`);
 //! - the simulated drive and sensors (dvrk-sim): `joint_compliance`, `backlash`, `latency`;
 //! - kinematics and dynamics: `coupling_error` (`dRC`: the true actuator-to-joint coupling is the
 //!   model's plus `dRC` at 1-based row R, column C; the controller reads joints through the
@@ -48,6 +55,9 @@ pub struct EffectSpec {
     /// The link (frame number or name) it acts on (link effects).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub link: Option<FrameRef>,
+    /// The actuator (1-based: a column of the model's coupling) it acts on (actuator effects).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub actuator: Option<usize>,
     /// Parameter values in the units of [`EffectKind::parameters`].
     #[serde(default)]
     pub parameters: BTreeMap<String, f64>,
@@ -72,6 +82,10 @@ pub enum EffectKind {
     CouplingError,
     CounterweightError,
     Spring,
+    ActuatorCoulombFriction,
+    ActuatorViscousFriction,
+    ActuatorSpring,
+    MotorInertia,
 }
 
 /// What an effect is attached to.
@@ -79,6 +93,8 @@ pub enum EffectKind {
 pub enum Target {
     Joint,
     Link,
+    /// An actuator: a column of the model's coupling.
+    Actuator,
     Model,
 }
 
@@ -112,7 +128,7 @@ const fn p(name: &'static str, unit: &'static str, prismatic_unit: &'static str,
 
 impl EffectKind {
     /// The whole vocabulary.
-    pub const ALL: [EffectKind; 12] = [
+    pub const ALL: [EffectKind; 16] = [
         EffectKind::JointOffset,
         EffectKind::LinkLength,
         EffectKind::BaseRegistration,
@@ -125,6 +141,10 @@ impl EffectKind {
         EffectKind::CouplingError,
         EffectKind::CounterweightError,
         EffectKind::Spring,
+        EffectKind::ActuatorCoulombFriction,
+        EffectKind::ActuatorViscousFriction,
+        EffectKind::ActuatorSpring,
+        EffectKind::MotorInertia,
     ];
 
     /// The name model files use.
@@ -142,6 +162,10 @@ impl EffectKind {
             EffectKind::CouplingError => "coupling_error",
             EffectKind::CounterweightError => "counterweight_error",
             EffectKind::Spring => "spring",
+            EffectKind::ActuatorCoulombFriction => "actuator_coulomb_friction",
+            EffectKind::ActuatorViscousFriction => "actuator_viscous_friction",
+            EffectKind::ActuatorSpring => "actuator_spring",
+            EffectKind::MotorInertia => "motor_inertia",
         }
     }
 
@@ -158,6 +182,7 @@ impl EffectKind {
             }
             EffectKind::LinkLength | EffectKind::PayloadMass => Target::Link,
             EffectKind::BaseRegistration | EffectKind::Latency | EffectKind::CouplingError | EffectKind::CounterweightError => Target::Model,
+            EffectKind::ActuatorCoulombFriction | EffectKind::ActuatorViscousFriction | EffectKind::ActuatorSpring | EffectKind::MotorInertia => Target::Actuator,
         }
     }
 
@@ -177,6 +202,10 @@ impl EffectKind {
             EffectKind::CouplingError => &[],
             EffectKind::CounterweightError => COUNTERWEIGHT,
             EffectKind::Spring => SPRING,
+            EffectKind::ActuatorCoulombFriction => COULOMB,
+            EffectKind::ActuatorViscousFriction => VISCOUS,
+            EffectKind::ActuatorSpring => SPRING,
+            EffectKind::MotorInertia => MOTOR_INERTIA,
         }
     }
 
@@ -234,6 +263,9 @@ const PAYLOAD: &[ParameterInfo] =
     &[p("mass", "kg", "kg", 0.0, 20.0, None), p("x", "m", "m", -1.0, 1.0, Some(0.0)), p("y", "m", "m", -1.0, 1.0, Some(0.0)), p("z", "m", "m", -1.0, 1.0, Some(0.0))];
 const COUNTERWEIGHT: &[ParameterInfo] = &[p("mu", "1", "1", 0.0, 2.0, None), p("mass", "kg", "kg", 0.0, 10.0, None)];
 const SPRING: &[ParameterInfo] = &[p("k", "N·m/rad", "N/m", 0.0, 1e5, None), p("rest", "rad", "m", -10.0, 10.0, Some(0.0))];
+/// A dVRK motor's rotor reflected through its gearhead is 1e-6..1e-3 kg m^2 at the actuator
+/// (the WPI fit: 2e-5..1e-4); 1 kg m^2 is a flywheel.
+const MOTOR_INERTIA: &[ParameterInfo] = &[p("inertia", "kg m^2", "kg", 0.0, 1.0, None)];
 
 /// A checked effect of a compiled model.
 #[derive(Debug, Clone, PartialEq)]
@@ -243,6 +275,12 @@ pub struct Effect {
     pub joint: Option<usize>,
     /// The frame (position in [`Model::frames`]) of a link effect.
     pub frame: Option<usize>,
+    /// The actuator (0-based column of the coupling) of an actuator effect.
+    pub actuator: Option<usize>,
+    /// An actuator effect's transmission: its row of `C^-1`, as (joint, weight) for every joint
+    /// it moves with: the actuator's position is `sum w q_j`, its force `f` loads joint `j` with
+    /// `w f`. Empty for other effects.
+    pub transmission: Vec<(usize, f64)>,
     /// Every parameter, defaults filled in.
     pub parameters: BTreeMap<String, f64>,
 }
@@ -276,7 +314,18 @@ pub fn check_effects(model: &Model) -> Result<Vec<Effect>> {
             (_, Some(l)) => return Err(KinError::field(field("link"), format!("`{l}` given, but {} does not act on a link", e.name))),
             (_, None) => None,
         };
-        let prismatic = joint.is_some_and(|j| model.joints[j].kind == JointType::Prismatic);
+        let (actuator, transmission) = match (kind.target(), e.actuator) {
+            (Target::Actuator, Some(a)) => {
+                let (k, w) = actuator_transmission(model, a).map_err(|m| KinError::field(field("actuator"), m))?;
+                (Some(k), w)
+            }
+            (Target::Actuator, None) => return Err(KinError::field(field("actuator"), format!("missing: this effect acts on an actuator (1..={}, a column of the coupling)", model.nq()))),
+            (_, Some(a)) => return Err(KinError::field(field("actuator"), format!("`{a}` given, but {} does not act on an actuator", e.name))),
+            (_, None) => (None, Vec::new()),
+        };
+        // An actuator's units are those of the joint it drives on the coupling's diagonal (the
+        // PSM's third actuator is the insertion's, in m and N).
+        let prismatic = joint.or(actuator).is_some_and(|j| model.joints[j].kind == JointType::Prismatic);
         let mut parameters = BTreeMap::new();
         if kind == EffectKind::CouplingError {
             let c = model.coupling_matrix().ok_or_else(|| KinError::field(field("name"), format!("model `{}` has no actuator coupling to be in error", model.name)))?;
@@ -326,9 +375,25 @@ pub fn check_effects(model: &Model) -> Result<Vec<Effect>> {
             })?),
             _ => frame,
         };
-        out.push(Effect { kind, joint, frame, parameters });
+        out.push(Effect { kind, joint, frame, actuator, transmission, parameters });
     }
     Ok(out)
+}
+
+/// Actuator `a` (1-based) of `model`: its 0-based index and its row of `C^-1` as (joint, weight)
+/// pairs, the joints it moves with ([`Effect::transmission`]); the message of a bad number or a
+/// singular coupling.
+fn actuator_transmission(model: &Model, a: usize) -> std::result::Result<(usize, Vec<(usize, f64)>), String> {
+    let n = model.nq();
+    if !(1..=n).contains(&a) {
+        return Err(format!("{a} is not an actuator of model `{}` (1..={n}, a column of its coupling)", model.name));
+    }
+    let c = model.coupling_matrix().unwrap_or_else(|| nalgebra::DMatrix::identity(n, n));
+    let inv = c.try_inverse().ok_or_else(|| format!("model `{}`'s coupling is singular: its actuators' motions are not defined", model.name))?;
+    let row = inv.row(a - 1);
+    // Round-off of the inverse is not a cable.
+    let tiny = 1e-12 * row.amax();
+    Ok((a - 1, row.iter().enumerate().filter(|(_, w)| w.abs() > tiny).map(|(j, w)| (j, *w)).collect()))
 }
 
 /// The `coupling_error` parameter `dRC` of 0-based coupling entry (`row`, `col`).
@@ -377,20 +442,63 @@ pub(crate) fn apply_counterweight(spec: &mut crate::ModelSpec) -> Result<()> {
 
 /// Joint-space effort (N·m, N) of the friction and spring effects at `q`, `qd`, added to `out`:
 /// `-(fc sign(qd) + offset) - fv qd - k (q - rest)` per joint, the force the effect exerts on the
-/// joint. The sign is smoothed, `tanh(qd / v)`, with `v` the larger of `velocity_scale` and the
-/// effect's `smoothing` (rad/s, m/s; both 0: a hard sign).
+/// joint; an actuator's the same law in its position `a = w . q` and velocity, reaching joint
+/// `j` as `w_j f` ([`Effect::transmission`]). The sign is smoothed, `tanh(qd / v)`, with `v` the
+/// larger of `velocity_scale` and the effect's `smoothing` (rad/s, m/s; both 0: a hard sign).
 pub fn effort(effects: &[Effect], q: &[f64], qd: &[f64], velocity_scale: f64, out: &mut [f64]) {
+    let dot = |w: &[(usize, f64)], x: &[f64]| w.iter().map(|(j, c)| c * x[*j]).sum::<f64>();
+    let sign = |e: &Effect, v: f64| {
+        let scale = velocity_scale.max(e.get("smoothing"));
+        if scale > 0.0 {
+            (v / scale).tanh()
+        } else {
+            v.signum() * (v != 0.0) as i32 as f64
+        }
+    };
     for e in effects {
-        let Some(j) = e.joint else { continue };
-        match e.kind {
-            EffectKind::CoulombFriction => {
-                let v = velocity_scale.max(e.get("smoothing"));
-                let s = if v > 0.0 { (qd[j] / v).tanh() } else { qd[j].signum() * (qd[j] != 0.0) as i32 as f64 };
-                out[j] -= e.get("fc") * s + e.get("offset");
+        if let Some(j) = e.joint {
+            match e.kind {
+                EffectKind::CoulombFriction => out[j] -= e.get("fc") * sign(e, qd[j]) + e.get("offset"),
+                EffectKind::ViscousFriction => out[j] -= e.get("fv") * qd[j],
+                EffectKind::Spring => out[j] -= e.get("k") * (q[j] - e.get("rest")),
+                _ => {}
             }
-            EffectKind::ViscousFriction => out[j] -= e.get("fv") * qd[j],
-            EffectKind::Spring => out[j] -= e.get("k") * (q[j] - e.get("rest")),
-            _ => {}
+            continue;
+        }
+        let w = &e.transmission;
+        let f = match e.kind {
+            EffectKind::ActuatorCoulombFriction => -(e.get("fc") * sign(e, dot(w, qd)) + e.get("offset")),
+            EffectKind::ActuatorViscousFriction => -e.get("fv") * dot(w, qd),
+            EffectKind::ActuatorSpring => -e.get("k") * (dot(w, q) - e.get("rest")),
+            _ => continue,
+        };
+        for (j, c) in w {
+            out[*j] += c * f;
+        }
+    }
+}
+
+/// Joint-space effort (N·m, N) of the motors' reflected inertias (`motor_inertia`) at joint
+/// accelerations `qdd`, added to `out`: `-C^-T diag(I) C^-1 qdd`, the coupled inertia's
+/// cross terms included (the actuator's acceleration is `w . qdd`, its inertial force `-I w .
+/// qdd` reaches joint `j` as `w_j` times that).
+pub fn inertial_effort(effects: &[Effect], qdd: &[f64], out: &mut [f64]) {
+    for e in effects.iter().filter(|e| e.kind == EffectKind::MotorInertia) {
+        let f = -e.get("inertia") * e.transmission.iter().map(|(j, c)| c * qdd[*j]).sum::<f64>();
+        for (j, c) in &e.transmission {
+            out[*j] += c * f;
+        }
+    }
+}
+
+/// The joint-space inertia matrix the motors' `motor_inertia` effects add, `C^-T diag(I) C^-1`
+/// (kg m^2, kg), added to `m` (nq x nq).
+pub fn motor_inertia_matrix(effects: &[Effect], m: &mut nalgebra::DMatrix<f64>) {
+    for e in effects.iter().filter(|e| e.kind == EffectKind::MotorInertia) {
+        for (j, a) in &e.transmission {
+            for (k, b) in &e.transmission {
+                m[(*j, *k)] += e.get("inertia") * a * b;
+            }
         }
     }
 }

@@ -75,6 +75,82 @@ fn friction_and_spring_efforts_in_closed_form() {
     }
 }
 
+/// The tool's actuator-space effects (PSM coupling, joints = C actuators): the jaw's actuator
+/// (7) moves as `a7 = (C^-1 q)_7`, and its friction loads the wrist yaw and the jaw by virtual
+/// work, `C^-T` times the actuator's force; its motor's inertia adds `C^-T diag(I) C^-1 qdd`.
+#[test]
+fn actuator_effects_act_through_the_coupling() {
+    let m = psm_with(
+        "[[effects]]\nname = \"actuator_viscous_friction\"\nactuator = 7\nparameters = { fv = 0.02 }\n\
+         [[effects]]\nname = \"actuator_coulomb_friction\"\nactuator = 6\nparameters = { fc = 0.03, offset = 0.005 }\n\
+         [[effects]]\nname = \"actuator_spring\"\nactuator = 5\nparameters = { k = 0.01, rest = 0.2 }\n\
+         [[effects]]\nname = \"motor_inertia\"\nactuator = 7\nparameters = { inertia = 5e-5 }\n",
+    )
+    .unwrap();
+    let c = m.coupling_matrix().unwrap();
+    let inv = c.clone().try_inverse().unwrap();
+    let (q, qd, qdd) = ([0.1, -0.2, 0.1, 0.3, 0.4, -0.3, 0.6], [0.0, 0.0, 0.0, 0.0, 0.7, -0.5, 0.9], [0.0, 0.0, 0.0, 0.0, 2.0, 1.0, -3.0]);
+    let a = |x: &[f64; 7], k: usize| (0..7).map(|j| inv[(k, j)] * x[j]).sum::<f64>();
+    // Each actuator's force, then C^-T to the joints.
+    let mut f = [0.0; 7];
+    f[6] = -0.02 * a(&qd, 6);
+    f[5] = -(0.03 * a(&qd, 5).signum() + 0.005);
+    f[4] = -0.01 * (a(&q, 4) - 0.2);
+    let expect: Vec<f64> = (0..7).map(|j| (0..7).map(|k| inv[(k, j)] * f[k]).sum()).collect();
+    let mut out = [0.0; 7];
+    effort(&m.effects, &q, &qd, 0.0, &mut out);
+    for j in 0..7 {
+        assert!((out[j] - expect[j]).abs() < 1e-15, "joint {j}: {} vs {}", out[j], expect[j]);
+    }
+    // The jaw actuator's friction loads both the wrist yaw and the jaw (a7 = (q7 / 1.2177 + ...)).
+    assert!(out[5].abs() > 1e-3 && out[6].abs() > 1e-3 && out[..4].iter().all(|x| *x == 0.0), "{out:?}");
+    // The motor's inertia, cross terms included: -I w (w . qdd), w the jaw actuator's row of C^-1.
+    let mut inertial = [0.0; 7];
+    dvrk_kin::effects::inertial_effort(&m.effects, &qdd, &mut inertial);
+    let mut mat = nalgebra::DMatrix::zeros(7, 7);
+    dvrk_kin::effects::motor_inertia_matrix(&m.effects, &mut mat);
+    for j in 0..7 {
+        let want = -5e-5 * inv[(6, j)] * a(&qdd, 6);
+        assert!((inertial[j] - want).abs() < 1e-18, "joint {j}");
+        let row: f64 = (0..7).map(|k| mat[(j, k)] * qdd[k]).sum();
+        assert!((row + inertial[j]).abs() < 1e-18);
+    }
+    assert!(mat[(5, 6)].abs() > 0.1 * mat[(6, 6)], "the coupled inertia has cross terms: {mat}");
+    // The drive's effort carries it (actuator_effort = inverse dynamics - effects' forces).
+    let ine: Vec<dvrk_kin::BodyInertia> = m.bodies.iter().map(|_| dvrk_kin::BodyInertia::new(0.01, [0.0; 3], [[1e-5, 0.0, 0.0], [0.0, 1e-5, 0.0], [0.0, 0.0, 1e-5]])).collect();
+    let dm = dvrk_kin::DynamicsModel::new(&m, ine).unwrap();
+    let mut data = dvrk_kin::DynamicsData::new(&m);
+    let g = nalgebra::Vector3::zeros();
+    let (mut rigid, mut with) = ([0.0; 7], [0.0; 7]);
+    dvrk_kin::inverse_dynamics(&m, &dm, &mut data, &q, &qd, &qdd, &g, &mut rigid).unwrap();
+    dvrk_kin::dynamics::actuator_effort(&m, &dm, &mut data, &q, &qd, &qdd, &g, 0.0, &mut with).unwrap();
+    for k in 0..7 {
+        assert!((with[k] - (rigid[k] - out[k] - inertial[k])).abs() < 1e-14, "joint {k}");
+    }
+}
+
+#[test]
+fn actuator_effects_name_a_bad_actuator() {
+    let err = |text: &str| psm_with(text).unwrap_err().to_string();
+    let e = err("[[effects]]\nname = \"actuator_viscous_friction\"\nactuator = 8\nparameters = { fv = 0.02 }\n");
+    assert!(e.contains("effects[0] (actuator_viscous_friction).actuator") && e.contains("8 is not an actuator") && e.contains("1..=7"), "{e}");
+    let e = err("[[effects]]\nname = \"motor_inertia\"\nparameters = { inertia = 1e-5 }\n");
+    assert!(e.contains("effects[0] (motor_inertia).actuator") && e.contains("missing"), "{e}");
+    let e = err("[[effects]]\nname = \"viscous_friction\"\njoint = \"jaw\"\nactuator = 7\nparameters = { fv = 0.02 }\n");
+    assert!(e.contains("does not act on an actuator"), "{e}");
+    let e = err("[[effects]]\nname = \"motor_inertia\"\nactuator = 7\nparameters = { inertia = 3.0 }\n");
+    assert!(e.contains("parameters.inertia") && e.contains("[0, 1]"), "{e}");
+    // A model without a coupling has its actuators on its joints.
+    let ecm = load_toml_text(
+        &format!("{}\n[[effects]]\nname = \"actuator_viscous_friction\"\nactuator = 2\nparameters = {{ fv = 0.5 }}\n", builtin_text("ecm").unwrap()),
+        Path::new("ecm.toml"),
+        None,
+        None,
+    )
+    .unwrap();
+    assert_eq!(ecm.effects[0].transmission, vec![(1, 1.0)]);
+}
+
 /// `counterweight_error`: frame 11 (the counterweight) slides `mu` per metre of insertion, and the
 /// insertion's gravity torque carries the new mass times the new travel (closed form: the
 /// counterweight moves along its frame's z, so it adds `-m mu g . z11`).

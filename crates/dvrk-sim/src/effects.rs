@@ -172,12 +172,23 @@ impl ArmEffects {
         for e in &model.effects {
             let what = |j: Option<usize>| format!("{name} effect {}{}", e.kind.name(), j.map(|j| format!(" on {}", model.joints[j].name)).unwrap_or_default());
             match e.kind {
-                EffectKind::CoulombFriction | EffectKind::ViscousFriction | EffectKind::Spring => {
+                EffectKind::CoulombFriction
+                | EffectKind::ViscousFriction
+                | EffectKind::Spring
+                | EffectKind::ActuatorCoulombFriction
+                | EffectKind::ActuatorViscousFriction
+                | EffectKind::ActuatorSpring => {
                     // The smoothed Coulomb force acts like a damper of fc / v below v: keep its
-                    // explicit step stable on the drive's inertia (c dt / I <= 0.5).
-                    if let (EffectKind::CoulombFriction, Some(j)) = (e.kind, e.joint) {
+                    // explicit step stable on the drive's inertia (c dt / I <= 0.5); an
+                    // actuator's damps joint j by w_j^2 fc / v.
+                    let reach: Vec<(usize, f64)> = match (e.kind, e.joint) {
+                        (EffectKind::CoulombFriction, Some(j)) => vec![(j, 1.0)],
+                        (EffectKind::ActuatorCoulombFriction, _) => e.transmission.clone(),
+                        _ => Vec::new(),
+                    };
+                    for (j, w) in reach {
                         if armature[j] > 0.0 {
-                            out.velocity_scale = out.velocity_scale.max(2.0 * e.get("fc") * dt / armature[j]);
+                            out.velocity_scale = out.velocity_scale.max(2.0 * e.get("fc") * w * w * dt / armature[j]);
                         }
                     }
                     out.forces.push(e.clone());
@@ -200,7 +211,9 @@ impl ArmEffects {
                         out.delay = Some(Delay::new(steps, start));
                     }
                 }
+                // The motors' inertia is the drives' armature (crate::sim).
                 EffectKind::PayloadMass
+                | EffectKind::MotorInertia
                 | EffectKind::CounterweightError
                 | EffectKind::CouplingError
                 | EffectKind::JointOffset

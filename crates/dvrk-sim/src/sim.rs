@@ -625,11 +625,18 @@ impl Sim {
                 mb.damping_mut()[assembly] = arm.damping;
                 mb.armature_mut()[assembly] = 0.0;
             }
+            // The drives' inertia: the scene's armature plus the diagonal of the motors' coupled
+            // inertia (`motor_inertia` effects, C^-T diag(I) C^-1); rapier's multibody holds a
+            // diagonal armature only, so the cross terms are not simulated (dvrk-kin's inverse
+            // dynamics has them).
+            let mut motor = nalgebra::DMatrix::zeros(model.nq(), model.nq());
+            dvrk_kin::effects::motor_inertia_matrix(&arm.model.effects, &mut motor);
+            let armature: Vec<f64> = arm.armature.iter().enumerate().map(|(k, a)| a + motor[(k, k)]).collect();
             for (k, dr) in drives.iter().enumerate() {
                 let assembly = mb.link(link_ids[dr.dof]).map(|l| l.assembly_id()).unwrap_or(0);
                 split_drive_damping(mb, assembly, arm.damping);
                 // Reflected through the drive's ratio: armature is per unit of q.
-                mb.armature_mut()[assembly] = arm.armature[k] / (dr.c * dr.c);
+                mb.armature_mut()[assembly] = armature[k] / (dr.c * dr.c);
             }
             // Joint limits on the drives, in coordinate units (coord = c q + b).
             for (k, dr) in drives.iter().enumerate() {
@@ -649,7 +656,7 @@ impl Sim {
                 .enumerate()
                 .map(|(k, j)| Actuator::new(arm.gains[k], j.effort_limit, arm.start[k]))
                 .collect();
-            let effects = crate::effects::ArmEffects::new(&arm.name, &arm.model, &arm.armature, &arm.start, scene.dt)?;
+            let effects = crate::effects::ArmEffects::new(&arm.name, &arm.model, &armature, &arm.start, scene.dt)?;
             {
                 let mb = multibody_joints.get_multibody_mut(mb_index).ok_or_else(|| SimError::Build("multibody vanished".into()))?;
                 for (k, t) in effects.transmissions.iter().enumerate() {

@@ -47,6 +47,47 @@ fn coulomb_friction_is_a_torque_step_with_the_velocity_sign() {
     assert!((mean - fc).abs() < 0.03 * fc && worst < 0.2 * fc, "{mean} {worst}");
 }
 
+/// A Coulomb friction at the jaw's actuator (7), which the wrist yaw's motion turns (the
+/// coupling's `a7 = (C^-1 q)_7` holds the wrist yaw): driving the wrist yaw alone, the PID needs
+/// `w_j fc sign(a7')` more on each joint `j` the actuator's cables reach (`w`: the actuator's row
+/// of `C^-1`, virtual work), on the jaw too although the jaw holds still.
+#[test]
+fn an_actuator_friction_loads_every_joint_its_cables_reach() {
+    let fc = 0.05;
+    let run = |scene: &Scene| {
+        let mut sim = Sim::new(scene, &SimOptions { no_gravity: true, ..Default::default() }).unwrap();
+        let (a, w) = (0.3, 2.0 * std::f64::consts::PI * 0.2);
+        let steps = (10.0 / sim.dt) as usize;
+        (1..=steps)
+            .map(|s| {
+                let t = s as f64 * sim.dt;
+                sim.set_target(5, a * (w * t).sin(), a * w * (w * t).cos()).unwrap();
+                sim.step();
+                (sim.qd().to_vec(), sim.effort(5).unwrap(), sim.effort(6).unwrap())
+            })
+            .collect::<Vec<_>>()
+    };
+    let with_effect = psm_with(&format!("[[effects]]\nname = \"actuator_coulomb_friction\"\nactuator = 7\nparameters = {{ fc = {fc} }}\n"));
+    let inv = with_effect.arms[0].model.coupling_matrix().unwrap().try_inverse().unwrap();
+    let (base, with) = (run(&Scene::load("psm").unwrap()), run(&with_effect));
+    for (j, pick) in [(5, 1), (6, 2)] {
+        let steps: Vec<f64> = with
+            .iter()
+            .zip(&base)
+            .skip(1000)
+            .filter_map(|(x, b)| {
+                let a7: f64 = (0..7).map(|k| inv[(6, k)] * x.0[k]).sum();
+                let (ex, eb) = if pick == 1 { (x.1, b.1) } else { (x.2, b.2) };
+                (a7.abs() > 0.05).then(|| (ex - eb) * a7.signum())
+            })
+            .collect();
+        let mean = steps.iter().sum::<f64>() / steps.len() as f64;
+        let want = inv[(6, j)] * fc;
+        eprintln!("jaw actuator friction on joint {j}: extra effort x sign(a7') = {mean:.5} N·m (w fc = {want:.5}) over {} samples", steps.len());
+        assert!((mean - want).abs() < 0.05 * want.abs(), "joint {j}: {mean} vs {want}");
+    }
+}
+
 #[test]
 fn compliance_deflects_in_proportion_to_the_load() {
     // The pitch holds home against gravity (1.12 N·m): the motor (encoder) holds the target,

@@ -23,6 +23,8 @@ pub struct Candidate {
     pub joint: Option<usize>,
     /// Frame name of a link effect.
     pub link: Option<String>,
+    /// The actuator (0-based column of the coupling) of an actuator effect.
+    pub actuator: Option<usize>,
     /// Fitted parameters (their names), each with its signature column.
     pub names: Vec<String>,
     pub columns: Vec<Table>,
@@ -41,11 +43,12 @@ pub struct Candidate {
 }
 
 impl Candidate {
-    /// `kind on joint`, `kind on link`, or `coupling_error dRC`.
+    /// `kind on joint`, `kind on link`, `kind on actuator N` (1-based), or `coupling_error dRC`.
     pub fn label(&self, model: &dvrk_kin::Model) -> String {
         match (&self.joint, &self.link) {
             (Some(j), _) => format!("{} on {}", self.kind.name(), model.joints[*j].name),
             (_, Some(l)) => format!("{} on {l}", self.kind.name()),
+            _ if self.actuator.is_some() => format!("{} on actuator {}", self.kind.name(), self.actuator.unwrap_or(0) + 1),
             // One candidate per entry of the coupling matrix.
             _ if self.kind == EffectKind::CouplingError => format!("{} {}", self.kind.name(), self.names.join(" ")),
             _ => self.kind.name().to_string(),
@@ -71,7 +74,7 @@ impl Candidate {
             p.insert((*name).into(), v);
         }
         match self.kind {
-            EffectKind::Spring => {
+            EffectKind::Spring | EffectKind::ActuatorSpring => {
                 p.insert("k".into(), x[0]);
                 // The rest position is only defined where there is a spring.
                 p.insert("rest".into(), if x[0] > 1e-6 { x[1] / x[0] } else { 0.0 });
@@ -102,6 +105,7 @@ impl Candidate {
             name: self.kind.name().into(),
             joint: self.joint.map(|j| model.joints[j].name.clone()),
             link: self.link.clone().map(FrameRef::Name),
+            actuator: self.actuator.map(|a| a + 1),
             parameters: self.parameters(x, profiled),
             source: source.into(),
         }
@@ -148,6 +152,59 @@ pub fn friction_sign(prep: &Prepared, nq: usize, j: usize, v: f64) -> Table {
     local(prep, nq, j, |i| s[i])
 }
 
+/// An actuator's Coulomb signature: `tanh(a' / v)` of its velocity `a' = w . q'` (`w`: its
+/// [`dvrk_kin::effects::Effect::transmission`]) band-limited as [`friction_sign`], reaching joint
+/// `j` as `w_j` times that.
+pub fn actuator_friction_sign(prep: &Prepared, nq: usize, w: &[(usize, f64)], v: f64) -> Table {
+    let raw = prep.fast_qd.first().map_or(0, Vec::len);
+    let a: Vec<f64> = (0..raw).map(|i| (w.iter().map(|(j, c)| c * prep.fast_qd[*j][i]).sum::<f64>() / v).tanh()).collect();
+    spread(nq, w, &prep.band(&a))
+}
+
+/// A per-actuator signal `a(sample)` as joint efforts: `w_j a` on each joint of `w`.
+fn spread(nq: usize, w: &[(usize, f64)], a: &[f64]) -> Table {
+    a.iter()
+        .map(|x| {
+            let mut r = vec![0.0; nq];
+            for (j, c) in w {
+                r[*j] = c * x;
+            }
+            r
+        })
+        .collect()
+}
+
+/// The actuator candidates of `model`: friction (Coulomb, its smoothing profiled; viscous),
+/// spring and motor inertia on each actuator whose cables move several joints, one of them
+/// active (an actuator of one joint is that joint: its joint effects are the candidates). Each
+/// acts at the actuator's position `w . q` and loads the joints by `w` (virtual work).
+fn actuators(model: &dvrk_kin::Model, prep: &Prepared) -> Result<Vec<Candidate>> {
+    let nq = model.nq();
+    let mut out = Vec::new();
+    for a in 0..nq {
+        let kind = EffectKind::ActuatorViscousFriction;
+        let spec = EffectSpec { name: kind.name().into(), joint: None, link: None, actuator: Some(a + 1), parameters: BTreeMap::from([("fv".into(), 0.0)]), source: String::new() };
+        let Some(e) = with_effect(model, &spec)?.effects.into_iter().last() else { continue };
+        let w = e.transmission;
+        if w.len() < 2 || !w.iter().any(|(j, _)| prep.active.contains(j)) {
+            continue;
+        }
+        let at = |x: &dyn Fn(&[f64]) -> f64, rows: &[Vec<f64>]| -> Vec<f64> { rows.iter().map(|r| x(r)).collect() };
+        let dot = |r: &[f64]| w.iter().map(|(j, c)| c * r[*j]).sum::<f64>();
+        let sign = |v: f64| vec![actuator_friction_sign(prep, nq, &w, v)];
+        let grid: Vec<(f64, Vec<Table>)> = COULOMB_SMOOTHING.iter().map(|&v| (v, sign(v))).collect();
+        let one = |kind, n: &[&str], columns: Vec<Table>, profile| {
+            let focus = focus_of(prep, &columns[0]);
+            Candidate { kind, joint: None, link: None, actuator: Some(a), names: names(n), columns, at: vec![0.0; n.len()], range: None, focus, profile }
+        };
+        out.push(one(EffectKind::ActuatorCoulombFriction, &["fc"], sign(COULOMB_SMOOTHING_DEFAULT), Some(("smoothing", grid))));
+        out.push(one(EffectKind::ActuatorViscousFriction, &["fv"], vec![spread(nq, &w, &at(&dot, &prep.qd))], None));
+        out.push(one(EffectKind::ActuatorSpring, &["k", "k_rest"], vec![spread(nq, &w, &at(&dot, &prep.q)), spread(nq, &w, &vec![-1.0; prep.t.len()])], None));
+        out.push(one(EffectKind::MotorInertia, &["inertia"], vec![spread(nq, &w, &at(&dot, &prep.qdd))], None));
+    }
+    Ok(out)
+}
+
 /// A payload's position (m, in its frame) from a fit `x = (m, m dx, m dy, m dz)` of a candidate
 /// linearised at `at` ([`super::payload`]): `at + d`, each coordinate within the vocabulary's
 /// range (+-1 m). `None` below 1 g, where the position is not defined.
@@ -168,6 +225,7 @@ pub fn offset_sensitivities(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, g
             name: "joint_offset".into(),
             joint: Some(model.joints[j].name.clone()),
             link: None,
+            actuator: None,
             parameters: BTreeMap::from([("offset".into(), h)]),
             source: String::new(),
         };
@@ -195,7 +253,8 @@ pub fn rate_sensitivities(predictor: &mut Predictor, prep: &Prepared, base: &Tab
     Ok(out)
 }
 
-/// The linear candidates (friction, springs, offsets, the counterweight, the coupling's entries;
+/// The linear candidates (friction, springs, offsets, the actuators' friction, springs and motor
+/// inertia, the counterweight, the coupling's entries;
 /// payloads are [`super::payload`]'s) for the joints `prep.active`,
 /// with `base` the nominal prediction and `offsets` from [`offset_sensitivities`]. The drives'
 /// compliance and play are profiles ([`super::drive`]), latency too.
@@ -211,6 +270,7 @@ pub fn build(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f64; 3
             kind: EffectKind::CoulombFriction,
             joint: Some(j),
             link: None,
+            actuator: None,
             names: names(&["fc"]),
             columns: sign(COULOMB_SMOOTHING_DEFAULT),
             at: vec![0.0],
@@ -222,6 +282,7 @@ pub fn build(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f64; 3
             kind: EffectKind::ViscousFriction,
             joint: Some(j),
             link: None,
+            actuator: None,
             names: names(&["fv"]),
             columns: vec![local(prep, nq, j, |i| prep.qd[i][j])],
             at: vec![0.0],
@@ -234,6 +295,7 @@ pub fn build(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f64; 3
             kind: EffectKind::Spring,
             joint: Some(j),
             link: None,
+            actuator: None,
             names: names(&["k", "k_rest"]),
             columns: vec![local(prep, nq, j, |i| prep.q[i][j]), local(prep, nq, j, |_| -1.0)],
             at: vec![0.0; 2],
@@ -246,6 +308,7 @@ pub fn build(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f64; 3
                 kind: EffectKind::JointOffset,
                 joint: Some(j),
                 link: None,
+                actuator: None,
                 names: names(&["offset"]),
                 columns: vec![d.clone()],
                 at: vec![0.0],
@@ -256,6 +319,7 @@ pub fn build(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f64; 3
             });
         }
     }
+    out.extend(actuators(model, prep)?);
     out.extend(counterweight(predictor, arm, gravity, prep, base)?);
     out.extend(coupling(predictor, arm, gravity, prep, base)?);
     Ok(out)
@@ -263,7 +327,7 @@ pub fn build(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f64; 3
 
 /// An effect on the whole model (no joint, no link) with `parameters`.
 fn model_effect(kind: EffectKind, parameters: BTreeMap<String, f64>) -> EffectSpec {
-    EffectSpec { name: kind.name().into(), joint: None, link: None, parameters, source: String::new() }
+    EffectSpec { name: kind.name().into(), joint: None, link: None, actuator: None, parameters, source: String::new() }
 }
 
 /// The joint whose effort `column` moves most against its noise.
@@ -307,7 +371,7 @@ fn counterweight(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f6
     let effect = model_effect(kind, BTreeMap::from([("mu".into(), at[0]), ("mass".into(), at[1])]));
     let columns = finite_differences(predictor, arm, gravity, prep, base, &effect, &[("mu".into(), 1e-3), ("mass".into(), 1e-3)])?;
     let focus = focus_of(prep, &columns[1]);
-    Ok(vec![Candidate { kind, joint: None, link: None, names: names(&["mu", "mass"]), columns, at: at.to_vec(), range: None, focus, profile: None }])
+    Ok(vec![Candidate { kind, joint: None, link: None, actuator: None, names: names(&["mu", "mass"]), columns, at: at.to_vec(), range: None, focus, profile: None }])
 }
 
 /// The coupling entries a recording can show: non-zero, in a row that couples (not the
@@ -350,6 +414,7 @@ fn coupling(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f64; 3]
             kind,
             joint: None,
             link: None,
+            actuator: None,
             names: vec![name],
             columns,
             at: vec![at],
@@ -366,7 +431,7 @@ mod tests {
     use super::*;
 
     fn candidate(kind: EffectKind, names: &[&str], at: &[f64]) -> Candidate {
-        Candidate { kind, joint: None, link: None, names: super::names(names), columns: vec![], at: at.to_vec(), range: None, focus: 0, profile: None }
+        Candidate { kind, joint: None, link: None, actuator: None, names: super::names(names), columns: vec![], at: at.to_vec(), range: None, focus: 0, profile: None }
     }
 
     /// A fit's bounds are the physical ranges less the model's own value: a coupling entry

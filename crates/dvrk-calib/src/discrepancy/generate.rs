@@ -350,7 +350,7 @@ fn draw(kind: EffectKind, model: &Model, inertials: &dvrk_sim::inertials::Inerti
         }
         _ => unreachable!("not a hidden kind"),
     };
-    Ok(EffectSpec { name: kind.name().into(), joint: joint.map(|j| model.joints[j].name.clone()), link, parameters: p, source: "dvrk synth hidden-effect".into() })
+    Ok(EffectSpec { name: kind.name().into(), joint: joint.map(|j| model.joints[j].name.clone()), link, actuator: None, parameters: p, source: "dvrk synth hidden-effect".into() })
 }
 
 /// The tracker's poses of a marker on link `mo.link` of the truth `truth` (its own kinematics at

@@ -84,6 +84,7 @@ impl KinematicScore {
             name: self.kind.name().into(),
             joint: self.joint.map(|j| model.joints[j].name.clone()),
             link: self.link.clone().map(FrameRef::Name),
+            actuator: None,
             parameters: p,
             source: source.into(),
         };
@@ -181,6 +182,7 @@ impl KinematicChannel {
                             name: spec.name,
                             joint: spec.joint,
                             link: spec.link.map(|l| l.to_string()),
+                            actuator: spec.actuator,
                             parameters: spec.parameters,
                             ci95,
                             delta_bic: k.delta_bic,
@@ -457,6 +459,7 @@ pub fn length_effect(model: &Model, k: usize, da: f64) -> EffectSpec {
         name: "link_length".into(),
         joint: None,
         link: Some(FrameRef::Name(model.frames[k].name.clone())),
+        actuator: None,
         parameters: BTreeMap::from([("a".into(), da), ("d".into(), 0.0)]),
         source: String::new(),
     }

@@ -10,6 +10,9 @@ pub struct EffectReport {
     pub name: String,
     pub joint: Option<String>,
     pub link: Option<String>,
+    /// The actuator (1-based, a column of the coupling) of an actuator effect.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub actuator: Option<usize>,
     /// Model-file parameters (units of the vocabulary).
     pub parameters: BTreeMap<String, f64>,
     /// 95% intervals of the fitted parameters.
@@ -37,11 +40,12 @@ pub struct JointExplained {
 }
 
 impl EffectReport {
-    /// `name on joint`, `name on link`, `name`, or a coupling error with its entries:
+    /// `name on joint`, `name on link`, `name on actuator N`, `name`, or a coupling error with its entries:
     /// `coupling_error d55` (as the candidates' labels).
     pub fn label(&self) -> String {
         match self.joint.as_ref().or(self.link.as_ref()) {
             Some(at) => format!("{} on {at}", self.name),
+            None if self.actuator.is_some() => format!("{} on actuator {}", self.name, self.actuator.unwrap_or(0)),
             None if self.name == dvrk_kin::effects::EffectKind::CouplingError.name() => {
                 std::iter::once(self.name.as_str()).chain(self.parameters.keys().map(String::as_str)).collect::<Vec<_>>().join(" ")
             }

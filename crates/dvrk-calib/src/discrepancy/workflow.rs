@@ -69,10 +69,10 @@ impl Default for Options {
     }
 }
 
-/// Whether two effects are the same one: a kind on one joint or link (a coupling error, on
+/// Whether two effects are the same one: a kind on one joint, link or actuator (a coupling error, on
 /// neither, by its entry: the parameter it names), whatever their values.
 pub fn same_effect(a: &EffectSpec, b: &EffectSpec) -> bool {
-    a.name == b.name && a.joint == b.joint && a.link == b.link && (a.joint.is_some() || a.link.is_some() || a.parameters.keys().eq(b.parameters.keys()))
+    a.name == b.name && a.joint == b.joint && a.link == b.link && a.actuator == b.actuator && (a.joint.is_some() || a.link.is_some() || a.actuator.is_some() || a.parameters.keys().eq(b.parameters.keys()))
 }
 
 /// The profiled effects' one parameter, by kind (latency, a drive's compliance or play).
@@ -90,6 +90,7 @@ fn profiled_spec(model: &Model, kind: EffectKind, joint: Option<usize>, value: f
         name: kind.name().into(),
         joint: joint.map(|j| model.joints[j].name.clone()),
         link: None,
+        actuator: None,
         parameters: BTreeMap::from([(profiled_name(kind).into(), value)]),
         source: "dvrk discrepancy".into(),
     }
@@ -576,7 +577,7 @@ fn pair_choice(scored: &[Scored], winners: &[usize], fit: &Fitter, r: &Table, o:
     for (a, (i, ci, mi)) in pool.iter().enumerate() {
         for (j, cj, mj) in &pool[a + 1..] {
             // Two candidates of one kind on one joint or link are one effect.
-            if ci.kind == cj.kind && ci.joint == cj.joint && ci.link == cj.link {
+            if ci.kind == cj.kind && ci.joint == cj.joint && ci.link == cj.link && ci.actuator == cj.actuator {
                 continue;
             }
             let m = DMatrix::from_columns(&mi.column_iter().chain(mj.column_iter()).collect::<Vec<_>>());
@@ -738,6 +739,18 @@ fn rms(r: &Table, k: usize, range: std::ops::Range<usize>) -> f64 {
 fn coulomb_as_fitted(base: &mut Table, model: &Model, prep: &Prepared) {
     let nq = model.nq();
     let mut kin = vec![0.0; nq];
+    let smoothing = |e: &dvrk_kin::effects::Effect| if e.get("smoothing") > 0.0 { e.get("smoothing") } else { candidates::COULOMB_SMOOTHING_DEFAULT };
+    for e in model.effects.iter().filter(|e| e.kind == EffectKind::ActuatorCoulombFriction) {
+        let sign = candidates::actuator_friction_sign(prep, nq, &e.transmission, smoothing(e));
+        for ((row, s), (q, qd)) in base.iter_mut().zip(&sign).zip(prep.q.iter().zip(&prep.qd)) {
+            kin.fill(0.0);
+            dvrk_kin::effects::effort(std::slice::from_ref(e), q, qd, candidates::COULOMB_SMOOTHING_DEFAULT, &mut kin);
+            // The offset reaches the joints as the friction does: w_j offset.
+            for (j, w) in &e.transmission {
+                row[*j] += kin[*j] + e.get("fc") * s[*j] + w * e.get("offset");
+            }
+        }
+    }
     for e in model.effects.iter().filter(|e| e.kind == EffectKind::CoulombFriction) {
         let Some(j) = e.joint else { continue };
         let v = if e.get("smoothing") > 0.0 { e.get("smoothing") } else { candidates::COULOMB_SMOOTHING_DEFAULT };
@@ -961,7 +974,7 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
             None => {
                 m.insert(profiled_name(kind).into(), s.ci[0]);
             }
-            Some(c) if matches!(c.kind, EffectKind::Spring) => {
+            Some(c) if matches!(c.kind, EffectKind::Spring | EffectKind::ActuatorSpring) => {
                 m.insert("k".into(), s.ci[0]);
             }
             Some(c) if matches!(c.kind, EffectKind::PayloadMass) => {
@@ -1040,6 +1053,7 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
             name: spec.name.clone(),
             joint: spec.joint.clone(),
             link: spec.link.as_ref().map(|l| l.to_string()),
+            actuator: spec.actuator,
             parameters: spec.parameters.clone(),
             ci95,
             delta_bic: s.delta_bic,

@@ -7,13 +7,17 @@
 //! column are the identity: yaw, pitch, insertion, roll), and per joint-space friction term:
 //! `coulomb_friction` (fc with the smoothing it was fitted with, offset), `viscous_friction`
 //! (fv), `spring` (k, rest 0); the presliding (Dahl) level joins the Coulomb one (it is the
-//! velocity's sign once the joint slides) and is listed in the notes. A constant effort offset of a coupled channel (the tool's
-//! actuators) maps exactly onto the joints (`offset_joint = to_joint^-T offset_channel`) and
-//! joins their `coulomb_friction` offsets. The other terms of coupled channels act on actuator
-//! velocities and positions, which mix several joints (`q_actuator = to_joint^-1 q_joint`): a
-//! per-joint effect cannot express them, so they are listed in the notes with their values
-//! (and in [`IdentifiedModel::not_expressed`]). The reflected motor inertias and the joint
-//! damping the fit assumed (none: the viscous frictions hold it) go in the model's `[drive]`,
+//! velocity's sign once the joint slides) and is listed in the notes. A channel that is one of
+//! the model's actuators (the tool's, whose motion is `q_actuator = to_joint^-1 q_joint`, the
+//! model's own coupling) carries its terms as actuator effects on it: `actuator_coulomb_friction`
+//! (fc, its Dahl level, offset, smoothing), `actuator_viscous_friction`, `actuator_spring` and
+//! `motor_inertia` (its reflected motor inertia, cross terms and all). Only the Stribeck and
+//! winding terms and the cross-channel springs have no effect to go in: they are listed in the
+//! notes with their values (and in [`IdentifiedModel::not_expressed`]); a coupled channel that is
+//! not the model's actuator maps its constant offset exactly onto the joints (`offset_joint =
+//! to_joint^-T offset_channel`) and its motor inertia's diagonal into `[drive]`. The motor
+//! inertias of channels that are joints and the joint damping the fit assumed (none: the
+//! viscous frictions hold it) go in the model's `[drive]`,
 //! which a scene arm built from the model takes over its own.
 
 use super::problem::{EffectTerm, Param, Processing};
@@ -35,7 +39,7 @@ pub struct IdentifiedModel {
     /// Per model joint: the identified reflected motor inertia of a channel that is that joint
     /// (kg m^2, kg for the insertion), `None` elsewhere (the model's `[drive]` holds it).
     pub armature: Vec<Option<f64>>,
-    /// Identified terms that no per-joint effect expresses, as `name = value unit`.
+    /// Identified terms that no effect of the vocabulary expresses, as `name = value unit`.
     pub not_expressed: Vec<String>,
     /// Bodies the identification left degenerate: the file carries their prior inertial.
     pub kept_prior: Vec<String>,
@@ -104,6 +108,13 @@ pub fn identified_model(model: &Model, id: &Identification, processing: &Process
     let mut by_joint: BTreeMap<(usize, &'static str), BTreeMap<String, f64>> = BTreeMap::new();
     let mut armature = vec![None; nq];
     let mut not_expressed = Vec::new();
+    // Channel c is the model's actuator c when its motion is the actuator's: row c of
+    // to_joint^-1 equals row c of the coupling's inverse (the WPI channels 5..7).
+    let model_inv = model.coupling_matrix().and_then(|c| c.try_inverse());
+    let actuator: Vec<bool> = (0..nc)
+        .map(|c| channel_joint(to_joint, c).is_none() && nc == nq && model_inv.as_ref().is_some_and(|m| (0..nq).all(|j| (m[(c, j)] - inv_t[(j, c)]).abs() <= 1e-9 * m.row(c).amax())))
+        .collect();
+    let mut by_actuator: BTreeMap<(usize, &'static str), BTreeMap<String, f64>> = BTreeMap::new();
     let mut channel_offset = vec![0.0; nc];
     let mut channel_armature = vec![0.0; nc];
     for (i, p) in id.layout.params.iter().enumerate() {
@@ -114,6 +125,30 @@ pub fn identified_model(model: &Model, id: &Identification, processing: &Process
             Param::Joint { term, joint } => (term, Some((joint, processing.coulomb_velocity_of(joint)))),
             Param::Effect { term, channel } => match channel_joint(to_joint, channel) {
                 Some(j) => (term, Some((j, processing.coulomb_velocity_of(channel)))),
+                // A channel that is one of the model's actuators: its terms are actuator effects.
+                None if actuator[channel] => {
+                    let smoothing = processing.coulomb_velocity_of(channel);
+                    let (name, key) = match term {
+                        EffectTerm::Coulomb | EffectTerm::Dahl => ("actuator_coulomb_friction", "fc"),
+                        EffectTerm::Offset => ("actuator_coulomb_friction", "offset"),
+                        EffectTerm::Viscous => ("actuator_viscous_friction", "fv"),
+                        EffectTerm::Spring => ("actuator_spring", "k"),
+                        EffectTerm::Armature => ("motor_inertia", "inertia"),
+                        EffectTerm::Stribeck | EffectTerm::Winding => {
+                            not_expressed.push(format!("{} = {value:.6} {}", id.estimates[i].name, unit(term, false)));
+                            continue;
+                        }
+                    };
+                    let e = by_actuator.entry((channel, name)).or_default();
+                    *e.entry(key.into()).or_default() += value;
+                    if name == "actuator_coulomb_friction" {
+                        e.insert("smoothing".into(), smoothing);
+                    }
+                    if term == EffectTerm::Dahl {
+                        not_expressed.push(format!("{} = {value:.6} {} (presliding friction: added to the actuator's Coulomb level)", id.estimates[i].name, unit(term, false)));
+                    }
+                    continue;
+                }
                 None if term == EffectTerm::Offset => {
                     channel_offset[channel] += value;
                     continue;
@@ -175,7 +210,13 @@ pub fn identified_model(model: &Model, id: &Identification, processing: &Process
         if name == "coulomb_friction" {
             parameters.entry("fc".into()).or_insert(0.0);
         }
-        effects.push(EffectSpec { name: name.into(), joint: Some(model.joints[j].name.clone()), link: None, parameters, source: source.clone() });
+        effects.push(EffectSpec { name: name.into(), joint: Some(model.joints[j].name.clone()), link: None, actuator: None, parameters, source: source.clone() });
+    }
+    for ((c, name), mut parameters) in by_actuator {
+        if name == "actuator_coulomb_friction" {
+            parameters.entry("fc".into()).or_insert(0.0);
+        }
+        effects.push(EffectSpec { name: name.into(), joint: None, link: None, actuator: Some(c + 1), parameters, source: source.clone() });
     }
     let mut inertials = Vec::with_capacity(model.bodies.len());
     let mut kept_prior = Vec::new();
@@ -221,8 +262,8 @@ frictions, the identified motor inertias).{}{}",
             String::new()
         } else {
             format!(
-                "\nNot expressible as per-joint effects (terms of the tool's actuator channels act on actuator velocities and positions, \
-which mix joints: q_actuator = to_joint^-1 q_joint; their constant offsets are mapped exactly into the joints' coulomb_friction offsets):\n{}",
+                "\nNot expressible as effects (Stribeck and winding terms, cross-channel springs; the tool's actuator channels' friction, springs \
+and motor inertias are actuator effects):\n{}",
                 not_expressed.iter().map(|s| format!("- {s}")).collect::<Vec<_>>().join("\n")
             )
         }

@@ -210,7 +210,7 @@ fn identified_model_replays_the_held_out_efforts_closer_than_cad() {
 
 /// `dvrk identify -o`: the output is a model file. Loaded back with `dvrk_kin::load` it carries
 /// every body's identified inertial and the identified effects in the model's vocabulary (the
-/// yaw's friction as identified; the wrist actuators' constant offsets mapped into the joints'),
+/// yaw's friction as identified; the wrist actuators' friction and springs as actuator effects),
 /// and the drive they were fitted with; put on the scene's arm the way `dvrk sim --model
 /// PSM1=FILE` does it, it replays `two` exactly as the identified scene does.
 #[test]
@@ -240,14 +240,29 @@ fn identify_output_is_a_model_file_the_simulator_loads() {
     dvrk_kin::effects::effort(&loaded.effects, &loaded.home(), &qd, 0.0, &mut tau);
     let expected = (est("outer_yaw.fc") + est("outer_yaw.fd")) * (0.5 / options.processing.coulomb_velocity_of(0)).tanh() + est("outer_yaw.fo") + est("outer_yaw.fv") * 0.5;
     assert!((-tau[0] - expected).abs() < 1e-12, "{} vs {expected}", -tau[0]);
-    // The wrist actuators' offsets, mapped to joints (to_joint^-T fo), are the wrist joints' offsets.
-    let offsets = nalgebra::DVector::from_fn(7, |c, _| if c >= 4 { est(&format!("{} actuator.fo", model.joints[c].name)) } else { 0.0 });
-    let joint_offsets = r1.to_joint.clone().try_inverse().unwrap().transpose() * offsets;
-    for j in 4..7 {
-        let e = loaded.spec.effects.iter().find(|e| e.name == "coulomb_friction" && e.joint.as_deref() == Some(model.joints[j].name.as_str())).unwrap();
-        assert!((e.parameters["offset"] - joint_offsets[j]).abs() < 1e-12, "joint {j}: {:?} vs {}", e.parameters, joint_offsets[j]);
+    // The wrist actuators' friction and springs are actuator effects (issue 40 item 4): their
+    // joint efforts are to_joint^-T of the channels' identified efforts, (fc + fd) tanh(a' / vc)
+    // + fo + fv a' + k a at the actuators' positions a and velocities a' (to_joint^-1 q, q').
+    let (q, qd) = (loaded.home(), [0.0, 0.0, 0.0, 0.0, 0.4, -0.3, 0.5]);
+    let inv = r1.to_joint.clone().try_inverse().unwrap();
+    let (a, ad) = (&inv * nalgebra::DVector::from_column_slice(&q), &inv * nalgebra::DVector::from_column_slice(&qd));
+    let channel = nalgebra::DVector::from_fn(7, |c, _| {
+        if c < 4 {
+            return 0.0;
+        }
+        let n = |t: &str| est(&format!("{} actuator.{t}", model.joints[c].name));
+        (n("fc") + n("fd")) * (ad[c] / options.processing.coulomb_velocity_of(c)).tanh() + n("fo") + n("fv") * ad[c] + n("k") * a[c]
+    });
+    let expected = inv.transpose() * channel;
+    let actuator_effects: Vec<_> = loaded.effects.iter().filter(|e| e.actuator.is_some()).cloned().collect();
+    assert_eq!(actuator_effects.len(), 12, "friction (Coulomb, viscous), spring, motor inertia on actuators 5..7");
+    let mut tau = vec![0.0; 7];
+    dvrk_kin::effects::effort(&actuator_effects, &q, &qd, 0.0, &mut tau);
+    for j in 0..7 {
+        assert!((-tau[j] - expected[j]).abs() < 1e-12, "joint {j}: {} vs {}", -tau[j], expected[j]);
     }
-    assert!(loaded.spec.notes.contains("outer_wrist_yaw actuator.fv = "), "the actuator friction is listed: {}", loaded.spec.notes);
+    assert!(!loaded.spec.notes.contains("actuator.fv = "), "no actuator friction is left in the notes: {}", loaded.spec.notes);
+    assert!(loaded.spec.notes.contains("outer_wrist_yaw actuator.fd = "), "the presliding level is listed: {}", loaded.spec.notes);
     assert!(loaded.spec.notes.contains("outer_yaw.fd = "), "the presliding friction is listed: {}", loaded.spec.notes);
     // In the simulator, as `dvrk sim --model PSM1=FILE` puts it: the file's [drive] replaces
     // the scene's joint damping (the identified viscous frictions hold it) and raises the

@@ -36,7 +36,8 @@ pub fn inverse_dynamics(
 
 /// The effort the drives must supply (N·m, N): [`inverse_dynamics`] plus what the model's
 /// friction and spring effects take ([`crate::effects::effort`], `velocity_scale` smoothing the
-/// Coulomb sign, 0 for a hard sign). Payload masses enter through `dm`'s inertias (build it
+/// Coulomb sign, 0 for a hard sign) and its motors' reflected inertias
+/// ([`crate::effects::inertial_effort`]). Payload masses enter through `dm`'s inertias (build it
 /// from [`crate::effects::effect_inertias`]). Allocates nothing.
 #[allow(clippy::too_many_arguments)]
 pub fn actuator_effort(
@@ -56,6 +57,7 @@ pub fn actuator_effort(
         *t = -*t;
     }
     crate::effects::effort(&model.effects, q, qd, velocity_scale, tau);
+    crate::effects::inertial_effort(&model.effects, qdd, tau);
     for t in tau.iter_mut() {
         *t = -*t;
     }
