@@ -184,6 +184,9 @@ pub fn candidates(model: &Model, bodies: &BodyColumns, fit: &Fitter, r: &Table, 
 #[derive(Debug, Clone, Copy)]
 pub struct Profile {
     pub mass: [f64; 2],
+    /// The place (m, link frame) of the lightest mass kept: with it, an equivalent placement
+    /// within the interval when the best mass runs to the vocabulary's bound.
+    pub lightest_place: [f64; 3],
     pub position: [[f64; 2]; 3],
     pub first_moment: [f64; 2],
     pub distance: [f64; 2],
@@ -199,11 +202,14 @@ pub fn profile(normal: &Normal, place: [f64; 3], mass: f64, pivot: [f64; 3], chi
     };
     let best = gain(mass, &place);
     let c = Vector3::from(pivot);
-    let mut out = Profile { mass: [mass; 2], position: std::array::from_fn(|k| [place[k]; 2]), first_moment: [0.0; 2], distance: [0.0; 2] };
+    let mut out = Profile { mass: [mass; 2], lightest_place: place, position: std::array::from_fn(|k| [place[k]; 2]), first_moment: [0.0; 2], distance: [0.0; 2] };
     let d0 = (Vector3::from(place) - c).norm();
     (out.first_moment, out.distance) = ([mass * d0; 2], [d0; 2]);
     let mut extend = |m: f64, p: &[f64; 3]| {
         let d = (Vector3::from(*p) - c).norm();
+        if m < out.mass[0] {
+            out.lightest_place = *p;
+        }
         out.mass = [out.mass[0].min(m), out.mass[1].max(m)];
         for k in 0..3 {
             out.position[k] = [out.position[k][0].min(p[k]), out.position[k][1].max(p[k])];
@@ -300,13 +306,21 @@ const FIXED_RELATIVE: f64 = 0.2;
 
 /// The report of a payload at `place` with `mass` (kg), its intervals from its [`Profile`], on
 /// a body whose pivot is `pivot` (link frame, m) moving `pivot_rms` (m).
-pub fn report(place: [f64; 3], mass: f64, pr: &Profile, pivot: [f64; 3], pivot_rms: f64, equivalent: Vec<Placement>) -> PayloadReport {
+///
+/// `unbounded`: the best fit's mass (kg) and distance from the pivot (m) when that mass ran to the
+/// vocabulary's bound; `place` and `mass` are then an equivalent placement within the interval.
+pub fn report(place: [f64; 3], mass: f64, pr: &Profile, pivot: [f64; 3], pivot_rms: f64, equivalent: Vec<Placement>, unbounded: Option<(f64, f64)>) -> PayloadReport {
     let distance = (Vector3::from(place) - Vector3::from(pivot)).norm();
     let moment = mass * distance;
     let half = |r: [f64; 2]| 0.5 * (r[1] - r[0]);
     let mut cannot_fix = Vec::new();
     let unfixed_mass = half(pr.mass) > FIXED_RELATIVE * mass;
-    if unfixed_mass && half(pr.first_moment) < FIXED_RELATIVE * moment && pivot_rms < 0.01 {
+    if let Some(best) = unbounded {
+        cannot_fix.push(format!(
+            "the mass: the fit runs to the vocabulary's {:.0} kg at {:.3} m from the pivot (a first moment and almost no inertia: this motion does not excite the payload's inertia, or the model's inertia is off by more); gravity fixes the first moment, {moment:.4} kg m [{:.4}, {:.4}], and any mass of at least {mass:.3} kg placed to give it (here: the lightest within the 95% interval)",
+            best.0, best.1, pr.first_moment[0], pr.first_moment[1]
+        ));
+    } else if unfixed_mass && half(pr.first_moment) < FIXED_RELATIVE * moment && pivot_rms < 0.01 {
         cannot_fix.push(format!(
             "the mass and its distance from the pivot trade (the body turns about a point that moves {:.1} mm RMS): gravity fixes their product, the first moment, {moment:.4} kg m [{:.4}, {:.4}]; the mass alone rests on the payload's inertia, which this motion excites too little: {mass:.3} kg [{:.3}, {:.3}] at {distance:.3} m [{:.3}, {:.3}]",
             1e3 * pivot_rms, pr.first_moment[0], pr.first_moment[1], pr.mass[0], pr.mass[1], pr.distance[0], pr.distance[1]

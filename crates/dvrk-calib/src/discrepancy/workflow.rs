@@ -203,7 +203,10 @@ fn score_linear(c: &Candidate, fit: &Fitter, r: &Table, o: &Options, rng: &mut C
     let frac = effective_fraction(&train.series(&white));
     let (stat, n_eff) = per_joint_ratio(&train, &fit.whitened(&y), &white);
     let delta_bic = stat - (p + profiled.is_some() as usize) as f64 * n_eff.ln();
-    let on_bound = bounds.iter().zip(x.iter()).any(|(b, v)| b.active(*v));
+    // A payload's mass at its upper bound (unfixed, see `at_edge` below) is far from the
+    // effect's absence: the regular test holds there.
+    let unfixed_mass = |i: usize, b: &super::stats::Bounds, v: f64| c.kind == EffectKind::PayloadMass && i == 0 && b.held_at(v).is_some_and(|b| b != 0.0);
+    let on_bound = bounds.iter().zip(x.iter()).enumerate().any(|(i, (b, v))| b.active(*v) && !unfixed_mass(i, b, *v));
     let p_value = if on_bound && o.bootstrap > 0 {
         // Block bootstrap under the null: the fitted model's residual resampled in blocks as
         // long as its correlation, refitted.
@@ -269,7 +272,10 @@ fn score_linear(c: &Candidate, fit: &Fitter, r: &Table, o: &Options, rng: &mut C
     let own = effect.clone();
     add(&mut effect, &fit.nuisance_effort(&e1));
     // Held at zero change is the effect's absence (friction's lower bound): the bootstrap's case.
-    let at_edge = bounds.iter().zip(x.iter()).any(|(b, v)| b.held_at(*v).is_some_and(|b| b != 0.0));
+    // A payload's mass at its upper bound is not an implausible fit but an unfixed one: the mass
+    // trades with its distance from the axis, gravity fixing their product (reported with an
+    // equivalent placement, [`super::payload::report`]).
+    let at_edge = bounds.iter().zip(x.iter()).enumerate().any(|(i, (b, v))| b.held_at(*v).is_some_and(|b| b != 0.0) && !unfixed_mass(i, b, *v));
     Ok(Score { x: x.iter().copied().collect(), ci, delta_bic, stat, p_value, heldout_p, cv_p, effect_to_noise: size, effect, own, chi2_unit: chi2_unit(&train, &a, &white), profiled, at_edge })
 }
 
@@ -1037,7 +1043,7 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
     // A scored candidate as a model-file effect and as the report's entry.
     let report_of = |e: &Scored| -> (EffectSpec, EffectReport) {
         let s = &e.score;
-        let (spec, ci95) = match &e.kinematic {
+        let (mut spec, ci95) = match &e.kinematic {
             Some((spec, ci)) => (spec.clone(), ci.clone()),
             None => (spec_of(e.candidate, e.kind, e.joint, s), ci_of(e.candidate, e.kind, s)),
         };
@@ -1045,7 +1051,20 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
             Some(c) if c.kind == EffectKind::PayloadMass => c.link.as_ref().and_then(|l| Some((pivots.get(l)?, payload_normals.get(l)?))).map(|((pv, spread), normal)| {
                 let place = candidates::payload_at(&c.at, &s.x).unwrap_or([c.at[1], c.at[2], c.at[3]]);
                 let pr = super::payload::profile(normal, place, s.x[0].max(1e-6), *pv, s.chi2_unit);
-                super::payload::report(place, s.x[0], &pr, *pv, *spread, equivalents(e))
+                // A mass at the vocabulary's bound: the lightest placement within the interval
+                // stands for it, in the report and the model file.
+                let upper = EffectKind::PayloadMass.range("mass").map_or(20.0, |r| r[1]);
+                if s.x[0] >= upper * (1.0 - 1e-9) && pr.mass[0] < s.x[0] {
+                    let (mass, at) = (pr.mass[0], pr.lightest_place);
+                    spec.parameters.insert("mass".into(), mass);
+                    for (k, axis) in ["x", "y", "z"].iter().enumerate() {
+                        spec.parameters.insert((*axis).into(), at[k]);
+                    }
+                    let unbounded = (s.x[0], (nalgebra::Vector3::from(place) - nalgebra::Vector3::from(*pv)).norm());
+                    super::payload::report(at, mass, &pr, *pv, *spread, equivalents(e), Some(unbounded))
+                } else {
+                    super::payload::report(place, s.x[0], &pr, *pv, *spread, equivalents(e), None)
+                }
             }),
             _ => None,
         };

@@ -28,6 +28,12 @@ fn analyse(model: &dvrk_kin::Model, path: &Path) -> Report {
     discrepancy(model, &scene_for_arm("PSM1").unwrap(), "PSM1", &log, &Options { tracking: false, ..Default::default() }).unwrap().report
 }
 
+/// [`identified_on`] the no-weight recording, once for every test here.
+fn identified_without_weight(free: &Path) -> dvrk_kin::Model {
+    static MODEL: std::sync::OnceLock<dvrk_kin::Model> = std::sync::OnceLock::new();
+    MODEL.get_or_init(|| identified_on(free)).clone()
+}
+
 /// The photographed weight: 205 g, its centre about 53.5 cm from the remote centre along the
 /// insertion stage and 2.8 cm from the instrument's axis: a first moment about the remote
 /// centre (the point the stage turns about) of 0.205 * hypot(0.535, 0.028) kg m.
@@ -44,7 +50,7 @@ const PHOTOGRAPHED_FIRST_MOMENT: f64 = 0.205 * 0.535_732;
 #[test]
 fn a_real_205_g_weight_is_named_on_the_insertion_stage() {
     let (Some(free), Some(loaded)) = (recording("one_no_weight_results.csv"), recording("one_results_1.0_scale_205_grams_insertion.csv")) else { return };
-    let model = identified_on(&free);
+    let model = identified_without_weight(&free);
     assert!(model.spec.inertial_covariance.as_ref().is_some_and(|c| c.bodies.len() == model.bodies.len()));
     let r = analyse(&model, &loaded);
     let top: Vec<_> = r.candidates.iter().take(4).map(|c| (&c.label, c.effect.delta_bic, c.supported)).collect();
@@ -96,4 +102,32 @@ fn the_no_weight_recording_names_no_payload_on_its_second_half() {
     eprintln!("{} {top:?}", r.verdict);
     assert!(r.effects.iter().all(|e| e.name != "payload_mass"), "{top:?}");
     assert!(r.candidates.iter().all(|c| c.effect.name != "payload_mass" || !c.supported), "{top:?}");
+}
+
+/// Measured: the same path at half speed (a quarter of the acceleration) with the 205 g weight:
+/// `payload_mass` on `pitch_end` named by its first moment about the remote centre, 0.1017 kg m
+/// [0.1003, 0.1038] (photographed 0.1098), while its mass runs to the vocabulary's 20 kg at 5 mm
+/// from the pivot (the fit wants the weight's gravity without its inertia); the report says so
+/// and gives the lightest placement within the interval (3.65 kg at 2.8 cm from the pivot), not
+/// a guess. The pitch's band residual 0.186 -> 0.091 N·m.
+#[test]
+fn a_real_weight_at_half_speed_is_named_by_its_first_moment() {
+    let (Some(free), Some(loaded)) = (recording("one_no_weight_results.csv"), recording("one_results_0.5_scale_205_grams_insertion.csv")) else { return };
+    let model = identified_without_weight(&free);
+    let r = analyse(&model, &loaded);
+    let top: Vec<_> = r.candidates.iter().take(4).map(|c| (&c.label, c.effect.delta_bic, c.supported)).collect();
+    eprintln!("{} {top:?}", r.verdict);
+    assert_eq!(r.verdict, "named", "{top:?}");
+    let e = &r.effects[0];
+    assert_eq!((e.name.as_str(), e.link.as_deref()), ("payload_mass", Some("pitch_end")), "{top:?}");
+    let p = e.payload.as_ref().unwrap();
+    eprintln!("{p:?}");
+    assert!((p.first_moment / PHOTOGRAPHED_FIRST_MOMENT - 1.0).abs() < 0.1, "first moment {} kg m", p.first_moment);
+    // The mass is not fixed: its interval reaches the vocabulary's bound, the report says so,
+    // and the placement given is within the interval (the model file's is the same).
+    assert_eq!(p.mass_ci95[1], 20.0);
+    assert!(p.cannot_fix.iter().any(|s| s.starts_with("the mass: the fit runs to the vocabulary's 20 kg")), "{:?}", p.cannot_fix);
+    assert!(p.mass == p.mass_ci95[0] && p.mass < 20.0 && e.parameters["mass"] == p.mass, "{} {:?}", p.mass, e.parameters);
+    let pitch = r.joints.iter().find(|j| j.joint == "outer_pitch").unwrap();
+    assert!(pitch.band_rms_after < 0.6 * pitch.band_rms_before, "{pitch:?}");
 }
