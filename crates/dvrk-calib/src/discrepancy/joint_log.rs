@@ -36,6 +36,12 @@ impl JointLog {
         self.t.is_empty()
     }
 
+    /// Whether the recording measured efforts (every sample one per joint); a recording of
+    /// encoders alone has none (every sample's list empty).
+    pub fn has_efforts(&self) -> bool {
+        !self.effort.is_empty() && self.effort.iter().all(|e| e.len() == self.names.len())
+    }
+
     /// Mean sample period (s).
     pub fn period(&self) -> f64 {
         if self.t.len() < 2 {
@@ -107,7 +113,8 @@ pub fn write_mcap(log: &JointLog, arm: &str) -> Result<Vec<u8>> {
     Ok(w.into_inner().into_inner())
 }
 
-/// Read an arm's setpoints and measurements (with efforts) from an MCAP file or ROS 1 bag, in
+/// Read an arm's setpoints and measurements (with efforts, or without any: then every sample's
+/// list is empty, [`JointLog::has_efforts`]) from an MCAP file or ROS 1 bag, in
 /// the dVRK's layout (`/<arm>/setpoint_js`, `/<arm>/measured_js`, the jaw or gripper on its own
 /// topic, merged by [`crate::joint_states::read_arm`]) or with every joint on one topic. The
 /// setpoints are matched to the measurements by time (the latest setpoint at or before each
@@ -134,8 +141,13 @@ pub fn read_mcap(path: &Path, arm: &str) -> Result<(JointLog, Vec<String>)> {
     let nq = meas.names.len();
     let mut log = JointLog { names: meas.names, ..Default::default() };
     let mut j = 0;
+    // Encoders alone (no message carries efforts): the kinematic channel can still run.
+    let without_efforts = meas.effort.iter().all(Vec::is_empty);
+    if without_efforts {
+        notes.push(format!("{}: {meas_topic} carries no efforts: only the kinematic channel (a tracked marker) can be analysed", path.display()));
+    }
     for (i, t) in meas.t.iter().enumerate() {
-        if meas.effort[i].len() != nq {
+        if !without_efforts && meas.effort[i].len() != nq {
             return Err(CalibError::file(path, format!("{meas_topic} at t = {t} s: {} efforts for {nq} joints (the discrepancy workflow needs measured efforts)", meas.effort[i].len())));
         }
         if let Some(k) = meas.position[i].iter().chain(&meas.effort[i]).position(|x| !x.is_finite()) {

@@ -13,8 +13,9 @@
 //! - [`plot`]: the residual before and after against time, velocity, load and position.
 //!
 //! Channels: torque (measured effort against inverse dynamics at the measured motion) carries
-//! the evidence; tracking is replayed for the before/after gap. The kinematic channel (a tracker
-//! on the link) is not implemented yet.
+//! the evidence; tracking is replayed for the before/after gap; the kinematic channel (a tracker
+//! on a link, [`kinematic`]) joins its evidence per candidate, and runs alone on a recording
+//! without efforts ([`kinematic_only`]).
 
 pub mod candidates;
 pub mod consistency;
@@ -25,6 +26,7 @@ pub mod fit;
 pub mod generate;
 pub mod joint_log;
 pub mod kinematic;
+pub mod kinematic_only;
 pub mod locate;
 pub mod markers;
 pub mod nuisance;

@@ -55,7 +55,7 @@ fn thinned(n: usize) -> impl Iterator<Item = usize> {
 /// recording) and the colours.
 pub fn figure(r: &Residuals, source: &str) -> Result<Figure> {
     if r.joints.is_empty() || r.t.is_empty() {
-        return Err(CalibError::data("plot", "no residual to draw"));
+        return Err(CalibError::data("plot", "no effort residual to draw (a recording without efforts has none: the kinematic channel's figures are in the report)"));
     }
     let mut panels = Vec::with_capacity(COLUMNS * r.joints.len());
     for (k, name) in r.joints.iter().enumerate() {

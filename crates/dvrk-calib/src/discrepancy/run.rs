@@ -43,6 +43,12 @@ pub fn run(path: &Path, format: &str, model: &Model, arm: &str, marker: Option<&
             other => return Err(CalibError::field("--marker-topic", format!("tracked poses are read from MCAP, bag or CSV recordings; a {other} recording has none"))),
         });
     }
+    if !log.has_efforts() && log.markers.is_none() {
+        return Err(CalibError::file(
+            path,
+            format!("/{arm}/measured_js carries no efforts and no tracked marker was given (--marker-topic, --marker-link): the discrepancy workflow needs measured efforts (the torque channel) or a tracker's poses of a marker on a link (the kinematic channel)"),
+        ));
+    }
     let scene = super::scene_for_arm(arm)?;
     let mut out = discrepancy_repeated(model, &scene, arm, &log, options, max_rounds).map_err(|e| CalibError::data(path.display().to_string(), e.to_string()))?;
     out.report.notes.splice(0..0, notes);

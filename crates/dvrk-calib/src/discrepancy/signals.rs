@@ -129,6 +129,7 @@ pub fn prepare(log: &JointLog, p: &Processing) -> Result<Prepared> {
     // Wide enough to keep a friction reversal's sharpness, narrow enough that encoder noise
     // differentiated does not flip the sign at rest.
     let wide = Butterworth2::new((4.0 * p.cutoff).min(0.4 * rate), rate);
+    let efforts = log.has_efforts();
     let mut fast_qd = Vec::with_capacity(nq);
     let mut motor_detail = Vec::with_capacity(nq);
     for k in 0..nq {
@@ -138,7 +139,8 @@ pub fn prepare(log: &JointLog, p: &Processing) -> Result<Prepared> {
         motor_detail.push(raw_q.iter().zip(&qf).map(|(r, f)| r - f).collect());
         let v = derivative(&qf, dt);
         let a = derivative(&v, dt);
-        let raw = column(&log.effort, k);
+        // A recording without efforts (the kinematic channel alone) has zeros here.
+        let raw = if efforts { column(&log.effort, k) } else { vec![0.0; n] };
         let ef = f.filtfilt(&raw, pad);
         for (i, &s) in keep.iter().enumerate() {
             q[i][k] = qf[s];
@@ -167,7 +169,7 @@ pub fn prepare(log: &JointLog, p: &Processing) -> Result<Prepared> {
     let active: Vec<usize> = (0..nq)
         .filter(|&k| {
             let (lo, hi) = log.setpoint.iter().fold((f64::MAX, f64::MIN), |(a, b), s| (a.min(s[k]), b.max(s[k])));
-            hi - lo > 1e-3 && noise[k] > 0.0
+            hi - lo > 1e-3 && (noise[k] > 0.0 || !efforts)
         })
         .collect();
     if active.is_empty() {

@@ -778,6 +778,9 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
     if log.names != names {
         return Err(CalibError::data("recording", format!("joints {:?} are not the model's {:?}", log.names, names)));
     }
+    if !log.has_efforts() {
+        return super::kinematic_only::discrepancy(model, &scene, arm_name, log, o);
+    }
     let mut scene = scene.clone();
     scene.set_model(a, model.clone()).map_err(|e| CalibError::data("model", e.to_string()))?;
     let arm = &scene.arms[a];

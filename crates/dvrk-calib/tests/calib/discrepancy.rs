@@ -571,6 +571,42 @@ fn a_length_only_the_tracker_sees_is_found() {
     assert!(k.rms_heldout_before < 1.1 && k.rms_before < 1.1, "{} {}", k.rms_before, k.rms_heldout_before);
 }
 
+/// A recording of encoders and a tracked marker without efforts (issue 40 item 5): the kinematic
+/// channel runs alone, names the hidden insertion-stage length as with efforts (within 2% of
+/// the truth), and the report says which channel and why. Without the marker as well there is
+/// nothing to analyse: a one-line error.
+#[test]
+fn a_recording_without_efforts_runs_the_kinematic_channel_alone() {
+    let mut h = tracked(Hidden::Kind(EffectKind::LinkLength), 11, None);
+    for e in &mut h.log.effort {
+        e.clear();
+    }
+    assert!(!h.log.has_efforts());
+    let r = analyse(&h, false).report;
+    let truth = &h.answer.effects[0].spec;
+    eprintln!("{} {} {:?}", r.verdict, r.channel, r.effects.first().map(|e| (&e.link, &e.parameters)));
+    assert_eq!((r.verdict.as_str(), r.channel.as_str()), ("named", "kinematic"));
+    let e = &r.effects[0];
+    assert_eq!((e.name.as_str(), &e.link), ("link_length", &truth.link.as_ref().map(|l| l.to_string())));
+    assert!(((e.parameters["a"] - truth.parameters["a"]) / truth.parameters["a"]).abs() < 0.02, "{:?} {:?}", e.parameters, truth.parameters);
+    assert!(r.notes.iter().any(|n| n.starts_with("no measured efforts in the recording: the kinematic channel alone")), "{:?}", r.notes);
+    assert!(r.joints.is_empty() && r.raw_rms_heldout_before.is_nan() && r.rms_heldout_after < r.rms_heldout_before);
+    // As a file: the MCAP reader takes a measured_js without efforts, says so, and the run
+    // without the marker is a one-line error naming the file and topic.
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("no-efforts.mcap");
+    std::fs::write(&path, dvrk_calib::discrepancy::joint_log::write_mcap(&h.log, "PSM1").unwrap()).unwrap();
+    let model = dvrk_kin::load("psm", None).unwrap();
+    let (log, notes) = dvrk_calib::discrepancy::run::read_log(&path, "auto", &model, "PSM1").unwrap();
+    assert!(!log.has_efforts() && notes.iter().any(|n| n.contains("/PSM1/measured_js carries no efforts")), "{notes:?}");
+    let e = dvrk_calib::discrepancy::run::run(&path, "auto", &model, "PSM1", None, &Options::default(), 1).err().unwrap().to_string();
+    assert!(e.contains("no-efforts.mcap") && e.contains("carries no efforts and no tracked marker was given") && !e.contains('\n'), "{e}");
+    h.log.markers = None;
+    let scene = dvrk_sim::Scene::load("psm").unwrap();
+    let e = discrepancy(&model, &scene, "PSM1", &h.log, &Options::default()).err().unwrap().to_string();
+    assert!(e.contains("no efforts and no tracked marker") && !e.contains('\n'), "{e}");
+}
+
 /// A payload hidden on a moving body drawn by the seed (any of the PSM's 13, the parallelogram's
 /// links included), within 3 cm of its centre of mass, at an ENR drawn in [3, 8], as a user meets
 /// it: the robot identified first (`dvrk identify` on the same seed's effect-free recording: the
