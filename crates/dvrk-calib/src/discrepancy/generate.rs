@@ -43,6 +43,11 @@ pub const TRACKED_KINDS: [EffectKind; 1] = [EffectKind::LinkLength];
 /// inertias leaving 0.99-1.01 of the noise floor).
 pub const ABSORBED_KINDS: [EffectKind; 1] = [EffectKind::CounterweightError];
 
+/// The tool's actuator-space friction (hidden only by name, so that the random draws and the
+/// tables' seeds stay as they were): at one of the wrist's actuators (5..7), whose cables move
+/// the wrist pitch, yaw and jaw together.
+pub const ACTUATOR_KINDS: [EffectKind; 2] = [EffectKind::ActuatorCoulombFriction, EffectKind::ActuatorViscousFriction];
+
 /// Which effect(s) to hide.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Hidden {
@@ -62,10 +67,11 @@ impl std::str::FromStr for Hidden {
     /// (`coulomb_friction+payload_mass`).
     fn from_str(s: &str) -> std::result::Result<Hidden, String> {
         let kind = |name: &str| match EffectKind::from_name(name) {
-            Some(k) if HIDDEN_KINDS.contains(&k) || TRACKED_KINDS.contains(&k) || ABSORBED_KINDS.contains(&k) => Ok(k),
+            Some(k) if HIDDEN_KINDS.contains(&k) || TRACKED_KINDS.contains(&k) || ABSORBED_KINDS.contains(&k) || ACTUATOR_KINDS.contains(&k) => Ok(k),
             _ => Err(format!(
-                "`{name}` is not an effect the generator hides (valid: none, random, random-pair, {}, {}, {} (with a marker), or two joined by +)",
+                "`{name}` is not an effect the generator hides (valid: none, random, random-pair, {}, {}, {}, {} (with a marker), or two joined by +)",
                 HIDDEN_KINDS.map(|k| k.name()).join(", "),
+                ACTUATOR_KINDS.map(|k| k.name()).join(", "),
                 ABSORBED_KINDS.map(|k| k.name()).join(", "),
                 TRACKED_KINDS.map(|k| k.name()).join(", ")
             )),
@@ -263,6 +269,18 @@ fn draw(kind: EffectKind, model: &Model, inertials: &dvrk_sim::inertials::Inerti
         let mut e = super::kinematic::length_effect(model, k, s * scale * rng.random_range(0.5e-3..2e-3));
         e.source = "dvrk synth hidden-effect".into();
         return Ok(e);
+    }
+    if ACTUATOR_KINDS.contains(&kind) {
+        // One of the wrist's actuators (5..7: 1-based), at the WPI tool's magnitudes (its
+        // identified actuator friction: Coulomb 0.008-0.025 N·m with the presliding level,
+        // viscous 0.0009-0.003 N·m s/rad).
+        let a = rng.random_range(5..=7usize);
+        let (name, range) = match kind {
+            EffectKind::ActuatorCoulombFriction => ("fc", (0.005, 0.02)),
+            _ => ("fv", (0.001, 0.004)),
+        };
+        let p = BTreeMap::from([(name.to_string(), scale * rng.random_range(range.0..range.1))]);
+        return Ok(EffectSpec { name: kind.name().into(), joint: None, link: None, actuator: Some(a), parameters: p, source: "dvrk synth hidden-effect".into() });
     }
     let js = joints_for(kind);
     let j = js[rng.random_range(0..js.len())];

@@ -702,6 +702,10 @@ pub fn separating_experiment(a: EffectKind, b: EffectKind) -> String {
     let pair = |x: EffectKind, y: EffectKind| (a == x && b == y) || (a == y && b == x);
     if a == CouplingError && b == CouplingError {
         "a motion that moves the two entries' actuators apart (each coupled joint on its own, the jaw against the wrist): a held joint's actuator moves with the others, and its entries read as theirs".into()
+    } else if a == b && matches!(a, ActuatorCoulombFriction | ActuatorViscousFriction | ActuatorSpring | MotorInertia) {
+        format!("a motion that moves the two actuators apart: an actuator turns with every joint its cables couple, so two actuators differing only by a held joint's weight (the wrist yaw's and the jaw's, the jaw held) move alike; open and close the jaw (or move the joint that tells them apart) to separate the two places of {}", a.name())
+    } else if pair(ViscousFriction, ActuatorViscousFriction) || pair(CoulombFriction, ActuatorCoulombFriction) || pair(Spring, ActuatorSpring) {
+        "a motion that moves the joints the actuator couples in other proportions (each wrist joint on its own, then together): a joint's friction follows that joint alone, an actuator's its cables' combination".into()
     } else if pair(CounterweightError, PayloadMass) {
         "a slow insertion sweep at two pitch angles: the counterweight moves against the insertion by its travel ratio, a payload with it".into()
     } else if a == b {
