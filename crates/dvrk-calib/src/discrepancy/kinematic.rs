@@ -194,6 +194,7 @@ impl KinematicChannel {
                         heldout_cv_p_value: None,
                         effect_to_noise: k.effect_to_noise,
                         supported: strong(k.delta_bic, k.p_value, k.heldout_p, k.effect_to_noise),
+                        nuisance_correlation: None,
                     }
                 })
                 .collect(),

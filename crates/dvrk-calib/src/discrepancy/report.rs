@@ -71,6 +71,11 @@ pub struct CandidateReport {
     pub effect_to_noise: f64,
     /// Strong evidence, confirmed on held-out data, and large enough to matter.
     pub supported: bool,
+    /// How much of the candidate's signature the refitted inertias can mimic (0: none, 1: all;
+    /// the correlation of its main parameter's column with what the inertia nuisance takes up
+    /// within its prior). A linear candidate's only.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub nuisance_correlation: Option<f64>,
 }
 
 /// Per joint, in its own units: the raw effort noise, the analysis band's noise floor and the

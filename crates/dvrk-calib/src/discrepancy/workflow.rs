@@ -137,6 +137,11 @@ struct Score {
     /// value is not determined (the effect stands in for something outside its physical
     /// range), so it is never named.
     at_edge: bool,
+    /// How much of a linear candidate's signature (its first parameter's column, in the fit's
+    /// metric) the inertia nuisance can take up within its prior, as a correlation: 1 - the
+    /// share it leaves, square-rooted. Near 1 the recording cannot tell the effect from an
+    /// inertia error. `None` for a profile or without a nuisance.
+    nuisance_correlation: Option<f64>,
 }
 
 impl Score {
@@ -276,7 +281,27 @@ fn score_linear(c: &Candidate, fit: &Fitter, r: &Table, o: &Options, rng: &mut C
     // trades with its distance from the axis, gravity fixing their product (reported with an
     // equivalent placement, [`super::payload::report`]).
     let at_edge = bounds.iter().zip(x.iter()).enumerate().any(|(i, (b, v))| b.held_at(*v).is_some_and(|b| b != 0.0) && !unfixed_mass(i, b, *v));
-    Ok(Score { x: x.iter().copied().collect(), ci, delta_bic, stat, p_value, heldout_p, cv_p, effect_to_noise: size, effect, own, chi2_unit: chi2_unit(&train, &a, &white), profiled, at_edge })
+    let nuisance_correlation = fit.nuisance.and_then(|_| {
+        let c0 = a.column(0).into_owned();
+        let n2 = c0.norm_squared();
+        (n2 > 0.0).then(|| (1.0 - fit.rss(&c0) / n2).clamp(0.0, 1.0).sqrt())
+    });
+    Ok(Score {
+        x: x.iter().copied().collect(),
+        ci,
+        delta_bic,
+        stat,
+        p_value,
+        heldout_p,
+        cv_p,
+        effect_to_noise: size,
+        effect,
+        own,
+        chi2_unit: chi2_unit(&train, &a, &white),
+        profiled,
+        at_edge,
+        nuisance_correlation,
+    })
 }
 
 /// The squared residual (scaled units) one unit of chi-square is for a fit of columns `a`: each
@@ -529,6 +554,7 @@ fn score_profile(fit: &Fitter, r: &Table, grid: &[f64], make: &dyn Fn(f64) -> Ta
         chi2_unit: 0.0,
         profiled: None,
         at_edge: value <= grid[0] || value >= grid[grid.len() - 1],
+        nuisance_correlation: None,
     }
 }
 
@@ -652,6 +678,7 @@ fn with_kinematic(scored: &mut Vec<Scored>, kc: &super::kinematic::KinematicChan
                 chi2_unit: 0.0,
                 profiled: None,
                 at_edge: false,
+                nuisance_correlation: None,
             },
             joint: k.joint,
             kinematic: Some((spec, ci)),
@@ -672,6 +699,29 @@ fn unexplained_guess(model: &Model, joint: &str, ratio: f64) -> String {
     } else {
         format!("{ratio:.1}x the noise floor: the identification fitted terms here that no effect of the vocabulary expresses ({}; the model's notes give their values)", terms.join(", "))
     }
+}
+
+/// A candidate whose signature the inertia nuisance mimics this closely (correlation) cannot be
+/// told from an inertia error by the recording.
+const MIMICKED: f64 = 0.9;
+
+/// With a wide (relative, CAD) inertia prior: the candidates the refitted inertias can mimic
+/// (a linear candidate's `nuisance_correlation` above [`MIMICKED`]) and the recording that would
+/// separate them; `None` with a model's own covariance or when none is mimicked.
+fn mimicked_note(nuisance: Option<&Nuisance>, scored: &[Scored]) -> Option<String> {
+    if nuisance.is_none_or(|n| n.from_model) {
+        return None;
+    }
+    let mut mimicked: Vec<(&str, f64)> = scored.iter().filter_map(|e| e.score.nuisance_correlation.filter(|r| *r > MIMICKED).map(|r| (e.label.as_str(), r))).collect();
+    mimicked.sort_by(|a, b| b.1.total_cmp(&a.1));
+    let shown: Vec<String> = mimicked.iter().take(8).map(|(l, r)| format!("{l} ({r:.2})")).collect();
+    let more = if mimicked.len() > shown.len() { format!(" and {} more", mimicked.len() - shown.len()) } else { String::new() };
+    (!shown.is_empty()).then(|| {
+        format!(
+            "the model carries no inertial covariance (a CAD model): its inertias are refitted under a wide prior and can mimic {}{more} (each candidate's nuisance_correlation); a recording that separates them: the robot identified without the suspected effect first (`dvrk identify -o`: its covariance then holds the inertias), or the same trajectory recorded with and without the suspected change",
+            shown.join(", ")
+        )
+    })
 }
 
 /// Two effects whose efforts are this little alike (|cosine| over the fitted rows, each joint
@@ -1142,6 +1192,7 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
             heldout_cv_p_value: entry.score.cv_p,
             effect_to_noise: entry.score.effect_to_noise,
             supported: supported(entry),
+            nuisance_correlation: entry.score.nuisance_correlation,
         })
         .collect();
     let f1 = residual(&prep, &after, true);
@@ -1187,6 +1238,7 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
         true => Some(super::tracking::compare(&scene, a, log, model, named.as_ref().map(|e| super::generate::with_effect(model, e)).transpose()?.as_ref())?),
         false => None,
     };
+    let mimicked = mimicked_note(nuisance, &scored);
     let report = Report {
         verdict: verdict.into(),
         channel: if kin.is_some() { "torque+kinematic" } else { "torque" }.into(),
@@ -1212,7 +1264,10 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
         notes: match kin {
             Some(_) => vec!["the kinematic channel's evidence is joined to the torque channel's per candidate; the torque residual after uses the torque channel's own fit".into()],
             None => vec!["kinematic channel not analysed: it needs a tracked marker (--marker-topic, --marker-link)".into()],
-        },
+        }
+        .into_iter()
+        .chain(mimicked)
+        .collect(),
         steps: Vec::new(),
     };
     Ok(Outcome { report, named, residuals })
