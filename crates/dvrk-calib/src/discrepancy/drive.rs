@@ -183,8 +183,10 @@ fn at_raw(prep: &Prepared, v: &[f64], s: usize) -> f64 {
     if s >= k[k.len() - 1] {
         return v[v.len() - 1];
     }
-    let i = k.partition_point(|&x| x <= s) - 1;
-    let w = (s - k[i]) as f64 / (k[i + 1] - k[i]) as f64;
+    // The analysed samples are every `stride`-th raw one (signals::prepare): no search.
+    let stride = k[1] - k[0];
+    let i = ((s - k[0]) / stride).min(k.len() - 2);
+    let w = (s - k[i]) as f64 / stride as f64;
     v[i] * (1.0 - w) + v[i + 1] * w
 }
 
