@@ -139,6 +139,17 @@ impl CouplingMap {
     }
 }
 
+/// Per joint, the drive's inertia the simulator gives it (kg m^2, kg): the scene's armature plus
+/// the diagonal of the motors' coupled inertia (`motor_inertia` effects, `C^-T diag(I) C^-1`).
+/// rapier's multibody and MuJoCo hold a diagonal armature only, so the cross terms are not
+/// simulated (dvrk-kin's inverse dynamics has them).
+pub fn drive_armature(model: &Model, armature: &[f64]) -> Vec<f64> {
+    let n = model.nq();
+    let mut motor = nalgebra::DMatrix::zeros(n, n);
+    dvrk_kin::effects::motor_inertia_matrix(&model.effects, &mut motor);
+    armature.iter().enumerate().map(|(k, a)| a + if k < n { motor[(k, k)] } else { 0.0 }).collect()
+}
+
 /// The effects of one arm, ready to step.
 #[derive(Debug, Clone)]
 pub struct ArmEffects {

@@ -345,10 +345,11 @@ fn add_arm(scene: &Scene, arm: &Arm, arm_bodies: &[Vec<usize>], bodies: &mut Vec
     }
     // Drives: armature, limits, motor, hold, controller data.
     let (traj, _) = Trajectory::tracking_test(model);
+    let armature = crate::effects::drive_armature(&arm.model, &arm.armature);
     for (k, j) in model.joints.iter().enumerate() {
         let (bi, c, b) = drives[k];
         let t = bodies[ids[bi]].joint.as_mut().ok_or_else(|| SimError::Build(format!("{}: drive of {} has no joint", arm.name, j.name)))?;
-        t.armature = arm.armature[k] / (c * c);
+        t.armature = armature[k] / (c * c);
         let (lo, hi) = (c * j.lower + b, c * j.upper + b);
         t.range = Some([lo.min(hi), lo.max(hi)]);
         let jname = t.name.clone();

@@ -625,13 +625,7 @@ impl Sim {
                 mb.damping_mut()[assembly] = arm.damping;
                 mb.armature_mut()[assembly] = 0.0;
             }
-            // The drives' inertia: the scene's armature plus the diagonal of the motors' coupled
-            // inertia (`motor_inertia` effects, C^-T diag(I) C^-1); rapier's multibody holds a
-            // diagonal armature only, so the cross terms are not simulated (dvrk-kin's inverse
-            // dynamics has them).
-            let mut motor = nalgebra::DMatrix::zeros(model.nq(), model.nq());
-            dvrk_kin::effects::motor_inertia_matrix(&arm.model.effects, &mut motor);
-            let armature: Vec<f64> = arm.armature.iter().enumerate().map(|(k, a)| a + motor[(k, k)]).collect();
+            let armature = crate::effects::drive_armature(&arm.model, &arm.armature);
             for (k, dr) in drives.iter().enumerate() {
                 let assembly = mb.link(link_ids[dr.dof]).map(|l| l.assembly_id()).unwrap_or(0);
                 split_drive_damping(mb, assembly, arm.damping);
