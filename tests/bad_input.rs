@@ -78,6 +78,13 @@ fn bad_files_and_flags_are_errors_not_panics() {
     let deep_json = dir.path().join("deep.json");
     std::fs::write(&deep_json, format!("{}{}", "[".repeat(30000), "]".repeat(30000))).unwrap();
     assert_one_line(&dvrk_err(&["model", "check", deep_json.to_str().unwrap()]), &["deep.json", "nested 30000 levels deep"]);
+    // A 30,000-deep TOML array: the toml crate refuses it, and the error echoed the whole 60 kB
+    // line (issue 45); now the field and the value's first 80 characters.
+    let deep_toml = dir.path().join("deep.toml");
+    std::fs::write(&deep_toml, format!("name = \"x\"\nvalue = {}{}\n", "[".repeat(30000), "]".repeat(30000))).unwrap();
+    let e = dvrk_err(&["model", "check", deep_toml.to_str().unwrap()]);
+    assert_one_line(&e, &["deep.toml", "line 2", "field `value`", "(60000 characters)"]);
+    assert!(e.len() < 600, "{} bytes: {}", e.len(), &e[..200]);
     let deep_urdf = dir.path().join("deep.urdf");
     std::fs::write(&deep_urdf, format!("<robot name=\"r\">{}{}</robot>", "<a>".repeat(30000), "</a>".repeat(30000))).unwrap();
     assert_one_line(&dvrk_err(&["model", "check", deep_urdf.to_str().unwrap()]), &["deep.urdf", "nested 30001 levels deep"]);
@@ -103,4 +110,28 @@ fn bad_files_and_flags_are_errors_not_panics() {
     // Usage errors are clap's (status 2), still no panic.
     dvrk_err(&["fk"]);
     dvrk_err(&["model", "frobnicate"]);
+}
+
+/// A dVRK file that is not what the flag takes (issue 45): the PSM's arm file given as its tool
+/// (three joints too; taken as a tool, the yaw's limits became the roll's and the tool length
+/// 0), and a tool file whose coupling does not fit the model's four tool joints (dropped without
+/// a word when the coupling was built).
+#[test]
+fn a_dvrk_file_given_for_the_wrong_flag_is_named() {
+    let Some(arm) = crate::util::external("dvrk-config/PSM.json") else { return };
+    assert_one_line(&dvrk_err(&["model", "check", "psm", "--tool", arm.to_str().unwrap()]), &["PSM.json", "DH.joints[2].type", "an arm's file"]);
+    let dir = tempdir();
+    let tool = dir.path().join("three-by-three.json");
+    let joint = |d: f64| format!("{{\"alpha\": -1.5708, \"A\": 0.0, \"theta\": 0.0, \"D\": {d}, \"type\": \"revolute\", \"qmin\": -1.0, \"qmax\": 1.0}}");
+    std::fs::write(
+        &tool,
+        format!(
+            "{{\"DH\": {{\"convention\": \"modified\", \"joints\": [{}, {}, {}]}}, \"coupling\": {{\"ActuatorToJointPosition\": [[1, 0, 0], [0, 1, 0], [0, 0, 1]]}}}}",
+            joint(0.4162),
+            joint(0.0),
+            joint(0.0)
+        ),
+    )
+    .unwrap();
+    assert_one_line(&dvrk_err(&["model", "check", "psm", "--tool", tool.to_str().unwrap()]), &["three-by-three.json", "coupling.ActuatorToJointPosition", "3x3", "4 joints"]);
 }

@@ -76,14 +76,7 @@ pub struct AxesConfig {
 impl AxesConfig {
     /// Parse and check a configuration; `path` names it in errors.
     pub fn from_toml(text: &str, path: &Path) -> Result<Self> {
-        let cfg: AxesConfig = toml::from_str(text).map_err(|e| {
-            let line = e.span().map(|s| text[..s.start.min(text.len())].matches('\n').count() + 1);
-            let msg = e.message().trim().replace('\n', " ");
-            CalibError::file(path, match line {
-                Some(l) => format!("line {l}: {msg}"),
-                None => msg,
-            })
-        })?;
+        let cfg: AxesConfig = toml::from_str(text).map_err(|e| CalibError::file(path, dvrk_kin::spec::toml_message(&e, text)))?;
         cfg.check().map_err(|e| e.in_file(path))?;
         Ok(cfg)
     }

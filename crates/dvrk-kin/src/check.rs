@@ -59,6 +59,10 @@ pub const SERIAL_TOL: f64 = 1e-9;
 /// A closure Jacobian singular value below this (m/rad) means a loop is close to flattening.
 pub const CONDITIONING_MIN: f64 = 1e-3;
 
+/// The farthest a frame of a sound model is from its base over the joint range (m): the dVRK's
+/// arms reach about 1 m, the setup joints' cart about 2.
+pub const MAX_REACH_M: f64 = 10.0;
+
 /// Most configurations [`check_model`] takes: each costs a configuration vector in memory
 /// (8 bytes per joint) and an FK; 10^7 is a few hundred MB and minutes, more is a mistake.
 pub const MAX_CHECK_SAMPLES: usize = 10_000_000;
@@ -79,8 +83,16 @@ pub fn check_model(model: &Model, samples: usize) -> Result<ModelCheck> {
     let configs = sample_configurations(&model.joints, samples);
     let mut closure = None;
     let mut pivot = None;
+    // The frame farthest from the base over the samples, and its distance (m).
+    let mut reach: Option<(usize, f64)> = None;
     for q in &configs {
         compute_frame_placements(model, &mut data, q);
+        for (f, pose) in data.frames.iter().enumerate() {
+            let r = pose.translation.vector.norm();
+            if reach.is_none_or(|(_, best)| !(r <= best)) {
+                reach = Some((f, r));
+            }
+        }
         if !model.closures.is_empty() {
             closure = Some(closure.unwrap_or(0.0f64).max(max_closure_residual(model, &data)));
         }
@@ -96,6 +108,16 @@ pub fn check_model(model: &Model, samples: usize) -> Result<ModelCheck> {
     });
     let serial_equivalence = serial_check(model, &configs)?;
     let mut problems = Vec::new();
+    // A joint no frame follows is a typo in an expression or a dead joint: the robot has none.
+    for (j, joint) in model.joints.iter().enumerate() {
+        if model.frames.iter().all(|f| f.theta.coef.get(j).is_none_or(|c| *c == 0.0) && f.d.coef.get(j).is_none_or(|c| *c == 0.0)) {
+            problems.push(format!("joint `{}` drives no frame (no frame's theta or d depends on it)", joint.name));
+        }
+    }
+    // Lengths no dVRK has (a DH figure of 1e308 m compiles, and every figure above stays finite).
+    if let Some((f, r)) = reach.filter(|(_, r)| !(*r <= MAX_REACH_M)) {
+        problems.push(format!("frame `{}` is {} m from the base (a dVRK arm reaches about 1 m; at most {MAX_REACH_M} m is checked)", model.frames[f].name, crate::fmt_number(r)));
+    }
     if let Some(c) = closure.filter(|c| *c > CLOSURE_TOL_M) {
         problems.push(format!("closure residual {c:.3e} m exceeds {CLOSURE_TOL_M:e} m"));
     }

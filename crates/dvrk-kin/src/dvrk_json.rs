@@ -218,6 +218,14 @@ pub fn apply_tool_json(spec: &mut ModelSpec, v: &Json, tool_name: &str) -> Resul
     if list.len() != 3 {
         return Err(KinError::field(format!("DH.{key}"), format!("expected 3 tool joints (roll, wrist pitch, wrist yaw), got {}", list.len())));
     }
+    // An arm file (the PSM's own yaw, pitch and insertion) has three joints too: its prismatic
+    // insertion tells it (taken as a tool, its yaw's limits became the roll's, its length 0).
+    if let Some(i) = list.iter().position(|e| e.get("type").and_then(|t| t.as_str()) == Some("prismatic")) {
+        return Err(KinError::field(
+            format!("DH.{key}[{i}].type"),
+            "`prismatic`: a tool's three joints are revolute (roll, wrist pitch, wrist yaw); this is an arm's file (its insertion), not a tool's",
+        ));
+    }
     let source = format!("{tool_name} (dVRK tool file)");
     let length = num(&list[0], "D", &format!("DH.{key}[0]"))?;
     let jaw_offset = num(&list[2], "A", &format!("DH.{key}[2]"))?;
@@ -253,7 +261,16 @@ pub fn apply_tool_json(spec: &mut ModelSpec, v: &Json, tool_name: &str) -> Resul
     }
     let mut tool_section = tool;
     if let Some(c) = v.get("coupling").and_then(|c| c.get("ActuatorToJointPosition")) {
-        tool_section.coupling = Some(matrix(c, "coupling.ActuatorToJointPosition")?);
+        let m = matrix(c, "coupling.ActuatorToJointPosition")?;
+        // Another size was dropped without a word when the model's coupling was built.
+        let n = tool_section.joints.len();
+        if m.len() != n || m.iter().any(|r| r.len() != n) {
+            return Err(KinError::field(
+                "coupling.ActuatorToJointPosition",
+                format!("{}x{}, but the model's tool has {n} joints ({}): the coupling maps their actuators", m.len(), m.first().map_or(0, Vec::len), tool_section.joints.join(", ")),
+            ));
+        }
+        tool_section.coupling = Some(m);
     }
     tool_section.name = tool_name.to_string();
     tool_section.source = source;

@@ -376,15 +376,31 @@ impl ModelSpec {
 
 /// A one-line error from a TOML error: file, line, field and the value as written.
 pub(crate) fn toml_error(e: &toml::de::Error, text: &str, path: &Path) -> KinError {
+    KinError::File { path: path.into(), message: toml_message(e, text) }
+}
+
+/// The longest part of a value a TOML error echoes (characters): a 30,000-deep array is one
+/// 60 kB line, and an error names the place, not the whole value.
+const ECHOED_VALUE: usize = 80;
+
+/// A TOML parse error of `text` on one line: `line N: field `key` = value: message`, the value
+/// cut to [`ECHOED_VALUE`] characters (every reader of a TOML file words its errors with this).
+pub fn toml_message(e: &toml::de::Error, text: &str) -> String {
     let message = e.message().trim().replace('\n', " ");
-    let Some(span) = e.span() else {
-        return KinError::File { path: path.into(), message };
-    };
+    let Some(span) = e.span() else { return message };
     let line_no = text[..span.start.min(text.len())].matches('\n').count() + 1;
     let line = text.lines().nth(line_no - 1).unwrap_or("").trim();
-    let detail = match line.split_once('=') {
-        Some((key, value)) => format!("field `{}` = {}: {message}", key.trim(), value.trim()),
-        None => format!("`{line}`: {message}"),
+    let cut = |v: &str| {
+        let n = v.chars().count();
+        if n > ECHOED_VALUE {
+            format!("{}... ({n} characters)", v.chars().take(ECHOED_VALUE).collect::<String>())
+        } else {
+            v.to_string()
+        }
     };
-    KinError::File { path: path.into(), message: format!("line {line_no}: {detail}") }
+    let detail = match line.split_once('=') {
+        Some((key, value)) => format!("field `{}` = {}: {message}", cut(key.trim()), cut(value.trim())),
+        None => format!("`{}`: {message}", cut(line)),
+    };
+    format!("line {line_no}: {detail}")
 }

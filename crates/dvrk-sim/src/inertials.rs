@@ -140,7 +140,7 @@ impl Inertials {
     /// Parse an inertials file (`file` names it in errors) and check it against `model`: every
     /// body present once, finite positive masses, physical inertias.
     pub fn parse(text: &str, file: &str, model: &Model) -> Result<Inertials> {
-        let ine: Inertials = toml::from_str(text).map_err(|e| SimError::field(file, "(syntax)", e.to_string()))?;
+        let ine: Inertials = toml::from_str(text).map_err(|e| SimError::field(file, "(syntax)", dvrk_kin::spec::toml_message(&e, text)))?;
         ine.check(file, model)?;
         Ok(ine)
     }

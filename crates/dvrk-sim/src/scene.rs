@@ -311,7 +311,7 @@ impl Scene {
 
     /// Parse a scene file's text; `file` names it in errors, `dir` resolves relative inertials paths.
     pub fn parse(text: &str, file: &str, dir: Option<&std::path::Path>) -> Result<Scene> {
-        let f: SceneFile = toml::from_str(text).map_err(|e| SimError::field(file, "(syntax)", e.to_string()))?;
+        let f: SceneFile = toml::from_str(text).map_err(|e| SimError::field(file, "(syntax)", dvrk_kin::spec::toml_message(&e, text)))?;
         // Below a microsecond a second of simulated time is a million steps: a typo, not a scene.
         if !(f.dt.is_finite() && (1e-6..=0.1).contains(&f.dt)) {
             return Err(SimError::field(file, "dt", format!("{} s is not in [1e-6, 0.1]", dvrk_kin::fmt_number(f.dt))));
