@@ -135,3 +135,22 @@ fn a_dvrk_file_given_for_the_wrong_flag_is_named() {
     .unwrap();
     assert_one_line(&dvrk_err(&["model", "check", "psm", "--tool", tool.to_str().unwrap()]), &["three-by-three.json", "coupling.ActuatorToJointPosition", "3x3", "4 joints"]);
 }
+
+/// A fixed-size figure with an extra entry (issue 45): serde read a 4-row inertia as its first
+/// three rows, and a 4-number centre of mass as its first three, without a word.
+#[test]
+fn an_extra_row_or_number_is_named() {
+    let dir = tempdir();
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let inertials = std::fs::read_to_string(root.join("models/inertials/psm.toml")).unwrap();
+    let row = "[-0.00000728309, -0.000485862533, 0.008249296431]]";
+    assert!(inertials.contains(row));
+    let file = dir.path().join("four-rows.toml");
+    std::fs::write(&file, inertials.replacen(row, "[-0.00000728309, -0.000485862533, 0.008249296431], [1.0, 2.0, 3.0]]", 1)).unwrap();
+    let scene = dir.path().join("scene.toml");
+    let text = std::fs::read_to_string(root.join("models/scenes/psm.toml")).unwrap();
+    std::fs::write(&scene, text.replace("inertials = \"psm\"", &format!("inertials = {:?}", file.display().to_string()))).unwrap();
+    assert_one_line(&dvrk_err(&["sim", "--scene", scene.to_str().unwrap(), "--duration", "0.1"]), &["four-rows.toml", "field `inertia`", "4 rows of [3, 3, 3, 3] numbers where a 3x3 matrix has 3 rows of 3"]);
+    let model = psm_with(dir.path(), "extra.toml", "point = [0.150, 0.0, 0.0]", "point = [0.150, 0.0, 0.0, 1.0]");
+    assert_one_line(&dvrk_err(&["model", "check", &model]), &["extra.toml", "4 numbers where a 3-vector has 3"]);
+}

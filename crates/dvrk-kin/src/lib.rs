@@ -41,6 +41,7 @@ pub mod nesting;
 pub mod rcm;
 pub mod sdf;
 pub mod so3;
+pub mod exact;
 pub mod spec;
 pub mod urdf;
 

@@ -139,7 +139,7 @@ pub struct FrameSpec {
     #[serde(default)]
     pub theta: Value,
     /// Fixed transform from the parent (row-major 4x4, m), used instead of DH entries.
-    #[serde(default)]
+    #[serde(default, deserialize_with = "crate::exact::opt_mat4")]
     pub transform: Option<[[f64; 4]; 4]>,
     #[serde(default)]
     pub source: String,
@@ -157,11 +157,12 @@ pub struct ClosureSpec {
     /// The link whose end is the closure point.
     pub frame: FrameRef,
     /// The point in `frame` (m).
+    #[serde(deserialize_with = "crate::exact::vec3")]
     pub point: [f64; 3],
     /// The link it closes on.
     pub partner: FrameRef,
     /// The same point in `partner` (m); computed at the home configuration when absent.
-    #[serde(default)]
+    #[serde(default, deserialize_with = "crate::exact::opt_vec3")]
     pub partner_point: Option<[f64; 3]>,
     #[serde(default)]
     pub source: String,
@@ -219,7 +220,7 @@ pub struct MeshSpec {
     pub scale: f64,
     /// Placement of the mesh in the body frame (the body's first frame; row-major 4x4, m);
     /// identity when absent.
-    #[serde(default)]
+    #[serde(default, deserialize_with = "crate::exact::opt_mat4")]
     pub transform: Option<[[f64; 4]; 4]>,
     #[serde(default)]
     pub source: String,
@@ -240,8 +241,10 @@ pub struct InertialSpec {
     /// kg
     pub mass: f64,
     /// Centre of mass in the body frame (m).
+    #[serde(deserialize_with = "crate::exact::vec3")]
     pub com: [f64; 3],
     /// Inertia about the centre of mass, body-frame axes (kg m^2), row-major.
+    #[serde(deserialize_with = "crate::exact::mat3")]
     pub inertia: [[f64; 3]; 3],
     /// Where the figures come from.
     #[serde(default, skip_serializing_if = "String::is_empty")]

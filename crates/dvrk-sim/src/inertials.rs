@@ -21,8 +21,10 @@ pub struct BodyInertial {
     /// kg
     pub mass: f64,
     /// Centre of mass in the body frame (m).
+    #[serde(deserialize_with = "dvrk_kin::exact::vec3")]
     pub com: [f64; 3],
     /// Inertia about the centre of mass, body-frame axes (kg m^2), row-major.
+    #[serde(deserialize_with = "dvrk_kin::exact::mat3")]
     pub inertia: [[f64; 3]; 3],
     /// Where the figures come from (SDF link, or how they were derived).
     pub provenance: String,
@@ -35,6 +37,7 @@ pub struct Inertials {
     pub model: String,
     pub source: String,
     /// Row-major 4x4 map from the dvrk-kin base frame to the SDF model frame (m).
+    #[serde(deserialize_with = "dvrk_kin::exact::mat4")]
     pub base_transform: [[f64; 4]; 4],
     pub notes: String,
     pub bodies: Vec<BodyInertial>,

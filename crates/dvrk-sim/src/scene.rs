@@ -62,7 +62,7 @@ struct SceneFile {
     #[serde(default)]
     warmstart_joints: bool,
     /// m/s^2, world frame
-    #[serde(default = "default_gravity")]
+    #[serde(default = "default_gravity", deserialize_with = "dvrk_kin::exact::vec3")]
     gravity: [f64; 3],
     #[serde(default)]
     #[allow(dead_code)]
@@ -92,6 +92,7 @@ struct ArmFile {
     name: String,
     model: String,
     inertials: String,
+    #[serde(default, deserialize_with = "dvrk_kin::exact::opt_mat4")]
     mount: Option<[[f64; 4]; 4]>,
     kp: Vec<f64>,
     ki: Vec<f64>,
