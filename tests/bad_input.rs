@@ -154,3 +154,24 @@ fn an_extra_row_or_number_is_named() {
     let model = psm_with(dir.path(), "extra.toml", "point = [0.150, 0.0, 0.0]", "point = [0.150, 0.0, 0.0, 1.0]");
     assert_one_line(&dvrk_err(&["model", "check", &model]), &["extra.toml", "4 numbers where a 3-vector has 3"]);
 }
+
+/// A figure no robot has that still passes every check (a 1e306 kg counterweight) made the MJCF
+/// export write a cable's stiffness="inf" with exit 0 (issue 45): now one line naming the
+/// element, and no file.
+#[test]
+fn an_overflowing_figure_is_not_exported() {
+    let dir = tempdir();
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let inertials = std::fs::read_to_string(root.join("models/inertials/psm.toml")).unwrap();
+    let at = inertials.find("name = \"counterweight_link\"").unwrap();
+    let mass = at + inertials[at..].find("mass = ").unwrap();
+    let end = mass + inertials[mass..].find('\n').unwrap();
+    let file = dir.path().join("heavy.toml");
+    std::fs::write(&file, format!("{}mass = 1e306{}", &inertials[..mass], &inertials[end..])).unwrap();
+    let scene = dir.path().join("scene.toml");
+    let text = std::fs::read_to_string(root.join("models/scenes/psm.toml")).unwrap();
+    std::fs::write(&scene, text.replace("inertials = \"psm\"", &format!("inertials = {:?}", file.display().to_string()))).unwrap();
+    let out = dir.path().join("psm.xml");
+    assert_one_line(&dvrk_err(&["export", "mjcf", scene.to_str().unwrap(), "-o", out.to_str().unwrap()]), &["MJCF export", "stiffness=\"inf\"", "cable:counterweight_link"]);
+    assert!(!out.exists());
+}

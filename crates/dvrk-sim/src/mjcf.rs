@@ -98,11 +98,37 @@ struct Extras {
 fn num(x: f64) -> String {
     if x.abs() < 1e-14 {
         "0".into()
-    } else if x.abs() < 1e-4 {
+    } else if x.abs() < 1e-4 || x.abs() >= 1e15 {
         format!("{x:e}")
     } else {
         format!("{x}")
     }
+}
+
+/// Every number the MJCF holds is finite: a figure no robot has (a mass of 1e306 kg) made a
+/// cable's stiffness `inf`, which MuJoCo then simulates as nothing sensible. The error names the
+/// element and attribute.
+fn check_finite(xml: &str, scene: &str) -> Result<()> {
+    for line in xml.lines() {
+        let parts: Vec<&str> = line.split('"').collect();
+        for k in (1..parts.len()).step_by(2) {
+            let attr = parts[k - 1].trim_end().trim_end_matches('=').rsplit([' ', '<']).next().unwrap_or("");
+            // Names are words, whatever they spell.
+            if attr == "name" || attr == "joint" || attr == "body" || attr == "tendon" || attr == "model" || attr == "file" || attr == "mesh" {
+                continue;
+            }
+            if parts[k].split_whitespace().any(|t| t.parse::<f64>().is_ok_and(|x| !x.is_finite())) {
+                let element = line.trim().split([' ', '>']).next().unwrap_or("");
+                let named = line.split("name=\"").nth(1).and_then(|r| r.split('"').next()).map(|n| format!(" `{n}`")).unwrap_or_default();
+                return Err(SimError::field(
+                    format!("scene {scene}"),
+                    "MJCF export",
+                    format!("{attr}=\"{}\" in {element}>{named}: a figure of the model or scene overflows (a mass, inertia or length no robot has)", parts[k]),
+                ));
+            }
+        }
+    }
+    Ok(())
 }
 
 fn nums(xs: &[f64]) -> String {
@@ -157,6 +183,7 @@ pub fn export_mjcf(scene: &Scene) -> Result<String> {
         let _ = writeln!(out, "  </{tag}>");
     }
     out += "</mujoco>\n";
+    check_finite(&out, &scene.name)?;
     Ok(out)
 }
 
