@@ -34,6 +34,22 @@ fn identified_without_weight(free: &Path) -> dvrk_kin::Model {
     MODEL.get_or_init(|| identified_on(free)).clone()
 }
 
+/// The weighted recording `file` analysed with the model identified without the weight: its
+/// verdict `named`, the first effect `payload_mass` on `pitch_end` (the link that carries the
+/// insertion stage). The model, the recording and the report (`None` without the data).
+fn payload_named_on_the_stage(file: &str) -> Option<(dvrk_kin::Model, PathBuf, Report)> {
+    let (free, loaded) = (recording("one_no_weight_results.csv")?, recording(file)?);
+    let model = identified_without_weight(&free);
+    let r = analyse(&model, &loaded);
+    let top: Vec<_> = r.candidates.iter().take(4).map(|c| (&c.label, c.effect.delta_bic, c.supported)).collect();
+    eprintln!("{file}: {} {top:?}", r.verdict);
+    assert_eq!(r.verdict, "named", "{top:?}");
+    let e = &r.effects[0];
+    assert_eq!((e.name.as_str(), e.link.as_deref()), ("payload_mass", Some("pitch_end")), "{top:?}");
+    eprintln!("{:?}", e.payload);
+    Some((model, loaded, r))
+}
+
 /// The photographed weight: 205 g, its centre about 53.5 cm from the remote centre along the
 /// insertion stage and 2.8 cm from the instrument's axis: a first moment about the remote
 /// centre (the point the stage turns about) of 0.205 * hypot(0.535, 0.028) kg m.
@@ -49,17 +65,10 @@ const PHOTOGRAPHED_FIRST_MOMENT: f64 = 0.205 * 0.535_732;
 /// was named instead.
 #[test]
 fn a_real_205_g_weight_is_named_on_the_insertion_stage() {
-    let (Some(free), Some(loaded)) = (recording("one_no_weight_results.csv"), recording("one_results_1.0_scale_205_grams_insertion.csv")) else { return };
-    let model = identified_without_weight(&free);
+    let Some((model, loaded, r)) = payload_named_on_the_stage("one_results_1.0_scale_205_grams_insertion.csv") else { return };
     assert!(model.spec.inertial_covariance.as_ref().is_some_and(|c| c.bodies.len() == model.bodies.len()));
-    let r = analyse(&model, &loaded);
-    let top: Vec<_> = r.candidates.iter().take(4).map(|c| (&c.label, c.effect.delta_bic, c.supported)).collect();
-    eprintln!("{} {top:?}", r.verdict);
-    assert_eq!(r.verdict, "named", "{top:?}");
     let e = &r.effects[0];
-    assert_eq!((e.name.as_str(), e.link.as_deref()), ("payload_mass", Some("pitch_end")), "{top:?}");
     let p = e.payload.as_ref().unwrap();
-    eprintln!("{p:?}");
     // The pitch_end link turns about the remote centre: its pivot is still.
     assert!(p.pivot_motion_rms < 1e-9 && (p.pivot[1] - 0.1437).abs() < 1e-3, "{:?} {}", p.pivot, p.pivot_motion_rms);
     assert!((p.first_moment / PHOTOGRAPHED_FIRST_MOMENT - 1.0).abs() < 0.1, "first moment {} kg m", p.first_moment);
@@ -114,16 +123,9 @@ fn the_no_weight_recording_names_no_payload_on_its_second_half() {
 /// a guess. The pitch's band residual 0.186 -> 0.091 N·m.
 #[test]
 fn a_real_weight_at_half_speed_is_named_by_its_first_moment() {
-    let (Some(free), Some(loaded)) = (recording("one_no_weight_results.csv"), recording("one_results_0.5_scale_205_grams_insertion.csv")) else { return };
-    let model = identified_without_weight(&free);
-    let r = analyse(&model, &loaded);
-    let top: Vec<_> = r.candidates.iter().take(4).map(|c| (&c.label, c.effect.delta_bic, c.supported)).collect();
-    eprintln!("{} {top:?}", r.verdict);
-    assert_eq!(r.verdict, "named", "{top:?}");
+    let Some((_, _, r)) = payload_named_on_the_stage("one_results_0.5_scale_205_grams_insertion.csv") else { return };
     let e = &r.effects[0];
-    assert_eq!((e.name.as_str(), e.link.as_deref()), ("payload_mass", Some("pitch_end")), "{top:?}");
     let p = e.payload.as_ref().unwrap();
-    eprintln!("{p:?}");
     assert!((p.first_moment / PHOTOGRAPHED_FIRST_MOMENT - 1.0).abs() < 0.1, "first moment {} kg m", p.first_moment);
     // The mass is not fixed: its interval reaches the vocabulary's bound, the report says so,
     // and the placement given is within the interval (the model file's is the same).
