@@ -383,7 +383,7 @@ pub fn check_effects(model: &Model) -> Result<Vec<Effect>> {
 /// Actuator `a` (1-based) of `model`: its 0-based index and its row of `C^-1` as (joint, weight)
 /// pairs, the joints it moves with ([`Effect::transmission`]); the message of a bad number or a
 /// singular coupling.
-fn actuator_transmission(model: &Model, a: usize) -> std::result::Result<(usize, Vec<(usize, f64)>), String> {
+pub fn actuator_transmission(model: &Model, a: usize) -> std::result::Result<(usize, Vec<(usize, f64)>), String> {
     let n = model.nq();
     if !(1..=n).contains(&a) {
         return Err(format!("{a} is not an actuator of model `{}` (1..={n}, a column of its coupling)", model.name));

@@ -178,14 +178,11 @@ fn spread(nq: usize, w: &[(usize, f64)], a: &[f64]) -> Table {
 /// spring and motor inertia on each actuator whose cables move several joints, one of them
 /// active (an actuator of one joint is that joint: its joint effects are the candidates). Each
 /// acts at the actuator's position `w . q` and loads the joints by `w` (virtual work).
-fn actuators(model: &dvrk_kin::Model, prep: &Prepared) -> Result<Vec<Candidate>> {
+fn actuators(model: &dvrk_kin::Model, prep: &Prepared) -> Vec<Candidate> {
     let nq = model.nq();
     let mut out = Vec::new();
     for a in 0..nq {
-        let kind = EffectKind::ActuatorViscousFriction;
-        let spec = EffectSpec { name: kind.name().into(), joint: None, link: None, actuator: Some(a + 1), parameters: BTreeMap::from([("fv".into(), 0.0)]), source: String::new() };
-        let Some(e) = with_effect(model, &spec)?.effects.into_iter().last() else { continue };
-        let w = e.transmission;
+        let Ok((_, w)) = dvrk_kin::effects::actuator_transmission(model, a + 1) else { continue };
         if w.len() < 2 || !w.iter().any(|(j, _)| prep.active.contains(j)) {
             continue;
         }
@@ -202,7 +199,7 @@ fn actuators(model: &dvrk_kin::Model, prep: &Prepared) -> Result<Vec<Candidate>>
         out.push(one(EffectKind::ActuatorSpring, &["k", "k_rest"], vec![spread(nq, &w, &at(&dot, &prep.q)), spread(nq, &w, &vec![-1.0; prep.t.len()])], None));
         out.push(one(EffectKind::MotorInertia, &["inertia"], vec![spread(nq, &w, &at(&dot, &prep.qdd))], None));
     }
-    Ok(out)
+    out
 }
 
 /// A payload's position (m, in its frame) from a fit `x = (m, m dx, m dy, m dz)` of a candidate
@@ -319,7 +316,7 @@ pub fn build(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f64; 3
             });
         }
     }
-    out.extend(actuators(model, prep)?);
+    out.extend(actuators(model, prep));
     out.extend(counterweight(predictor, arm, gravity, prep, base)?);
     out.extend(coupling(predictor, arm, gravity, prep, base)?);
     Ok(out)
