@@ -85,6 +85,10 @@ fn bad_files_and_flags_are_errors_not_panics() {
     let e = dvrk_err(&["model", "check", deep_toml.to_str().unwrap()]);
     assert_one_line(&e, &["deep.toml", "line 2", "field `value`", "(60000 characters)"]);
     assert!(e.len() < 600, "{} bytes: {}", e.len(), &e[..200]);
+    // A file the size of a recording given as a model is refused before it is read whole.
+    let big = dir.path().join("big.toml");
+    std::fs::File::create(&big).unwrap().set_len(65 << 20).unwrap();
+    assert_one_line(&dvrk_err(&["model", "check", big.to_str().unwrap()]), &["big.toml", "68157440 bytes", "at most 67108864 bytes"]);
     let deep_urdf = dir.path().join("deep.urdf");
     std::fs::write(&deep_urdf, format!("<robot name=\"r\">{}{}</robot>", "<a>".repeat(30000), "</a>".repeat(30000))).unwrap();
     assert_one_line(&dvrk_err(&["model", "check", deep_urdf.to_str().unwrap()]), &["deep.urdf", "nested 30001 levels deep"]);

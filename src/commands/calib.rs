@@ -2,7 +2,7 @@
 //! joint axes and Table 6 distances (section 2.4), and a model file for one robot.
 
 use crate::outln;
-use anyhow::{anyhow, bail, Context, Result};
+use anyhow::{anyhow, bail, Result};
 use clap::{Args, Subcommand};
 use dvrk_calib::axes::AxesReport;
 use dvrk_calib::psm_dh::{psm_dh, PsmDh, PSM_AXES};
@@ -144,7 +144,7 @@ fn pivot(a: &PivotArgs) -> Result<()> {
 
 fn axes(a: &AxesArgs) -> Result<()> {
     crate::io::check_outputs(&[("--recording", &a.recording), ("--config", &a.config)], &[("-o", a.output.as_deref()), ("--plot", a.plot.as_deref())])?;
-    let text = std::fs::read_to_string(&a.config).with_context(|| format!("{}: cannot read", a.config.display()))?;
+    let text = dvrk_kin::load::read_text(&a.config)?;
     let cfg = AxesConfig::from_toml(&text, &a.config)?;
     let method = a.method.as_deref().map(str::parse).transpose().map_err(|e| anyhow!("--method: {e}"))?;
     let rec = read_recording(&a.recording, &McapOptions { topics: Vec::new(), joint_topic: a.joint_topic.clone() })?;
@@ -208,7 +208,7 @@ fn print_axes(r: &AxesReport, dh: Option<&PsmDh>, path: &Path) {
 
 fn apply(a: &ApplyArgs) -> Result<()> {
     crate::io::check_outputs(&[("--axes", &a.axes), ("--model", std::path::Path::new(&a.model))], &[("-o", Some(&a.output))])?;
-    let text = std::fs::read_to_string(&a.axes).with_context(|| format!("{}: cannot read", a.axes.display()))?;
+    let text = dvrk_kin::load::read_text(&a.axes)?;
     let update = dvrk_calib::report_json::psm_update_from_json(&text, &a.axes)?;
     let model = dvrk_kin::load(&a.model, None)?;
     let name = a.output.file_stem().and_then(|s| s.to_str()).unwrap_or("psm-calibrated").to_string();

@@ -59,7 +59,7 @@ pub struct DiscrepancyArgs {
 fn model_text_with(model: &str, effects: &[dvrk_kin::effects::EffectSpec]) -> Result<String> {
     let text = match dvrk_kin::load::builtin_text(model) {
         Some(t) => t.to_string(),
-        None if model.ends_with(".toml") => std::fs::read_to_string(model).with_context(|| format!("{model}: cannot read"))?,
+        None if model.ends_with(".toml") => dvrk_kin::load::read_text(std::path::Path::new(model))?,
         None => bail!("-o: {model} is not a TOML model; the named effect can only be appended to a .toml model file"),
     };
     #[derive(serde::Serialize)]

@@ -55,7 +55,7 @@ pub fn run(args: &IdentifyArgs) -> Result<()> {
     let model = dvrk_kin::load(&args.model, None).with_context(|| format!("--model {}", args.model))?;
     let prior = match &args.inertials {
         Some(p) => {
-            let text = std::fs::read_to_string(p).with_context(|| format!("--inertials {}", p.display()))?;
+            let text = dvrk_kin::load::read_text(p).with_context(|| format!("--inertials {}", p.display()))?;
             dvrk_sim::inertials::Inertials::parse(&text, &p.display().to_string(), &model)?
         }
         // An identified model file carries its own inertials: they are the prior.

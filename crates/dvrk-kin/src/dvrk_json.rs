@@ -9,8 +9,7 @@ use std::path::Path;
 
 /// Parse a dVRK JSON file (comments allowed).
 pub fn read_json(path: &Path) -> Result<Json> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| KinError::File { path: path.into(), message: format!("cannot read: {e}") })?;
+    let text = crate::load::read_text(path)?;
     parse_json(&text, path)
 }
 

@@ -418,7 +418,7 @@ pub fn resolve(name_or_path: &str) -> Result<Scene> {
     }
     let path = std::path::Path::new(name_or_path);
     if path.is_file() && path.extension().is_some_and(|e| e == "toml") {
-        let text = std::fs::read_to_string(path).map_err(|e| SimError::Io { path: name_or_path.into(), source: e })?;
+        let text = dvrk_kin::load::read_text(path)?;
         let is_scene = toml::from_str::<toml::Table>(&text).is_ok_and(|t| t.contains_key("arms"));
         if is_scene {
             return Scene::load(name_or_path);

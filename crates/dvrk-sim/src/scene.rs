@@ -306,7 +306,7 @@ impl Scene {
                 format!("no such built-in scene or file (built-in: {})", builtin_scenes().join(", ")),
             ));
         }
-        let text = std::fs::read_to_string(path).map_err(|e| SimError::Io { path: name_or_path.into(), source: e })?;
+        let text = dvrk_kin::load::read_text(path)?;
         Scene::parse(&text, name_or_path, path.parent())
     }
 
@@ -381,7 +381,7 @@ impl Scene {
                 true => builtin_inertials(&a.inertials, &model)?,
                 false => {
                     let p = dir.map(|d| d.join(&a.inertials)).unwrap_or_else(|| a.inertials.clone().into());
-                    let text = std::fs::read_to_string(&p).map_err(|e| SimError::Io { path: p.display().to_string(), source: e })?;
+                    let text = dvrk_kin::load::read_text(&p)?;
                     Inertials::parse(&text, &p.display().to_string(), &model)?
                 }
             };
