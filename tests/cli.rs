@@ -311,7 +311,9 @@ fn discrepancy_reads_a_tracked_marker() {
     dvrk_ok(&["synth", "hidden-effect", "--effect", "backlash", "--seed", "11", "--enr", "5", "--duration", "20", "--marker-link", "tool_roll", "-o", &p(&rec), "--answer", &p(&answer)]);
     let a: Value = serde_json::from_slice(&std::fs::read(&answer).unwrap()).unwrap();
     let topic = a["marker_topic"].as_str().unwrap().to_string();
-    dvrk_ok(&["discrepancy", "--model", "psm", "--recording", &p(&rec), "--marker-topic", &topic, "--marker-link", "12", "--report", &p(&report), "--no-tracking", "--max-rounds", "1"]);
+    let text = dvrk_ok(&["discrepancy", "--model", "psm", "--recording", &p(&rec), "--marker-topic", &topic, "--marker-link", "12", "--report", &p(&report), "--no-tracking", "--max-rounds", "1"]);
+    // The tracker's figures on the command line too (a recording without efforts has no others).
+    assert!(text.lines().any(|l| l.trim_start().starts_with("marker on tool_roll") && l.contains("of the tracker's noise")), "{text}");
     let r: Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
     assert_eq!(r["channel"], "torque+kinematic");
     assert_eq!(r["verdict"], "named");

@@ -128,6 +128,20 @@ pub fn run(a: &DiscrepancyArgs) -> Result<()> {
             j.unexplained
         );
     }
+    // The tracked marker: its pose residual over the tracker's noise (the only figures of a
+    // recording without efforts).
+    if let Some(k) = &r.kinematic {
+        outln!(
+            "  marker on {:<10} residual {:.2} -> {:.2} of the tracker's noise ({:.2e} m, {:.2e} rad; held out {:.2} -> {:.2})",
+            k.link,
+            k.rms_before,
+            k.rms_after,
+            k.noise_position,
+            k.noise_rotation,
+            k.rms_heldout_before,
+            k.rms_heldout_after
+        );
+    }
     for p in r.effects.iter().filter_map(|e| e.payload.as_ref().map(|p| (e, p))) {
         let (e, p) = p;
         outln!(
