@@ -150,6 +150,24 @@ pub fn drive_armature(model: &Model, armature: &[f64]) -> Vec<f64> {
     armature.iter().enumerate().map(|(k, a)| a + if k < n { motor[(k, k)] } else { 0.0 }).collect()
 }
 
+/// The largest time step (s) that resolves every compliant drive of `model` (`joint_compliance`
+/// on a drive of inertia [`drive_armature`]): the motor's mode `w = sqrt(k / I)` needs
+/// `w dt <= 0.5` in the explicit transmission step. Infinite when no drive is compliant (backlash
+/// alone takes a contact stiffness scaled to the step).
+pub fn max_stable_dt(model: &Model, armature: &[f64]) -> f64 {
+    let inertia = drive_armature(model, armature);
+    model
+        .effects
+        .iter()
+        .filter(|e| e.kind == EffectKind::JointCompliance)
+        .filter_map(|e| {
+            let j = e.joint?;
+            let (k, i) = (e.get("stiffness"), *inertia.get(j)?);
+            (k > 0.0 && i > 0.0).then(|| 0.5 / (k / i).sqrt())
+        })
+        .fold(f64::INFINITY, f64::min)
+}
+
 /// The effects of one arm, ready to step.
 #[derive(Debug, Clone)]
 pub struct ArmEffects {

@@ -268,6 +268,12 @@ impl Scene {
         self.set_start(arm, &within)
     }
 
+    /// The largest time step (s) every arm's compliant drives allow
+    /// ([`crate::effects::max_stable_dt`]); infinite when no drive is compliant.
+    pub fn max_stable_dt(&self) -> f64 {
+        self.arms.iter().map(|a| crate::effects::max_stable_dt(&a.model, &a.armature)).fold(f64::INFINITY, f64::min)
+    }
+
     /// Replace arm `arm`'s model by `model` (a calibrated copy, say), keeping the arm's mount,
     /// inertials (matched to the new model's bodies by name), gains and armature. The new model
     /// must have the same joints. A model file's own `[[inertials]]` and `[drive]` (an identified

@@ -73,6 +73,24 @@ impl Fitter<'_> {
         solve_normal_equations(g, b, bounds).unwrap_or_else(|| bounded_least_squares(c, y, bounds))
     }
 
+    /// [`Fitter::solve`] with `g = C^T W C` ([`Fitter::normal_equations`]) and `wy = W y`
+    /// ([`Fitter::whitened`]) given: the same fit without projecting `C` again (a bootstrap
+    /// refits one `C` to many `y`; `C^T W y = C^T wy`, `W` being a projection).
+    pub fn solve_given(&self, g: &DMatrix<f64>, c: &DMatrix<f64>, y: &DVector<f64>, wy: &DVector<f64>, bounds: &[Bounds]) -> Result<DVector<f64>> {
+        if self.nuisance.is_none() {
+            return bounded_least_squares(c, y, bounds);
+        }
+        solve_normal_equations(g.clone(), c.tr_mul(wy), bounds).unwrap_or_else(|| bounded_least_squares(c, y, bounds))
+    }
+
+    /// Columns `C` (training rows) with the nuisance's fit taken out of each: `W C`.
+    pub fn whitened_columns(&self, c: &DMatrix<f64>) -> DMatrix<f64> {
+        match self.nuisance {
+            Some(n) => n.whitened_columns(c),
+            None => c.clone(),
+        }
+    }
+
     /// The training residual with the nuisance's fit taken out (what is left to look white).
     pub fn whitened(&self, v: &DVector<f64>) -> DVector<f64> {
         match self.nuisance {
@@ -80,17 +98,12 @@ impl Fitter<'_> {
             None => v.clone(),
         }
     }
-
-    /// The likelihood-ratio statistic of training residuals `e0` (null) against `e1`
-    /// (alternative), the nuisance refitted to each, with a variance and an effective sample
-    /// size per joint (a joint the model misses badly does not drown the evidence on another):
-    /// `sum_k n_eff,k ln(rss0_k / rss1_k)`, and the total effective sample size.
-    pub fn likelihood_ratio(&self, rows: &Rows, e0: &DVector<f64>, e1: &DVector<f64>) -> (f64, f64) {
-        per_joint_ratio(rows, &self.whitened(e0), &self.whitened(e1))
-    }
 }
 
-/// [`Fitter::likelihood_ratio`] of residuals already cleared of the nuisance (held-out rows).
+/// The likelihood-ratio statistic of residuals `e0` (null) against `e1` (alternative), both
+/// already cleared of the nuisance ([`Fitter::whitened`], or held out), with a variance and an
+/// effective sample size per joint (a joint the model misses badly does not drown the evidence
+/// on another): `sum_k n_eff,k ln(rss0_k / rss1_k)`, and the total effective sample size.
 pub fn per_joint_ratio(rows: &Rows, e0: &DVector<f64>, e1: &DVector<f64>) -> (f64, f64) {
     let (w0, w1) = (rows.series(e0), rows.series(e1));
     let (mut stat, mut n_eff) = (0.0, 0.0);

@@ -200,6 +200,12 @@ impl Nuisance {
         self.chol.solve(&self.n.rows(0, self.train).tr_mul(v))
     }
 
+    /// Training-row columns `C` less the nuisance fitted to each: `W C`.
+    pub fn whitened_columns(&self, c: &DMatrix<f64>) -> DMatrix<f64> {
+        let nt = self.n.rows(0, self.train);
+        c - nt * self.chol.solve(&nt.tr_mul(c))
+    }
+
     /// The inertial parameters' change of a fitted nuisance `theta` (kg, kg m, kg m^2; every
     /// body's, in dvrk-kin's regressor order).
     pub fn parameters(&self, theta: &DVector<f64>) -> DVector<f64> {

@@ -18,6 +18,12 @@ fn replay(scene: &Scene, arm: usize, log: &JointLog) -> Result<Vec<f64>> {
     let traj = Trajectory::samples("recording", &log.t, log.setpoint.clone(), nq).map_err(|e| CalibError::data("replay", e))?;
     let mut scene = scene.clone();
     scene.set_start_recorded(arm, &log.setpoint[0], dvrk_sim::scene::RECORDED_START_SLACK).map_err(sim_error)?;
+    // A named drive compliance can be stiffer than the scene's step resolves: the replay takes
+    // the largest step, an integer fraction of the scene's, that holds its motor's mode.
+    let stable = scene.max_stable_dt();
+    if stable < scene.dt {
+        scene.dt /= (scene.dt / stable).ceil();
+    }
     let mut sim = Sim::new(&scene, &SimOptions::default()).map_err(sim_error)?;
     let off = sim.arms[arm].q_offset;
     let (mut q, mut qd) = (vec![0.0; nq], vec![0.0; nq]);
@@ -87,5 +93,34 @@ mod tests {
         assert!(rms[jaw] > 2e-4 && rms[jaw] < 2e-3, "jaw RMS {}", rms[jaw]);
         let e = replay(&scene, 0, &log_past_jaw_limit(&scene, 0.1)).unwrap_err().to_string();
         assert!(e.contains("start configuration") && e.contains("jaw = 1.49"), "{e}");
+    }
+
+    #[test]
+    fn a_drive_stiffer_than_the_scenes_step_replays_at_a_finer_step() {
+        // WPI `two`: a joint_compliance on the yaw named with an 80 kN·m/rad stiffness, a 2000
+        // rad/s motor mode that a 1 ms step cannot hold.
+        let mut scene = Scene::load("psm").unwrap();
+        let dt = scene.dt;
+        let log = log_past_jaw_limit(&scene, 0.0);
+        let rigid = replay(&scene, 0, &log).unwrap();
+        let inertia = dvrk_sim::effects::drive_armature(&scene.arms[0].model, &scene.arms[0].armature)[0];
+        let stiffness = inertia * (1.0 / dt).powi(2);
+        let spec = dvrk_kin::effects::EffectSpec {
+            name: "joint_compliance".into(),
+            joint: Some("outer_yaw".into()),
+            link: None,
+            actuator: None,
+            parameters: [("stiffness".to_string(), stiffness)].into(),
+            source: String::new(),
+        };
+        let stiff = crate::discrepancy::generate::with_effect(&scene.arms[0].model, &spec).unwrap();
+        scene.set_model(0, stiff).unwrap();
+        assert!(scene.max_stable_dt() < 0.6 * dt, "{}", scene.max_stable_dt());
+        assert!(Sim::new(&scene, &SimOptions::default()).is_err(), "the scene's own step should not hold the mode");
+        // So stiff a drive holds the arm as the rigid one does.
+        let rms = replay(&scene, 0, &log).unwrap();
+        for (k, (s, r)) in rms.iter().zip(&rigid).enumerate() {
+            assert!((s - r).abs() <= 0.05 * r + 1e-5, "joint {k}: {s} stiff, {r} rigid");
+        }
     }
 }

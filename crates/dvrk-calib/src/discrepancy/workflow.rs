@@ -212,6 +212,8 @@ fn score_linear(c: &Candidate, fit: &Fitter, r: &Table, o: &Options, rng: &mut C
     // effect's absence: the regular test holds there.
     let unfixed_mass = |i: usize, b: &super::stats::Bounds, v: f64| c.kind == EffectKind::PayloadMass && i == 0 && b.held_at(v).is_some_and(|b| b != 0.0);
     let on_bound = bounds.iter().zip(x.iter()).enumerate().any(|(i, (b, v))| b.active(*v) && !unfixed_mass(i, b, *v));
+    let (g, _) = fit.normal_equations(&a, &y);
+    let aw = fit.whitened_columns(&a);
     let p_value = if on_bound && o.bootstrap > 0 {
         // Block bootstrap under the null: the fitted model's residual resampled in blocks as
         // long as its correlation, refitted.
@@ -231,8 +233,10 @@ fn score_linear(c: &Candidate, fit: &Fitter, r: &Table, o: &Options, rng: &mut C
                 }
                 i += block;
             }
-            let xs = fit.solve(&a, &ys, &bounds)?;
-            if fit.likelihood_ratio(&train, &ys, &(&ys - &a * &xs)).0 >= stat {
+            // `W` is linear: the refit's whitened residual is `W ys - (W a) xs`.
+            let wys = fit.whitened(&ys);
+            let xs = fit.solve_given(&g, &a, &ys, &wys, &bounds)?;
+            if per_joint_ratio(&train, &wys, &(&wys - &aw * &xs)).0 >= stat {
                 exceed += 1;
             }
         }
@@ -242,14 +246,12 @@ fn score_linear(c: &Candidate, fit: &Fitter, r: &Table, o: &Options, rng: &mut C
     };
     // Intervals: the least-squares covariance, inflated for the autocorrelation.
     let s2 = rss1 / (n - p as f64).max(1.0);
-    let (g, _) = fit.normal_equations(&a, &y);
     let cov = g.try_inverse().unwrap_or_else(|| DMatrix::from_element(p, p, f64::INFINITY)) * (s2 / frac);
     // A model error that changes along the recording, or a law that is not the truth's, moves
     // the estimate between parts of the motion more than the noise would: widen by that.
     let mut cov = cov * block_scale(&train, &a, &(fit.whitened(&e1) + &a * &x), &x, &bounds, frac, c.focus)?;
     // Not narrower than the score's scatter ([`consistency::sandwich_variance`]), each parameter
     // through its column less the others' share of it.
-    let aw = DMatrix::from_columns(&a.column_iter().map(|col| fit.whitened(&col.into_owned())).collect::<Vec<_>>());
     for i in 0..p {
         let own = aw.column(i).into_owned();
         let others = aw.clone().remove_column(i);
