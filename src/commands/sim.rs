@@ -4,7 +4,7 @@
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use dvrk_sim::run::TrajectoryKind;
-use dvrk_sim::{Colliders, LoopMode, Outputs, RunOptions, Scene, SimOptions};
+use dvrk_sim::{Colliders, Engine, LoopMode, Outputs, RunOptions, Scene, SimOptions};
 use std::io::{IsTerminal, Write};
 
 /// The default scene: the whole cart (SUJ held, PSMs on the tracking test, ECM holding).
@@ -59,6 +59,11 @@ pub struct SimArgs {
     /// (16-bit depth in mm).
     #[arg(long)]
     pub frames_dir: Option<std::path::PathBuf>,
+    /// Physics engine: rapier (the multibody with impulse-closed loops; contacts) or reduced
+    /// (forward dynamics in the actuated joints, loops exact; arms on the world). The scene's
+    /// choice when absent (rapier unless the scene file says `engine = "reduced"`).
+    #[arg(long, value_parser = ["rapier", "reduced"])]
+    pub engine: Option<String>,
     /// Let the link geometry of different arms in one rapier world touch (contacts are off by
     /// default, as in the paper).
     #[arg(long)]
@@ -110,6 +115,7 @@ pub fn run(args: &SimArgs) -> Result<()> {
             solver_iterations: args.solver_iterations,
             parallel: args.parallel,
             colliders: if args.contacts { Colliders::Contacts } else { Colliders::NoContacts },
+            engine: args.engine.as_deref().map(|e| if e == "reduced" { Engine::Reduced } else { Engine::Rapier }),
             ..Default::default()
         },
     };
@@ -176,7 +182,10 @@ pub fn run(args: &SimArgs) -> Result<()> {
         "scene {} ({}), trajectory {}, {:.1} s simulated in {:.2} s: real-time factor {:.1}",
         summary.scene, scene.title, summary.trajectory, summary.duration, summary.wall_time, summary.real_time_factor
     );
-    println!("dt {} s, {} solver iterations, loops: {:?}", summary.dt, summary.solver.iterations, summary.loops);
+    match summary.engine {
+        Engine::Rapier => println!("engine rapier, dt {} s, {} solver iterations, loops: {:?}", summary.dt, summary.solver.iterations, summary.loops),
+        Engine::Reduced => println!("engine reduced (loops exact), dt {} s", summary.dt),
+    }
     println!("{:>8} {:<20} {:>12} {:>12} {:>12}", "arm", "joint", "rms error", "max error", "max effort");
     for j in &summary.joints {
         println!("{:>8} {:<20} {:>10.3e} {:<3} {:>8.3e} {:<3} {:>10.3}", j.arm, j.joint, j.rms_error, j.unit, j.max_error, j.unit, j.max_effort);

@@ -14,8 +14,14 @@ pub enum JointArg {
     Name(String),
 }
 
-fn options(loops: &str, solver_iterations: Option<usize>) -> Result<SimOptions> {
+fn options(loops: &str, solver_iterations: Option<usize>, engine: Option<&str>) -> Result<SimOptions> {
     let mut o = SimOptions::default();
+    o.engine = match engine {
+        None => None,
+        Some("rapier") => Some(dvrk_sim::Engine::Rapier),
+        Some("reduced") => Some(dvrk_sim::Engine::Reduced),
+        Some(other) => return Err(Error::Input(format!("engine = `{other}`: expected `rapier` or `reduced`"))),
+    };
     o.loops = match loops {
         "impulse" => LoopMode::ImpulseJoints,
         "coupling" => LoopMode::DofCoupling,
@@ -55,11 +61,13 @@ impl PySim {
 impl PySim {
     /// Build a scene (built-in name such as "psm", "ecm", or a scene file) ready to step.
     /// `loops`: "impulse" (loop-closing impulse joints) or "coupling" (loop-free, URDF-mimic way).
+    /// `engine`: "rapier" or "reduced" (forward dynamics in the actuated joints, loops exact;
+    /// arms on the world); the scene's when None.
     #[staticmethod]
-    #[pyo3(signature = (scene, loops="impulse", solver_iterations=None))]
-    fn from_scene(scene: &str, loops: &str, solver_iterations: Option<usize>) -> Result<Self> {
+    #[pyo3(signature = (scene, loops="impulse", solver_iterations=None, engine=None))]
+    fn from_scene(scene: &str, loops: &str, solver_iterations: Option<usize>, engine: Option<&str>) -> Result<Self> {
         let s = Scene::load(scene)?;
-        let sim = dvrk_sim::Sim::new(&s, &options(loops, solver_iterations)?)?;
+        let sim = dvrk_sim::Sim::new(&s, &options(loops, solver_iterations, engine)?)?;
         let names = sim
             .arms
             .iter()
@@ -168,7 +176,7 @@ impl PySim {
 /// tracking RMS/max, loop-closure and RCM errors, in SI units) — the same figures as
 /// `dvrk sim --json`.
 #[pyfunction]
-#[pyo3(signature = (scene, duration, trajectory="sine", loops="impulse", solver_iterations=None))]
+#[pyo3(signature = (scene, duration, trajectory="sine", loops="impulse", solver_iterations=None, engine=None))]
 pub fn run_scene<'py>(
     py: Python<'py>,
     scene: &str,
@@ -176,6 +184,7 @@ pub fn run_scene<'py>(
     trajectory: &str,
     loops: &str,
     solver_iterations: Option<usize>,
+    engine: Option<&str>,
 ) -> Result<Bound<'py, PyAny>> {
     let trajectory = match trajectory {
         "sine" => TrajectoryKind::Sine,
@@ -183,7 +192,7 @@ pub fn run_scene<'py>(
         other => return Err(Error::Input(format!("trajectory = `{other}`: expected sine or hold"))),
     };
     let s = Scene::load(scene)?;
-    let opts = RunOptions { duration, trajectory, sim: options(loops, solver_iterations)? };
+    let opts = RunOptions { duration, trajectory, sim: options(loops, solver_iterations, engine)? };
     let summary = py.detach(|| dvrk_sim::run(&s, &opts, |_| {}))?;
     if !summary.finite {
         let message = format!("scene {scene}: largest loop-closure gap {:.6e} m at {:.6e} s (`dvrk sim` exits 1 alike)", summary.max_closure_error, summary.max_closure_time);

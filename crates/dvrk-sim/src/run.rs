@@ -73,6 +73,8 @@ pub struct Summary {
     pub duration: f64,
     pub dt: f64,
     pub steps: u64,
+    /// The physics engine that ran.
+    pub engine: crate::sim::Engine,
     pub solver: crate::scene::SolverSettings,
     /// Gauss-Seidel sweeps per substep of each arm group (rapier world), which override
     /// `solver.pgs_iterations` for groups whose arms ask for more.
@@ -454,6 +456,7 @@ pub fn run_staged(scene: &Scene, options: &RunOptions, outputs: &Outputs, mut pr
         duration: simulated,
         dt: sim.dt,
         steps: done,
+        engine: sim.engine(),
         solver: options.sim.solver_settings(scene),
         group_pgs_iterations: sim.group_pgs_iterations(),
         loops: options.sim.loops,

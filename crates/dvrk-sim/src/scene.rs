@@ -61,6 +61,9 @@ struct SceneFile {
     stabilization_iterations: usize,
     #[serde(default)]
     warmstart_joints: bool,
+    /// The physics engine (`rapier` unless the file says `reduced`).
+    #[serde(default)]
+    engine: crate::sim::Engine,
     /// m/s^2, world frame
     #[serde(default = "default_gravity", deserialize_with = "dvrk_kin::exact::vec3")]
     gravity: [f64; 3],
@@ -207,6 +210,8 @@ pub struct Scene {
     pub title: String,
     /// Time step (s).
     pub dt: f64,
+    /// The physics engine the file asks for (a [`crate::SimOptions`] can override it).
+    pub engine: crate::sim::Engine,
     pub solver: SolverSettings,
     /// m/s^2
     pub gravity: [f64; 3],
@@ -422,7 +427,7 @@ impl Scene {
                 return Err(SimError::field(file, "camera.arm", format!("`{}` is not an arm of the scene (valid: {})", c.arm, valid.join(", "))));
             }
         }
-        Ok(Scene { name: f.name, title: f.title, dt: f.dt, camera: f.camera, file: file.to_string(), solver: SolverSettings {
+        Ok(Scene { name: f.name, title: f.title, dt: f.dt, engine: f.engine, camera: f.camera, file: file.to_string(), solver: SolverSettings {
                 iterations: f.solver_iterations,
                 pgs_iterations: f.pgs_iterations,
                 stabilization_iterations: f.stabilization_iterations,

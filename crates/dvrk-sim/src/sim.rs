@@ -80,8 +80,10 @@ pub struct SimOptions {
     pub parallel: bool,
     /// Link geometry as rapier colliders (see [`crate::geometry`]).
     pub colliders: Colliders,
-    /// Which velocity the Coriolis and gyroscopic forces act on ([`Coriolis`]).
+    /// Which velocity the Coriolis and gyroscopic forces act on ([`Coriolis`]; rapier).
     pub coriolis: Coriolis,
+    /// The physics engine ([`Engine`]; `None`: the scene's).
+    pub engine: Option<Engine>,
 }
 
 /// Which velocity a step's Coriolis and gyroscopic forces act on.
@@ -103,6 +105,28 @@ pub enum Coriolis {
     /// on the yaw. For recordings whose timing is analysed (the hidden-effect truth). The arm's
     /// own tree only: the motion of an arm carrying it stays implicit.
     Explicit,
+}
+
+/// Which physics engine steps the scene.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Engine {
+    /// rapier's multibody with the loops closed by impulse joints: contacts, and the cross-check.
+    #[default]
+    Rapier,
+    /// Forward dynamics in the actuated joints ([`crate::reduced`]): the loops exact by
+    /// construction, no contacts, arms on the world (not yet an arm carried by another).
+    Reduced,
+}
+
+impl Engine {
+    /// `rapier` or `reduced`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Engine::Rapier => "rapier",
+            Engine::Reduced => "reduced",
+        }
+    }
 }
 
 /// Whether the link geometry is attached to the rapier bodies as colliders, and whether they touch.
@@ -134,6 +158,7 @@ impl Default for SimOptions {
             parallel: false,
             colliders: Colliders::default(),
             coriolis: Coriolis::default(),
+            engine: None,
         }
     }
 }
@@ -228,13 +253,78 @@ pub struct ArmState {
     /// The model's friction, springs, two-mass drives and latency ([`crate::effects`]).
     pub effects: crate::effects::ArmEffects,
     /// Gravity feed-forward on the PID efforts, if the scene asks for it.
-    gravity_compensation: Option<GravityCompensation>,
+    pub(crate) gravity_compensation: Option<GravityCompensation>,
     /// The explicit part of each drive's joint damping (N·m s/rad, N s/m per unit of its
     /// coordinate), on the velocity the step starts with; rapier applies the rest implicitly
     /// ([`DRIVE_DAMPING_EXPLICIT`]).
     explicit_damping: f64,
     /// With [`Coriolis::Explicit`]: what undoes rapier's implicit Coriolis.
     coriolis: Option<ExplicitCoriolis>,
+}
+
+impl ArmState {
+    /// An arm without a rapier part (the reduced engine's), mounted on the world.
+    pub(crate) fn without_rapier(name: &str, model: &Model, q_offset: usize, actuators: Vec<Actuator>, tracking: crate::scene::Tracking, effects: crate::effects::ArmEffects, gravity_compensation: Option<GravityCompensation>) -> ArmState {
+        ArmState {
+            name: name.to_string(),
+            model: model.clone(),
+            q_offset,
+            bodies: Vec::new(),
+            dofs: Vec::new(),
+            drives: Vec::new(),
+            closures: Vec::new(),
+            cables: Vec::new(),
+            actuators,
+            tracking,
+            parent: None,
+            world: 0,
+            effects,
+            gravity_compensation,
+            explicit_damping: 0.0,
+            coriolis: None,
+        }
+    }
+
+    /// The controllers' efforts on this arm's links (N·m, N) into `effects.drive`: the
+    /// actuators on the measured joints (gravity feed-forward first), through a coupling
+    /// error's map and any compliant transmission, plus the friction and spring effects on the
+    /// links. Both engines apply these. `q`..`qd_link`: the scene's vectors.
+    pub(crate) fn link_efforts(&mut self, q: &[f64], qd: &[f64], q_link: &[f64], qd_link: &[f64], dt: f64) {
+        let (off, n) = (self.q_offset, self.model.nq());
+        self.effects.update_forces(&q_link[off..off + n], &qd_link[off..off + n]);
+        if let Some(gc) = self.gravity_compensation.as_mut() {
+            // A measured q outside the model's checks (never from the sim) leaves it at zero.
+            if dvrk_kin::gravity_torque(&self.model, &gc.dynamics, &mut gc.data, &q[off..off + n], &gc.gravity, &mut gc.torque).is_err() {
+                gc.torque.fill(0.0);
+            }
+        }
+        for k in 0..n {
+            let i = off + k;
+            if let Some(gc) = &self.gravity_compensation {
+                self.actuators[k].feedforward = gc.torque[k];
+            }
+            self.effects.drive[k] = self.actuators[k].update(q[i], qd[i], dt);
+        }
+        if let Some(c) = self.effects.coupling.as_mut() {
+            c.torque_to_link(&mut self.effects.drive);
+        }
+        for k in 0..n {
+            let i = off + k;
+            if let Some(t) = self.effects.transmissions[k].as_mut() {
+                self.effects.drive[k] = t.step(self.effects.drive[k], q_link[i], qd_link[i], dt);
+            }
+            self.effects.drive[k] += self.effects.force[k];
+        }
+    }
+
+    /// The link position (rad, m) and velocity a position-mode drive `k` holds: its target,
+    /// through a coupling error's map to the true joint.
+    pub(crate) fn held_target(&self, k: usize) -> (f64, f64) {
+        match &self.effects.coupling {
+            Some(c) => self.actuators.iter().enumerate().fold((0.0, 0.0), |(p, v), (j, a)| (p + c.to_link[(k, j)] * a.target, v + c.to_link[(k, j)] * a.target_velocity)),
+            None => (self.actuators[k].target, self.actuators[k].target_velocity),
+        }
+    }
 }
 
 /// The generalised force that moves rapier's Coriolis and gyroscopic forces from the velocity a
@@ -295,13 +385,35 @@ impl ExplicitCoriolis {
 /// The model's gravity torque at the measured joints, added to PID efforts (dvrk-kin's
 /// Newton-Euler on the same inertials, payloads included).
 #[derive(Debug, Clone)]
-struct GravityCompensation {
-    dynamics: dvrk_kin::DynamicsModel,
-    data: dvrk_kin::DynamicsData,
+pub(crate) struct GravityCompensation {
+    pub(crate) dynamics: dvrk_kin::DynamicsModel,
+    pub(crate) data: dvrk_kin::DynamicsData,
     /// m/s^2, world
-    gravity: Vector3<f64>,
+    pub(crate) gravity: Vector3<f64>,
     /// N·m, N per joint
-    torque: Vec<f64>,
+    pub(crate) torque: Vec<f64>,
+}
+
+impl GravityCompensation {
+    /// The gravity feed-forward of `arm` if its scene asks for it: on the joints read (the model
+    /// with its coupling error), with the bodies' `inertias` (payloads included).
+    pub(crate) fn of(arm: &crate::scene::Arm, scene: &Scene, options: &SimOptions, inertias: &[dvrk_kin::BodyInertia]) -> Result<Option<GravityCompensation>> {
+        if !arm.gravity_compensation {
+            return Ok(None);
+        }
+        let g = if options.no_gravity { [0.0; 3] } else { scene.gravity };
+        Ok(Some(GravityCompensation {
+            dynamics: dvrk_kin::DynamicsModel::new(&arm.model, inertias.to_vec())?,
+            data: dvrk_kin::DynamicsData::new(&arm.model),
+            gravity: Vector3::from(g),
+            torque: vec![0.0; arm.model.nq()],
+        }))
+    }
+}
+
+/// The actuators of `arm`: PID with its gains, holding its start.
+pub(crate) fn actuators(arm: &crate::scene::Arm) -> Vec<Actuator> {
+    arm.model.joints.iter().enumerate().map(|(k, j)| Actuator::new(arm.gains[k], j.effort_limit, arm.start[k])).collect()
 }
 
 /// One rapier world: an arm mounted on the fixed world and every arm it carries. Arms in
@@ -312,7 +424,7 @@ struct GravityCompensation {
 /// motor row spanning all its DoFs), costing ~3x the sum of the separate groups for 3 PSMs and
 /// ~6x for the full cart (rapier3d-f64 0.36.1). Separate worlds make the cost linear in the
 /// number of groups and let the groups step in parallel (`SimOptions::parallel`).
-struct World {
+pub(crate) struct World {
     bodies: RigidBodySet,
     colliders: ColliderSet,
     impulse_joints: ImpulseJointSet,
@@ -375,17 +487,19 @@ pub struct Sim {
     pub arms: Vec<ArmState>,
     /// One rapier world per independent arm group (an arm on the fixed world and the arms it
     /// carries); `ArmState::world` indexes it.
-    worlds: Vec<World>,
-    parallel: bool,
-    gravity: RVec,
+    pub(crate) worlds: Vec<World>,
+    pub(crate) parallel: bool,
+    pub(crate) gravity: RVec,
     /// Measured q, qd and applied effort of every joint of the scene (rad, m; /s; N·m, N).
-    q: Vec<f64>,
-    qd: Vec<f64>,
+    pub(crate) q: Vec<f64>,
+    pub(crate) qd: Vec<f64>,
     /// The links' own joint positions and velocities (rad, m; /s): equal to `q`, `qd` unless an
     /// effect (a compliant drive, play, latency, a coupling error: then the true joints)
     /// separates what is measured from the link.
-    q_link: Vec<f64>,
-    qd_link: Vec<f64>,
+    pub(crate) q_link: Vec<f64>,
+    pub(crate) qd_link: Vec<f64>,
+    /// With the reduced engine, each arm's mechanism (then `worlds` is empty).
+    pub(crate) reduced: Vec<crate::reduced::ReducedArm>,
 }
 
 /// nalgebra pose to rapier pose.
@@ -433,6 +547,9 @@ impl Sim {
     /// Build the rapier world of `scene` with every joint at its home position, in PID mode
     /// holding home.
     pub fn new(scene: &Scene, options: &SimOptions) -> Result<Sim> {
+        if options.engine.unwrap_or(scene.engine) == Engine::Reduced {
+            return Sim::new_reduced(scene, options);
+        }
         let solver = options.solver_settings(scene);
         let mut params = IntegrationParameters { dt: scene.dt, ..IntegrationParameters::default() };
         params.num_solver_iterations = solver.iterations;
@@ -644,12 +761,7 @@ impl Sim {
             mb.apply_displacements(&disp);
             mb.forward_kinematics(bodies, true);
             mb.update_rigid_bodies(bodies, true);
-            let actuators = model
-                .joints
-                .iter()
-                .enumerate()
-                .map(|(k, j)| Actuator::new(arm.gains[k], j.effort_limit, arm.start[k]))
-                .collect();
+            let actuators = actuators(arm);
             let effects = crate::effects::ArmEffects::new(&arm.name, &arm.model, &armature, &arm.start, scene.dt)?;
             {
                 let mb = multibody_joints.get_multibody_mut(mb_index).ok_or_else(|| SimError::Build("multibody vanished".into()))?;
@@ -661,18 +773,7 @@ impl Sim {
                     }
                 }
             }
-            let gravity_compensation = if arm.gravity_compensation {
-                let g = if options.no_gravity { [0.0; 3] } else { scene.gravity };
-                Some(GravityCompensation {
-                    // On the joints read: the model with its coupling error.
-                    dynamics: dvrk_kin::DynamicsModel::new(&arm.model, inertias.clone())?,
-                    data: dvrk_kin::DynamicsData::new(&arm.model),
-                    gravity: Vector3::from(g),
-                    torque: vec![0.0; model.nq()],
-                })
-            } else {
-                None
-            };
+            let gravity_compensation = GravityCompensation::of(arm, scene, options, &inertias)?;
             let coriolis = match options.coriolis {
                 Coriolis::Implicit => None,
                 // On the links: the model the bodies were built from, payloads included.
@@ -681,8 +782,16 @@ impl Sim {
             arms.push(ArmState { name: arm.name.clone(), model: arm.model.clone(), q_offset, bodies: handles, dofs, drives, closures, cables, actuators, tracking: arm.tracking, parent: arm.parent, world, effects, gravity_compensation, explicit_damping: explicit_share(arm.damping), coriolis });
             q_offset += model.nq();
         }
+        let mut sim = Sim::assemble(scene, options, arms, worlds, q_offset);
+        sim.read_state();
+        sim.apply_modes(scene)?;
+        Ok(sim)
+    }
+
+    /// The sim of built `arms` (`nq` joints in all) on `worlds` (none for the reduced engine).
+    pub(crate) fn assemble(scene: &Scene, options: &SimOptions, arms: Vec<ArmState>, worlds: Vec<World>, nq: usize) -> Sim {
         let g = if options.no_gravity { [0.0; 3] } else { scene.gravity };
-        let mut sim = Sim {
+        Sim {
             scene_name: scene.name.clone(),
             dt: scene.dt,
             time: 0.0,
@@ -690,20 +799,33 @@ impl Sim {
             worlds,
             parallel: options.parallel,
             gravity: RVec::new(g[0], g[1], g[2]),
-            q: vec![0.0; q_offset],
-            qd: vec![0.0; q_offset],
-            q_link: vec![0.0; q_offset],
-            qd_link: vec![0.0; q_offset],
-        };
-        sim.read_state();
+            q: vec![0.0; nq],
+            qd: vec![0.0; nq],
+            q_link: vec![0.0; nq],
+            qd_link: vec![0.0; nq],
+            reduced: Vec::new(),
+        }
+    }
+
+    /// Each arm's drives in the mode its scene entry asks for.
+    pub(crate) fn apply_modes(&mut self, scene: &Scene) -> Result<()> {
         for (a, arm) in scene.arms.iter().enumerate() {
             if arm.mode != Mode::Pid {
                 for k in 0..arm.model.nq() {
-                    sim.set_mode(sim.arms[a].q_offset + k, arm.mode)?;
+                    self.set_mode(self.arms[a].q_offset + k, arm.mode)?;
                 }
             }
         }
-        Ok(sim)
+        Ok(())
+    }
+
+    /// The physics engine stepping this sim.
+    pub fn engine(&self) -> Engine {
+        if self.reduced.is_empty() {
+            Engine::Rapier
+        } else {
+            Engine::Reduced
+        }
     }
 
     /// Number of joints of the scene (all arms).
@@ -757,12 +879,12 @@ impl Sim {
     /// values are rejected; targets outside the joint limits are clamped to them.
     pub fn set_target(&mut self, i: usize, position: f64, velocity: f64) -> Result<()> {
         let (a, k) = self.locate(i)?;
-        let name = self.joint_name(a, k);
+        // The name only on error: a controller calls this every step (no allocation).
         if !position.is_finite() {
-            return Err(SimError::value(format!("{name} target position"), position, "must be finite"));
+            return Err(SimError::value(format!("{} target position", self.joint_name(a, k)), position, "must be finite"));
         }
         if !velocity.is_finite() {
-            return Err(SimError::value(format!("{name} target velocity"), velocity, "must be finite"));
+            return Err(SimError::value(format!("{} target velocity", self.joint_name(a, k)), velocity, "must be finite"));
         }
         let (lower, upper) = (self.arms[a].model.joints[k].lower, self.arms[a].model.joints[k].upper);
         let act = &mut self.arms[a].actuators[k];
@@ -816,6 +938,12 @@ impl Sim {
                 return Err(SimError::value(name, v, "must be finite and non-negative"));
             }
         }
+        if !self.reduced.is_empty() {
+            for r in self.reduced.iter_mut() {
+                r.set_damping_and_armature(damping, armature_scale);
+            }
+            return Ok(());
+        }
         // Arms carried by another arm share its multibody: scale each multibody's armature once.
         let mut done: Vec<(usize, MultibodyIndex)> = Vec::new();
         for arm in &self.arms {
@@ -847,6 +975,10 @@ impl Sim {
 
     /// Rapier's implicit position motor on a drive in position mode (stiff, unlimited), off otherwise.
     fn apply_position_motor(&mut self, a: usize, k: usize) {
+        if !self.reduced.is_empty() {
+            // The reduced engine reads the targets every step.
+            return;
+        }
         let arm = &self.arms[a];
         let act = &arm.actuators[k];
         let dr = &arm.drives[k];
@@ -856,10 +988,7 @@ impl Sim {
         let Some(l) = mb.link_mut(link) else { return };
         if act.mode == Mode::Position {
             // Under a coupling error the drive holds the true joint the targets read as.
-            let (position, velocity) = match &arm.effects.coupling {
-                Some(c) => arm.actuators.iter().enumerate().fold((0.0, 0.0), |(p, v), (j, a)| (p + c.to_link[(k, j)] * a.target, v + c.to_link[(k, j)] * a.target_velocity)),
-                None => (act.target, act.target_velocity),
-            };
+            let (position, velocity) = arm.held_target(k);
             l.joint.data.set_motor_model(axis, MotorModel::AccelerationBased);
             l.joint.data.set_motor(axis, dr.c * position + dr.b, dr.c * velocity, POSITION_STIFFNESS, POSITION_DAMPING);
             l.joint.data.set_motor_max_force(axis, Real::MAX);
@@ -871,7 +1000,37 @@ impl Sim {
 
     /// Read the links' q, qd from the multibody coordinates, then what is measured: the motor of
     /// a two-mass drive, delayed by the arm's latency.
-    fn read_state(&mut self) {
+    pub(crate) fn read_state(&mut self) {
+        if self.reduced.is_empty() {
+            self.read_links();
+        } else {
+            for (arm, r) in self.arms.iter().zip(&self.reduced) {
+                let off = arm.q_offset;
+                self.q_link[off..off + r.q.len()].copy_from_slice(&r.q);
+                self.qd_link[off..off + r.qd.len()].copy_from_slice(&r.qd);
+            }
+        }
+        for arm in self.arms.iter_mut() {
+            let (off, n) = (arm.q_offset, arm.model.nq());
+            for k in 0..n {
+                let i = off + k;
+                (self.q[i], self.qd[i]) = match &arm.effects.transmissions[k] {
+                    Some(t) => (t.position, t.velocity),
+                    None => (self.q_link[i], self.qd_link[i]),
+                };
+            }
+            if let Some(c) = arm.effects.coupling.as_mut() {
+                c.read(&mut self.q[off..off + n]);
+                c.read(&mut self.qd[off..off + n]);
+            }
+            if let Some(d) = arm.effects.delay.as_mut() {
+                d.push(&mut self.q[off..off + n], &mut self.qd[off..off + n]);
+            }
+        }
+    }
+
+    /// The links' q, qd from the rapier multibody coordinates.
+    fn read_links(&mut self) {
         for arm in self.arms.iter_mut() {
             for (k, dr) in arm.drives.iter().enumerate() {
                 let i = arm.q_offset + k;
@@ -886,18 +1045,6 @@ impl Sim {
                     self.qd_link[i] = (q - self.q_link[i]) / self.dt;
                 }
                 self.q_link[i] = q;
-                (self.q[i], self.qd[i]) = match &arm.effects.transmissions[k] {
-                    Some(t) => (t.position, t.velocity),
-                    None => (q, self.qd_link[i]),
-                };
-            }
-            let (off, n) = (arm.q_offset, arm.drives.len());
-            if let Some(c) = arm.effects.coupling.as_mut() {
-                c.read(&mut self.q[off..off + n]);
-                c.read(&mut self.qd[off..off + n]);
-            }
-            if let Some(d) = arm.effects.delay.as_mut() {
-                d.push(&mut self.q[off..off + n], &mut self.qd[off..off + n]);
             }
         }
     }
@@ -910,6 +1057,9 @@ impl Sim {
 
     /// Advance one time step: controllers, efforts applied as joint torques/forces, physics.
     pub fn step(&mut self) {
+        if !self.reduced.is_empty() {
+            return self.step_reduced();
+        }
         // User forces and torques persist in rapier until cleared: clear both every step.
         for w in self.worlds.iter_mut() {
             for (_, rb) in w.bodies.iter_mut() {
@@ -918,41 +1068,20 @@ impl Sim {
             }
         }
         for arm in self.arms.iter_mut() {
-            let (off, n) = (arm.q_offset, arm.drives.len());
-            arm.effects.update_forces(&self.q_link[off..off + n], &self.qd_link[off..off + n]);
-            if let Some(gc) = arm.gravity_compensation.as_mut() {
-                // A measured q outside the model's checks (never from the sim) leaves it at zero.
-                if dvrk_kin::gravity_torque(&arm.model, &gc.dynamics, &mut gc.data, &self.q[off..off + n], &gc.gravity, &mut gc.torque).is_err() {
-                    gc.torque.fill(0.0);
-                }
-            }
-            for k in 0..n {
-                let i = off + k;
-                if let Some(gc) = &arm.gravity_compensation {
-                    arm.actuators[k].feedforward = gc.torque[k];
-                }
-                arm.effects.drive[k] = arm.actuators[k].update(self.q[i], self.qd[i], self.dt);
-            }
-            if let Some(c) = arm.effects.coupling.as_mut() {
-                c.torque_to_link(&mut arm.effects.drive);
-            }
+            let off = arm.q_offset;
+            arm.link_efforts(&self.q, &self.qd, &self.q_link, &self.qd_link, self.dt);
             if let Some(c) = arm.coriolis.as_mut() {
+                let n = arm.model.nq();
                 c.update(&self.q_link[off..off + n], &self.worlds[arm.world].multibody_joints, &arm.dofs, self.dt);
                 for (d, f) in arm.dofs.iter().zip(&c.force) {
                     apply_generalized(&mut self.worlds[arm.world].bodies, d, *f);
                 }
             }
             for (k, dr) in arm.drives.iter().enumerate() {
-                let i = off + k;
-                let mut tau = arm.effects.drive[k];
-                if let Some(t) = arm.effects.transmissions[k].as_mut() {
-                    tau = t.step(tau, self.q_link[i], self.qd_link[i], self.dt);
-                }
-                tau += arm.effects.force[k];
                 // Generalised force on the drive's coordinate (tau dq = f dcoord), with the
                 // explicit part of its damping on the velocity the step starts with (the link's
                 // qd: the coordinate's last change over dt, per unit of q).
-                let f = tau / dr.c - arm.explicit_damping * dr.c * self.qd_link[i];
+                let f = arm.effects.drive[k] / dr.c - arm.explicit_damping * dr.c * self.qd_link[off + k];
                 if f == 0.0 {
                     continue;
                 }
@@ -1003,6 +1132,9 @@ impl Sim {
 
     /// World pose of dvrk-kin body `body` of arm `arm` (its first frame).
     pub fn body_pose(&self, arm: usize, body: usize) -> Pose {
+        if let Some(r) = self.reduced.get(arm) {
+            return r.body_pose(body);
+        }
         let a = &self.arms[arm];
         from_rapier(self.worlds[a.world].bodies[a.bodies[body]].position())
     }
@@ -1024,6 +1156,13 @@ impl Sim {
     /// each closure point.
     pub fn closure_error(&self) -> f64 {
         let mut worst: f64 = 0.0;
+        for r in &self.reduced {
+            let gap = r.closure_error();
+            if gap.is_nan() {
+                return f64::NAN;
+            }
+            worst = worst.max(gap);
+        }
         for arm in &self.arms {
             for c in &arm.closures {
                 let bodies = &self.worlds[arm.world].bodies;
@@ -1056,6 +1195,9 @@ impl Sim {
 
     /// Largest |generalised velocity| of any tree joint of any arm (rad/s or m/s), for diagnostics.
     pub fn max_tree_velocity(&self) -> f64 {
+        if !self.reduced.is_empty() {
+            return self.qd_link.iter().fold(0.0, |a: f64, v| a.max(v.abs()));
+        }
         self.arms
             .iter()
             .filter_map(|a| self.worlds[a.world].multibody_joints.get(a.dofs[0].handle))
@@ -1067,6 +1209,9 @@ impl Sim {
     /// kinetic energy of the drives' armature (reflected rotor inertia) and the energy stored in
     /// the cables' springs.
     pub fn energy(&self) -> f64 {
+        if !self.reduced.is_empty() {
+            return self.reduced.iter().map(|r| r.energy()).sum();
+        }
         let g = self.gravity;
         let bodies: f64 = self
             .worlds

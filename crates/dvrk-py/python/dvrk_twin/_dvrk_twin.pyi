@@ -145,12 +145,15 @@ class Model:
 _JointArg = Union[int, str]
 
 class Sim:
-    """A running dynamic simulation of a scene (rapier, f64). Units: m, rad, s, N, N·m."""
+    """A running dynamic simulation of a scene (rapier or the reduced engine, f64). Units: m,
+    rad, s, N, N·m."""
 
     @staticmethod
-    def from_scene(scene: str, loops: str = "impulse", solver_iterations: Optional[int] = None) -> "Sim":
+    def from_scene(scene: str, loops: str = "impulse", solver_iterations: Optional[int] = None, engine: Optional[str] = None) -> "Sim":
         """Build a built-in scene ("psm", "ecm", ...) or a scene file. ``loops``: "impulse"
-        (loop-closing impulse joints) or "coupling" (loop-free)."""
+        (loop-closing impulse joints) or "coupling" (loop-free). ``engine``: "rapier" or
+        "reduced" (forward dynamics in the actuated joints, loops exact, arms on the world);
+        the scene's when None."""
     @property
     def joint_names(self) -> List[str]:
         """Joint names ``ARM/joint`` in the order of ``q``."""
@@ -190,6 +193,7 @@ def run_scene(
     trajectory: str = "sine",
     loops: str = "impulse",
     solver_iterations: Optional[int] = None,
+    engine: Optional[str] = None,
 ) -> Dict[str, Any]:
     """Run a scene for ``duration`` s ("sine": the paper's tracking test, or "hold") without the
     GIL; the summary of ``dvrk sim --json`` as a dict (real_time_factor, joints, max_closure_error
