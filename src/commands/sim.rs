@@ -60,7 +60,7 @@ pub struct SimArgs {
     #[arg(long)]
     pub frames_dir: Option<std::path::PathBuf>,
     /// Physics engine: rapier (the multibody with impulse-closed loops; contacts) or reduced
-    /// (forward dynamics in the actuated joints, loops exact; arms on the world). The scene's
+    /// (forward dynamics in the actuated joints, loops exact; no contacts). The scene's
     /// choice when absent (rapier unless the scene file says `engine = "reduced"`).
     #[arg(long, value_parser = ["rapier", "reduced"])]
     pub engine: Option<String>,

@@ -91,12 +91,7 @@ pub fn serial_base_transform(model: &Model) -> Result<Pose> {
 
 /// Merge the arms of `spec` into one model.
 pub fn compose(spec: &SystemSpec, dir: Option<&Path>) -> Result<Model> {
-    let mut frames: Vec<Frame> = Vec::new();
-    let mut joints = Vec::new();
-    let mut closures = Vec::new();
-    let mut parts: Vec<Part> = Vec::new();
-    let mut declared: Vec<Option<String>> = Vec::new();
-    let mut arms: Vec<Model> = Vec::new();
+    let mut arms: Vec<Mounted> = Vec::with_capacity(spec.arms.len());
     for (ai, arm_spec) in spec.arms.iter().enumerate() {
         let field = |f: &str| format!("arms[{ai}] ({}).{f}", arm_spec.name);
         let tool = arm_spec.tool.as_ref().map(|t| match dir {
@@ -121,18 +116,65 @@ pub fn compose(spec: &SystemSpec, dir: Option<&Path>) -> Result<Model> {
         let parent = if arm_spec.parent == "base" {
             None
         } else {
-            let pi = parts.iter().position(|p| p.name == arm_spec.parent).ok_or_else(|| {
-                KinError::field(field("parent"), KinError::unknown("arm", &arm_spec.parent, std::iter::once("base".to_string()).chain(parts.iter().map(|p| p.name.clone()))).to_string())
+            let pi = arms.iter().position(|p| p.name == arm_spec.parent).ok_or_else(|| {
+                KinError::field(field("parent"), KinError::unknown("arm", &arm_spec.parent, std::iter::once("base".to_string()).chain(arms.iter().map(|p| p.name.clone()))).to_string())
             })?;
             let fr = arm_spec.parent_frame.as_ref().ok_or_else(|| KinError::field(field("parent_frame"), "missing (needed when parent is an arm)"))?;
-            let local = arms[pi].frame_id(fr).map_err(|e| KinError::field(field("parent_frame"), e.to_string()))?;
-            Some(parts[pi].frames.start + 1 + local)
+            let local = arms[pi].model.frame_id(fr).map_err(|e| KinError::field(field("parent_frame"), e.to_string()))?;
+            Some((pi, local))
+        };
+        // An arm on the base stands on the cart: its mount frame is the cart body.
+        let mount_body = parent.is_none().then(|| "cart".to_string());
+        arms.push(Mounted { name: arm_spec.name.clone(), source: arm_spec.model.clone(), model: arm, parent, mount, mount_body });
+    }
+    let mut model = merge(&spec.name, &arms)?;
+    model.title = spec.title.clone();
+    model.spec = ModelSpec { title: spec.title.clone(), notes: spec.notes.clone(), ..ModelSpec::empty(&spec.name, &spec.source) };
+    Ok(model)
+}
+
+/// One arm of a merged model: `model` placed by `mount` on frame `parent.1` (a frame of
+/// `model`'s own numbering) of arm `parent.0` (listed before it), or on the merged model's base.
+#[derive(Debug, Clone)]
+pub struct Mounted {
+    /// Prefix of its frame, joint and body names.
+    pub name: String,
+    /// Where the model came from (a built-in name or a path), for [`Part::model`].
+    pub source: String,
+    pub model: Model,
+    pub parent: Option<(usize, usize)>,
+    /// The arm's base in its parent frame (m). The model's own `base` is not used.
+    pub mount: Pose,
+    /// The body the mount frame is declared part of (`None`: the body it is rigid to).
+    pub mount_body: Option<String>,
+}
+
+/// One tree of `arms`: each arm's frames under a fixed mount frame, its joints after the
+/// previous arms' (the [`Part`]s say where), its bodies named `ARM/body`. The merged model's
+/// base is the identity and it has no effects, coupling or RCM of its own.
+pub fn merge(name: &str, arms: &[Mounted]) -> Result<Model> {
+    let mut frames: Vec<Frame> = Vec::new();
+    let mut joints = Vec::new();
+    let mut closures = Vec::new();
+    let mut parts: Vec<Part> = Vec::new();
+    let mut declared: Vec<Option<String>> = Vec::new();
+    for (ai, m) in arms.iter().enumerate() {
+        let arm = &m.model;
+        let parent = match m.parent {
+            None => None,
+            Some((pi, local)) => {
+                let p = parts.get(pi).filter(|_| pi < ai).ok_or_else(|| KinError::field(format!("arms[{ai}] ({}).parent", m.name), format!("arm {pi} is not listed before it")))?;
+                if local >= p.frames.len() - 1 {
+                    return Err(KinError::field(format!("arms[{ai}] ({}).parent_frame", m.name), format!("frame {local} is not a frame of {}", p.name)));
+                }
+                Some(p.frames.start + 1 + local)
+            }
         };
         let nq_before = joints.len();
         let frame_start = frames.len();
         frames.push(Frame {
             index: frames.len() as i64 + 1,
-            name: format!("{}/mount", arm_spec.name),
+            name: format!("{}/mount", m.name),
             parent,
             body: 0,
             joint: FrameJoint::Fixed,
@@ -142,43 +184,36 @@ pub fn compose(spec: &SystemSpec, dir: Option<&Path>) -> Result<Model> {
             d: Affine::constant(0, 0.0),
             pre: Pose::identity(),
             post: None,
-            motion: Motion::Fixed(mount),
+            motion: Motion::Fixed(m.mount),
         });
-        declared.push(if parent.is_none() { Some("cart".to_string()) } else { None });
+        declared.push(m.mount_body.clone());
         for f in &arm.frames {
             let mut g = f.clone();
             g.index = frames.len() as i64 + 1;
-            g.name = format!("{}/{}", arm_spec.name, f.name);
+            g.name = format!("{}/{}", m.name, f.name);
             g.parent = Some(match f.parent {
                 Some(p) => frame_start + 1 + p,
                 None => frame_start,
             });
-            declared.push(Some(format!("{}/{}", arm_spec.name, arm.bodies[f.body].name)));
+            declared.push(Some(format!("{}/{}", m.name, arm.bodies[f.body].name)));
             frames.push(g);
         }
         for j in &arm.joints {
             let mut j = j.clone();
-            j.name = format!("{}/{}", arm_spec.name, j.name);
+            j.name = format!("{}/{}", m.name, j.name);
             joints.push(j);
         }
         for c in &arm.closures {
             let mut c = c.clone();
-            c.name = format!("{}/{}", arm_spec.name, c.name);
+            c.name = format!("{}/{}", m.name, c.name);
             c.frame += frame_start + 1;
             c.partner += frame_start + 1;
             closures.push(c);
         }
         let rcm = arm.rcm.as_ref().map(|r| Rcm { frame: r.frame + frame_start + 1, point: r.point });
-        parts.push(Part {
-            name: arm_spec.name.clone(),
-            model: arm_spec.model.clone(),
-            joints: nq_before..nq_before + arm.nq(),
-            frames: frame_start..frames.len(),
-            rcm,
-        });
-        arms.push(arm);
+        parts.push(Part { name: m.name.clone(), model: m.source.clone(), joints: nq_before..nq_before + arm.nq(), frames: frame_start..frames.len(), rcm });
     }
-    // Re-index every affine map over the system's joints.
+    // Re-index every affine map over the merged joints.
     let nq = joints.len();
     for part in &parts {
         for f in &mut frames[part.frames.clone()] {
@@ -191,10 +226,10 @@ pub fn compose(spec: &SystemSpec, dir: Option<&Path>) -> Result<Model> {
             }
         }
     }
-    let tip = parts.last().map_or(0, |p| p.frames.start + 1 + arms.last().map_or(0, |a| a.tip));
+    let tip = parts.last().map_or(0, |p| p.frames.start + 1 + arms.last().map_or(0, |a| a.model.tip));
     let mut model = Model {
-        name: spec.name.clone(),
-        title: spec.title.clone(),
+        name: name.to_string(),
+        title: name.to_string(),
         joints,
         frames,
         bodies: Vec::new(),
@@ -203,7 +238,7 @@ pub fn compose(spec: &SystemSpec, dir: Option<&Path>) -> Result<Model> {
         tip,
         base: Pose::identity(),
         coupling: None,
-        spec: ModelSpec { title: spec.title.clone(), notes: spec.notes.clone(), ..ModelSpec::empty(&spec.name, &spec.source) },
+        spec: ModelSpec::empty(name, ""),
         origin: None,
         tool_file: None,
         effects: Vec::new(),

@@ -317,6 +317,32 @@ fn mass_matrix_is_spd_and_agrees_with_newton_euler_and_energy() {
     }
 }
 
+/// The forward-dynamics pair in one pass equals the two separate calls: `M` from CRBA and the
+/// bias `h = tau(q, q', 0)` from Newton-Euler.
+#[test]
+fn mass_matrix_and_bias_in_one_pass_equal_the_separate_calls() {
+    for (name, file) in [("psm", Some("psm")), ("ecm", Some("ecm")), ("mtmr", None)] {
+        let (model, inertias) = model_and_inertias(name, file);
+        let dm = DynamicsModel::new(&model, inertias).unwrap();
+        let mut data = DynamicsData::new(&model);
+        let n = model.nq();
+        let (mut m1, mut m2) = (DMatrix::zeros(n, n), DMatrix::zeros(n, n));
+        let (mut h1, mut h2) = (vec![0.0; n], vec![0.0; n]);
+        let zero = vec![0.0; n];
+        for i in 0..8 {
+            let (q, qd, _) = state(&model, i);
+            dvrk_kin::mass_matrix_and_bias(&model, &dm, &mut data, &q, &qd, &gravity(), &mut h1, &mut m1).unwrap();
+            mass_matrix(&model, &dm, &mut data, &q, &mut m2).unwrap();
+            inverse_dynamics(&model, &dm, &mut data, &q, &qd, &zero, &gravity(), &mut h2).unwrap();
+            assert_eq!(m1, m2, "{name}");
+            assert_eq!(h1, h2, "{name}");
+        }
+        let mut small = DMatrix::zeros(n - 1, n - 1);
+        let e = dvrk_kin::mass_matrix_and_bias(&model, &dm, &mut data, &zero, &zero, &gravity(), &mut h1, &mut small).unwrap_err().to_string();
+        assert!(e.contains("mass matrix"), "{e}");
+    }
+}
+
 /// Power balance along a smooth trajectory: `q'^T tau = d/dt (T + V)`, with `T` from the
 /// Jacobians and `V` from FK, differentiated by a 4th-order central difference in time.
 #[test]

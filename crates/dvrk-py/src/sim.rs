@@ -61,8 +61,8 @@ impl PySim {
 impl PySim {
     /// Build a scene (built-in name such as "psm", "ecm", or a scene file) ready to step.
     /// `loops`: "impulse" (loop-closing impulse joints) or "coupling" (loop-free, URDF-mimic way).
-    /// `engine`: "rapier" or "reduced" (forward dynamics in the actuated joints, loops exact;
-    /// arms on the world); the scene's when None.
+    /// `engine`: "rapier" or "reduced" (forward dynamics in the actuated joints, loops exact, no
+    /// contacts); the scene's when None.
     #[staticmethod]
     #[pyo3(signature = (scene, loops="impulse", solver_iterations=None, engine=None))]
     fn from_scene(scene: &str, loops: &str, solver_iterations: Option<usize>, engine: Option<&str>) -> Result<Self> {

@@ -8,7 +8,11 @@
 //! armature implicit, a position-mode drive an implicit acceleration-based spring (as rapier's
 //! motor), limits as inelastic stops. The drive efforts, effects, transmissions, latency and
 //! coupling errors come from the layer both engines share ([`crate::sim`]). Nothing allocates per
-//! step: the arm's buffers are its workspace (the Model/Data split of dvrk-kin).
+//! step: the tree's buffers are its workspace (the Model/Data split of dvrk-kin).
+//!
+//! An arm carried by another (a PSM on its setup joints) is one tree with it: the arms are merged
+//! into one dvrk-kin model ([`dvrk_kin::compose::merge`]), so the setup joints feel the arm they
+//! carry exactly, as in rapier's shared multibody.
 
 use crate::error::{Result, SimError};
 use dvrk_kin::{DynamicsData, DynamicsModel, Model, Pose};
@@ -20,10 +24,36 @@ pub const POSITION_STIFFNESS: f64 = 1.0e6;
 /// Damping of a position-mode drive (1/s), as rapier's.
 pub const POSITION_DAMPING: f64 = 6.0e3;
 
-/// One arm's mechanism in its actuated joints: the model (immutable) and its workspace.
+/// One arm of a [`ReducedTree`], as the sim builds it.
 #[derive(Debug, Clone)]
-pub struct ReducedArm {
-    /// The mechanism on the true joints (a coupling error's map is the controller's business).
+pub struct TreeArm {
+    /// The scene arm's name (the prefix of its merged names).
+    pub name: String,
+    /// The mechanism on the true joints (a coupling error's map is the controller's business),
+    /// its `base` the arm's world pose at the start.
+    pub model: Model,
+    /// The model whose effects hold its motors' inertia (the scene arm's).
+    pub effects_model: Model,
+    /// The arm carrying it, by position in the tree's arm list, and that arm's frame it sits on.
+    pub parent: Option<(usize, usize)>,
+    /// The arm's base in that frame (or the world) (m).
+    pub mount: Pose,
+    /// Body inertias, payloads included ([`Model::bodies`] order).
+    pub inertias: Vec<dvrk_kin::BodyInertia>,
+    /// The scene's drive armature per joint (kg m^2, kg).
+    pub armature: Vec<f64>,
+    /// Per joint: its motor sits behind a compliant transmission.
+    pub transmission: Vec<bool>,
+    /// Tree-joint damping (N·m s/rad, N s/m).
+    pub damping: f64,
+    /// Start positions (rad, m).
+    pub start: Vec<f64>,
+}
+
+/// One tree of arms (an arm on the world and the arms it carries) in their actuated joints: the
+/// merged model (immutable) and its workspace.
+#[derive(Debug, Clone)]
+pub struct ReducedTree {
     model: Model,
     dynamics: DynamicsModel,
     data: DynamicsData,
@@ -33,22 +63,23 @@ pub struct ReducedArm {
     /// inertia, cross terms included (`C^-T diag(I) C^-1`); zero on a joint whose motor sits
     /// behind a compliant transmission (the motor side holds it there).
     drive_inertia: DMatrix<f64>,
-    /// Joint damping in the joints, `d sum_i c_i c_i^T` over the tree joints `phi_i = c_i . q`
-    /// (N·m s/rad, N s/m): rapier damps every tree joint of the multibody by `d`.
+    /// Joint damping in the joints, `sum_i d_i c_i c_i^T` over the tree joints `phi_i = c_i . q`
+    /// (N·m s/rad, N s/m): rapier damps every tree joint of the multibody.
     damping: DMatrix<f64>,
-    /// `sum_i c_i c_i^T` (the damping per unit of `d`).
+    /// `sum_i c_i c_i^T` (the damping per unit of a common `d`).
     unit_damping: DMatrix<f64>,
     lower: Vec<f64>,
     upper: Vec<f64>,
-    /// Link positions and velocities (rad, m; rad/s, m/s).
+    /// Link positions and velocities of every arm of the tree, arm after arm (rad, m; rad/s, m/s).
     pub q: Vec<f64>,
     pub qd: Vec<f64>,
     /// Per joint: a position-mode target (rad or m, rad/s or m/s), `None` when driven by effort.
     pub hold: Vec<Option<(f64, f64)>>,
+    /// Joint efforts (N·m, N) for the next step, arm after arm.
+    pub tau: Vec<f64>,
     // Workspace.
     mass: DMatrix<f64>,
     bias: Vec<f64>,
-    zeros: Vec<f64>,
     rhs: DVector<f64>,
     column: DVector<f64>,
 }
@@ -57,66 +88,93 @@ pub struct ReducedArm {
 const LIMIT_SWEEPS: usize = 4;
 /// How far past a stop a step may end before the stop acts (rad or m): rounding, not physics.
 const LIMIT_SLOP: f64 = 1e-12;
+/// Mass of the massless mount body of a tree's root (kg): dvrk-kin wants one per body; it never
+/// moves, so it enters no equation of motion.
+const MOUNT_MASS: f64 = 1e-9;
 
-impl ReducedArm {
-    /// The arm of `model` (on its true joints, its `base` the mount in the world) with body
-    /// inertias `inertias` (payloads included), per-joint drive `armature` (kg m^2, kg; the
-    /// motors' inertia added here), tree-joint `damping` (N·m s/rad), `gravity` (m/s^2) and
-    /// `transmission[k]` true where joint k's motor sits behind a compliant drive. Starts at `q`.
-    #[allow(clippy::too_many_arguments)]
-    pub fn new(model: &Model, effects_model: &Model, inertias: Vec<dvrk_kin::BodyInertia>, armature: &[f64], damping: f64, gravity: [f64; 3], transmission: &[bool], q: &[f64]) -> Result<ReducedArm> {
+impl ReducedTree {
+    /// The tree of `arms` (each carried one after its carrier) under `gravity` (m/s^2).
+    pub fn new(name: &str, arms: &[TreeArm], gravity: [f64; 3]) -> Result<ReducedTree> {
+        let mounted: Vec<dvrk_kin::compose::Mounted> = arms
+            .iter()
+            .map(|a| dvrk_kin::compose::Mounted { name: a.name.clone(), source: a.model.name.clone(), model: a.model.clone(), parent: a.parent, mount: a.mount, mount_body: None })
+            .collect();
+        let model = dvrk_kin::compose::merge(name, &mounted)?;
         let n = model.nq();
-        let dynamics = DynamicsModel::new(model, inertias)?;
-        let mut drive_inertia = DMatrix::zeros(n, n);
-        dvrk_kin::effects::motor_inertia_matrix(&effects_model.effects, &mut drive_inertia);
-        for k in 0..n {
-            drive_inertia[(k, k)] += armature.get(k).copied().unwrap_or(0.0);
+        // Each merged body is an arm's body (its first frame is that body's first frame), or a
+        // root's fixed mount.
+        let mut inertias = Vec::with_capacity(model.bodies.len());
+        for b in &model.bodies {
+            let first = b.frames[0];
+            let found = model.parts.iter().zip(arms).find(|(p, _)| p.frames.contains(&first) && first > p.frames.start).and_then(|(p, a)| {
+                let local = first - p.frames.start - 1;
+                let body = a.model.frames[local].body;
+                (a.model.bodies[body].frames[0] == local).then(|| a.inertias[body].clone())
+            });
+            inertias.push(found.unwrap_or_else(|| dvrk_kin::BodyInertia::new(MOUNT_MASS, [0.0; 3], [[0.0; 3]; 3])));
         }
-        for (k, held) in transmission.iter().enumerate().take(n) {
-            if *held {
-                drive_inertia.row_mut(k).fill(0.0);
-                drive_inertia.column_mut(k).fill(0.0);
+        let dynamics = DynamicsModel::new(&model, inertias)?;
+        let (mut drive_inertia, mut damping, mut unit) = (DMatrix::zeros(n, n), DMatrix::zeros(n, n), DMatrix::zeros(n, n));
+        let mut q = Vec::with_capacity(n);
+        for (a, p) in arms.iter().zip(&model.parts) {
+            let (o, m) = (p.joints.start, p.joints.len());
+            if a.start.len() != m || a.armature.len() < m {
+                return Err(SimError::Build(format!("reduced engine: arm {}: {} start positions, {} armatures for {m} joints", a.name, a.start.len(), a.armature.len())));
             }
-        }
-        let mut unit = DMatrix::zeros(n, n);
-        for c in tree_joints(model) {
-            unit += &c * c.transpose();
+            let mut motor = DMatrix::zeros(m, m);
+            dvrk_kin::effects::motor_inertia_matrix(&a.effects_model.effects, &mut motor);
+            for k in 0..m {
+                motor[(k, k)] += a.armature[k];
+            }
+            for (k, held) in a.transmission.iter().enumerate().take(m) {
+                if *held {
+                    motor.row_mut(k).fill(0.0);
+                    motor.column_mut(k).fill(0.0);
+                }
+            }
+            drive_inertia.view_mut((o, o), (m, m)).copy_from(&motor);
+            for c in tree_joints(&model, p) {
+                let cc = &c * c.transpose();
+                damping += a.damping * &cc;
+                unit += cc;
+            }
+            q.extend_from_slice(&a.start);
         }
         let (lower, upper) = model.joints.iter().map(|j| (j.lower, j.upper)).unzip();
-        if q.len() != n {
-            return Err(SimError::Build(format!("reduced engine: {} start positions for {} joints", q.len(), n)));
-        }
-        let mut arm = ReducedArm {
-            model: model.clone(),
-            data: DynamicsData::new(model),
+        let mut tree = ReducedTree {
+            data: DynamicsData::new(&model),
+            model,
             dynamics,
             gravity: Vector3::from(gravity),
             drive_inertia,
-            damping: &unit * damping,
+            damping,
             unit_damping: unit,
             lower,
             upper,
-            q: q.to_vec(),
+            q,
             qd: vec![0.0; n],
             hold: vec![None; n],
+            tau: vec![0.0; n],
             mass: DMatrix::zeros(n, n),
             bias: vec![0.0; n],
-            zeros: vec![0.0; n],
             rhs: DVector::zeros(n),
             column: DVector::zeros(n),
         };
-        dvrk_kin::compute_frame_placements(&arm.model, &mut arm.data.kin, &arm.q);
-        Ok(arm)
+        dvrk_kin::compute_frame_placements(&tree.model, &mut tree.data.kin, &tree.q);
+        Ok(tree)
     }
 
-    /// One step of `dt` (s) under joint efforts `tau` (N·m, N; drives, effects and cables'
-    /// reactions already summed). A non-finite state is left as it is (the caller checks).
-    pub fn step(&mut self, tau: &[f64], dt: f64) {
+    /// Joints of arm `k` of the tree within `q`.
+    pub fn joints(&self, k: usize) -> std::ops::Range<usize> {
+        self.model.parts[k].joints.clone()
+    }
+
+    /// One step of `dt` (s) under the joint efforts in [`ReducedTree::tau`] (N·m, N; drives and
+    /// effects summed). A non-finite state is left as it is (the caller checks).
+    pub fn step(&mut self, dt: f64) {
         let n = self.q.len();
         let (m, dm) = (&self.model, &self.dynamics);
-        if dvrk_kin::inverse_dynamics(m, dm, &mut self.data, &self.q, &self.qd, &self.zeros, &self.gravity, &mut self.bias).is_err()
-            || dvrk_kin::mass_matrix(m, dm, &mut self.data, &self.q, &mut self.mass).is_err()
-        {
+        if dvrk_kin::mass_matrix_and_bias(m, dm, &mut self.data, &self.q, &self.qd, &self.gravity, &mut self.bias, &mut self.mass).is_err() {
             // dvrk-kin refuses only non-finite input: let it show in the state.
             self.qd.fill(f64::NAN);
             return;
@@ -125,7 +183,7 @@ impl ReducedArm {
         self.mass += &self.drive_inertia;
         for i in 0..n {
             let damp: f64 = (0..n).map(|j| self.damping[(i, j)] * self.qd[j]).sum();
-            self.rhs[i] = tau[i] - self.bias[i] - damp;
+            self.rhs[i] = self.tau[i] - self.bias[i] - damp;
         }
         for i in 0..n {
             for j in 0..n {
@@ -198,9 +256,10 @@ impl ReducedArm {
         self.drive_inertia *= armature_scale;
     }
 
-    /// World pose of body `body` (its first frame) at the current positions.
-    pub fn body_pose(&self, body: usize) -> Pose {
-        self.data.kin.frames[self.model.bodies[body].frames[0]]
+    /// World pose of frame `frame` of arm `k` of the tree (the arm's own numbering) at the
+    /// current positions.
+    pub fn frame_pose(&self, k: usize, frame: usize) -> Pose {
+        self.data.kin.frames[self.model.parts[k].frames.start + 1 + frame]
     }
 
     /// Largest loop-closure gap (m) at the current positions: the two frames' copies of each
@@ -240,14 +299,15 @@ impl ReducedArm {
     }
 }
 
-/// The coefficient vector `c` of every tree joint (`phi = c . q + b`; the first moving frame of
-/// each body, as rapier's multibody has them).
-fn tree_joints(model: &Model) -> Vec<DVector<f64>> {
+/// The coefficient vector `c` of every tree joint of `part` (`phi = c . q + b`; the first moving
+/// frame of each of its bodies, as rapier's multibody has them).
+fn tree_joints(model: &Model, part: &dvrk_kin::Part) -> Vec<DVector<f64>> {
     let n = model.nq();
     model
         .bodies
         .iter()
         .enumerate()
+        .filter(|(_, b)| part.frames.contains(&b.frames[0]))
         .filter_map(|(bi, b)| {
             let f = b.frames.iter().find(|&&f| model.frames[f].parent.is_none_or(|p| model.frames[p].body != bi))?;
             let var = model.frames[*f].variable().filter(|v| !v.is_constant())?;
@@ -257,39 +317,57 @@ fn tree_joints(model: &Model) -> Vec<DVector<f64>> {
 }
 
 impl crate::sim::Sim {
-    /// [`crate::sim::Sim::new`] with the reduced engine: every arm on the world, no contacts.
+    /// [`crate::sim::Sim::new`] with the reduced engine: one tree per arm on the world with the
+    /// arms it carries; no contacts.
     pub(crate) fn new_reduced(scene: &crate::scene::Scene, options: &crate::sim::SimOptions) -> Result<crate::sim::Sim> {
         use crate::sim::{ArmState, Colliders, GravityCompensation};
         if options.colliders == Colliders::Contacts {
             return Err(SimError::Build("the reduced engine has no contacts: use the rapier engine for --contacts".into()));
         }
         let g = if options.no_gravity { [0.0; 3] } else { scene.gravity };
-        let (mut arms, mut reduced) = (Vec::with_capacity(scene.arms.len()), Vec::with_capacity(scene.arms.len()));
+        let mut arms = Vec::with_capacity(scene.arms.len());
+        // Per scene arm: its tree and its place in that tree's arm list.
+        let mut place: Vec<(usize, usize)> = Vec::with_capacity(scene.arms.len());
+        let mut trees: Vec<(String, Vec<TreeArm>)> = Vec::new();
         let mut q_offset = 0;
         for arm in &scene.arms {
-            if arm.parent.is_some() {
-                return Err(SimError::Build(format!(
-                    "{}: an arm carried by another (the setup joints' scenes) is not in the reduced engine yet; use the rapier engine",
-                    arm.name
-                )));
-            }
             // The mechanism on the true joints, as the rapier path builds it.
             let link_model = arm.model.without_coupling_error();
-            let home = match arm.model.coupling_error_map() {
+            let start = match arm.model.coupling_error_map() {
                 Some(b) => (b * DVector::from_column_slice(&arm.start)).as_slice().to_vec(),
                 None => arm.start.clone(),
             };
             let inertias = dvrk_kin::effects::effect_inertias(&link_model, &link_model.effects, &arm.inertials.body_inertias(&link_model)?)?;
             let armature = crate::effects::drive_armature(&arm.model, &arm.armature);
             let effects = crate::effects::ArmEffects::new(&arm.name, &arm.model, &armature, &arm.start, scene.dt)?;
-            let behind: Vec<bool> = effects.transmissions.iter().map(Option::is_some).collect();
-            reduced.push(ReducedArm::new(&link_model, &arm.model, inertias.clone(), &arm.armature, arm.damping, g, &behind, &home)?);
+            let transmission: Vec<bool> = effects.transmissions.iter().map(Option::is_some).collect();
+            // On the world: the model's base is the mount. On an arm: the base relative to the
+            // carrier's frame at the carrier's home, where the scene placed it.
+            let (t, parent, mount) = match arm.parent {
+                None => {
+                    trees.push((arm.name.clone(), Vec::new()));
+                    (trees.len() - 1, None, arm.model.base)
+                }
+                Some((pa, pf)) => {
+                    let carrier = &scene.arms[pa].model;
+                    let at = carrier.fk(&carrier.home())?[pf];
+                    (place[pa].0, Some((place[pa].1, pf)), at.inverse() * arm.model.base)
+                }
+            };
+            let mut model = link_model;
+            model.base = Pose::identity();
+            place.push((t, trees[t].1.len()));
+            trees[t].1.push(TreeArm { name: arm.name.clone(), model, effects_model: arm.model.clone(), parent, mount, inertias: inertias.clone(), armature: arm.armature.clone(), transmission, damping: arm.damping, start });
             let gravity_compensation = GravityCompensation::of(arm, scene, options, &inertias)?;
-            arms.push(ArmState::without_rapier(&arm.name, &arm.model, q_offset, crate::sim::actuators(arm), arm.tracking, effects, gravity_compensation));
+            let mut state = ArmState::without_rapier(&arm.name, &arm.model, q_offset, crate::sim::actuators(arm), arm.tracking, effects, gravity_compensation);
+            state.set_tree(t, arm.parent);
+            arms.push(state);
             q_offset += arm.model.nq();
         }
+        let reduced = trees.iter().map(|(name, a)| ReducedTree::new(name, a, g)).collect::<Result<Vec<_>>>()?;
         let mut sim = crate::sim::Sim::assemble(scene, options, arms, Vec::new(), q_offset);
         sim.reduced = reduced;
+        sim.reduced_place = place;
         sim.read_state();
         sim.apply_modes(scene)?;
         Ok(sim)
@@ -297,12 +375,18 @@ impl crate::sim::Sim {
 
     /// [`crate::sim::Sim::step`] with the reduced engine.
     pub(crate) fn step_reduced(&mut self) {
-        for (arm, r) in self.arms.iter_mut().zip(self.reduced.iter_mut()) {
+        for (a, arm) in self.arms.iter_mut().enumerate() {
             arm.link_efforts(&self.q, &self.qd, &self.q_link, &self.qd_link, self.dt);
-            for k in 0..r.hold.len() {
-                r.hold[k] = (arm.actuators[k].mode == crate::control::Mode::Position).then(|| arm.held_target(k));
+            let (t, k) = self.reduced_place[a];
+            let tree = &mut self.reduced[t];
+            let js = tree.joints(k);
+            for (j, i) in js.enumerate() {
+                tree.tau[i] = arm.effects.drive[j];
+                tree.hold[i] = (arm.actuators[j].mode == crate::control::Mode::Position).then(|| arm.held_target(j));
             }
-            r.step(&arm.effects.drive, self.dt);
+        }
+        for tree in self.reduced.iter_mut() {
+            tree.step(self.dt);
         }
         self.time += self.dt;
         self.read_state();

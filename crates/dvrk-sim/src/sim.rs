@@ -115,7 +115,7 @@ pub enum Engine {
     #[default]
     Rapier,
     /// Forward dynamics in the actuated joints ([`crate::reduced`]): the loops exact by
-    /// construction, no contacts, arms on the world (not yet an arm carried by another).
+    /// construction, no contacts.
     Reduced,
 }
 
@@ -283,6 +283,12 @@ impl ArmState {
             explicit_damping: 0.0,
             coriolis: None,
         }
+    }
+
+    /// With the reduced engine: the tree the arm is in, and the arm carrying it.
+    pub(crate) fn set_tree(&mut self, tree: usize, parent: Option<(usize, usize)>) {
+        self.world = tree;
+        self.parent = parent;
     }
 
     /// The controllers' efforts on this arm's links (N·m, N) into `effects.drive`: the
@@ -498,8 +504,10 @@ pub struct Sim {
     /// separates what is measured from the link.
     pub(crate) q_link: Vec<f64>,
     pub(crate) qd_link: Vec<f64>,
-    /// With the reduced engine, each arm's mechanism (then `worlds` is empty).
-    pub(crate) reduced: Vec<crate::reduced::ReducedArm>,
+    /// With the reduced engine, each tree of arms (an arm on the world and those it carries;
+    /// then `worlds` is empty), and per scene arm its tree and place in the tree's arm list.
+    pub(crate) reduced: Vec<crate::reduced::ReducedTree>,
+    pub(crate) reduced_place: Vec<(usize, usize)>,
 }
 
 /// nalgebra pose to rapier pose.
@@ -804,6 +812,7 @@ impl Sim {
             q_link: vec![0.0; nq],
             qd_link: vec![0.0; nq],
             reduced: Vec::new(),
+            reduced_place: Vec::new(),
         }
     }
 
@@ -1004,10 +1013,10 @@ impl Sim {
         if self.reduced.is_empty() {
             self.read_links();
         } else {
-            for (arm, r) in self.arms.iter().zip(&self.reduced) {
-                let off = arm.q_offset;
-                self.q_link[off..off + r.q.len()].copy_from_slice(&r.q);
-                self.qd_link[off..off + r.qd.len()].copy_from_slice(&r.qd);
+            for (arm, &(t, k)) in self.arms.iter().zip(&self.reduced_place) {
+                let (off, js) = (arm.q_offset, self.reduced[t].joints(k));
+                self.q_link[off..off + js.len()].copy_from_slice(&self.reduced[t].q[js.clone()]);
+                self.qd_link[off..off + js.len()].copy_from_slice(&self.reduced[t].qd[js]);
             }
         }
         for arm in self.arms.iter_mut() {
@@ -1132,8 +1141,8 @@ impl Sim {
 
     /// World pose of dvrk-kin body `body` of arm `arm` (its first frame).
     pub fn body_pose(&self, arm: usize, body: usize) -> Pose {
-        if let Some(r) = self.reduced.get(arm) {
-            return r.body_pose(body);
+        if let Some(&(t, k)) = self.reduced_place.get(arm) {
+            return self.reduced[t].frame_pose(k, self.arms[arm].model.bodies[body].frames[0]);
         }
         let a = &self.arms[arm];
         from_rapier(self.worlds[a.world].bodies[a.bodies[body]].position())

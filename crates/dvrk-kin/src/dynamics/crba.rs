@@ -18,6 +18,32 @@ pub fn mass_matrix(model: &Model, dm: &DynamicsModel, data: &mut DynamicsData, q
         return Err(KinError::Size { what: "mass matrix rows and columns (nq)".into(), expected: n, got: if out.nrows() != n { out.nrows() } else { out.ncols() } });
     }
     placements_and_axes(model, dm, data, q);
+    composite_pass(model, dm, data, out);
+    Ok(())
+}
+
+/// The mass matrix `M(q)` and the bias efforts `h(q, q') = c(q, q') + g(q)` (N·m, N: the
+/// efforts that hold the arm at zero acceleration) in one pass over the frame placements: what a
+/// forward-dynamics step needs, `M q'' = tau - h`. `bias` has length nq, `mass` is nq x nq; both
+/// are overwritten. Allocates nothing.
+#[allow(clippy::too_many_arguments)]
+pub fn mass_matrix_and_bias(model: &Model, dm: &DynamicsModel, data: &mut DynamicsData, q: &[f64], qd: &[f64], gravity: &nalgebra::Vector3<f64>, bias: &mut [f64], mass: &mut DMatrix<f64>) -> Result<()> {
+    check_common(model, dm, data, q)?;
+    super::setup::check_vector(qd, model.nq(), "qd")?;
+    super::setup::check_gravity(gravity)?;
+    super::rnea::check_out(bias, model.nq())?;
+    let n = model.nq();
+    if mass.nrows() != n || mass.ncols() != n {
+        return Err(KinError::Size { what: "mass matrix rows and columns (nq)".into(), expected: n, got: if mass.nrows() != n { mass.nrows() } else { mass.ncols() } });
+    }
+    placements_and_axes(model, dm, data, q);
+    super::rnea::bias_pass(model, dm, data, qd, gravity, bias);
+    composite_pass(model, dm, data, mass);
+    Ok(())
+}
+
+/// The composite-rigid-body pass after [`placements_and_axes`].
+fn composite_pass(model: &Model, dm: &DynamicsModel, data: &mut DynamicsData, out: &mut DMatrix<f64>) {
     for i in 0..model.frames.len() {
         data.composite[i] = match dm.carries[i] {
             Some(b) => body_world_inertia(dm, b, data, i),
@@ -54,5 +80,4 @@ pub fn mass_matrix(model: &Model, dm: &DynamicsModel, data: &mut DynamicsData, q
             }
         }
     }
-    Ok(())
 }

@@ -103,6 +103,12 @@ pub fn frame_bias_forces(model: &Model, dm: &DynamicsModel, data: &mut DynamicsD
     Ok(())
 }
 
+/// The bias efforts `c(q, q') + g(q)` into `bias` (length nq), after [`placements_and_axes`].
+pub(crate) fn bias_pass(model: &Model, dm: &DynamicsModel, data: &mut DynamicsData, qd: &[f64], gravity: &Vector3<f64>, bias: &mut [f64]) {
+    rnea(model, dm, data, Rates::Joints(qd), Rates::Zero, gravity);
+    project(dm, &data.tau_phi, bias);
+}
+
 pub(crate) fn check_out(tau: &[f64], nq: usize) -> Result<()> {
     if tau.len() != nq {
         return Err(KinError::Size { what: "output tau (nq)".into(), expected: nq, got: tau.len() });

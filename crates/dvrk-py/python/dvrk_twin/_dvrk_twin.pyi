@@ -152,7 +152,7 @@ class Sim:
     def from_scene(scene: str, loops: str = "impulse", solver_iterations: Optional[int] = None, engine: Optional[str] = None) -> "Sim":
         """Build a built-in scene ("psm", "ecm", ...) or a scene file. ``loops``: "impulse"
         (loop-closing impulse joints) or "coupling" (loop-free). ``engine``: "rapier" or
-        "reduced" (forward dynamics in the actuated joints, loops exact, arms on the world);
+        "reduced" (forward dynamics in the actuated joints, loops exact, no contacts);
         the scene's when None."""
     @property
     def joint_names(self) -> List[str]:
