@@ -1,10 +1,12 @@
-"""Real-time factor of every Table 9 scene: ours (rapier) against MuJoCo on our own exported MJCF,
-measured in the same run, since absolute times on shared machines vary by a third between runs.
+"""Real-time factor of every Table 9 scene: ours (both engines: rapier and the reduced one) against
+MuJoCo on our own exported MJCF, measured in the same run, since absolute times on shared machines
+vary by a third between runs.
 
 For each scene (psm, ecm, 2psm-ecm, 3psm, full): export the MJCF (``dvrk_twin.export_mjcf``, as
 ``dvrk export mjcf``), time MuJoCo on the section 4.3 tracking test, time ours on the same test
 (``dvrk_twin.run_scene``: the ``dvrk sim --json`` figures, the same Rust code and release build),
-and print scene, our RTF, MuJoCo's RTF, their ratio and both loop-closure gaps.
+and print scene, our RTF on each engine, MuJoCo's RTF, the reduced engine's ratio to MuJoCo and
+the loop-closure gaps.
 
 MuJoCo method: a C rollout (``benches/mujoco_rollout.c``, compiled here against the headers and
 library the ``mujoco`` wheel ships) stepping ``mj_step`` with our PID computed in C between steps,
@@ -81,17 +83,23 @@ def main() -> None:
         workdir = Path(tmp)
         exe = build_rollout(workdir)
         method = "C rollout (mj_step, PID in C)" if exe else "Python step loop (mj_step, PID in numpy)"
-        print(f"MuJoCo {mujoco.__version__}, {method}; dvrk_twin {dvrk_twin.__version__} (rapier); "
+        print(f"MuJoCo {mujoco.__version__}, {method}; dvrk_twin {dvrk_twin.__version__}; "
               f"{args.duration:g} s tracking test, best of {args.repeat}")
-        print(f"{'scene':10s} {'ours RTF':>9s} {'MuJoCo RTF':>11s} {'ours/MuJoCo':>12s} {'ours gap m':>11s} {'MuJoCo gap m':>13s}")
+        print(f"| scene | rapier RTF | reduced RTF | MuJoCo RTF | reduced / MuJoCo | rapier gap (m) | reduced gap (m) | MuJoCo gap (m) |")
+        print("|---|---|---|---|---|---|---|---|")
         for scene in args.scenes.split(","):
             xml_path = workdir / f"{scene}.xml"
             xml_path.write_text(dvrk_twin.export_mjcf(scene))
-            ours = [dvrk_twin.run_scene(scene, args.duration) for _ in range(args.repeat)]
-            mj = [mujoco_run(exe, xml_path, args.duration) for _ in range(args.repeat)]
-            o = max(r["real_time_factor"] for r in ours)
-            m = max(r["real_time_factor"] for r in mj)
-            print(f"{scene:10s} {o:9.1f} {m:11.1f} {o / m:12.3f} {ours[0]['max_closure_error']:11.2e} {mj[0]['max_closure_error']:13.2e}")
+            # Interleaved, so that a disturbance hits every engine alike.
+            runs = {"rapier": [], "reduced": [], "mujoco": []}
+            for _ in range(args.repeat):
+                for engine in ("rapier", "reduced"):
+                    runs[engine].append(dvrk_twin.run_scene(scene, args.duration, engine=engine))
+                runs["mujoco"].append(mujoco_run(exe, xml_path, args.duration))
+            best = {k: max(r["real_time_factor"] for r in v) for k, v in runs.items()}
+            gap = {k: v[0]["max_closure_error"] for k, v in runs.items()}
+            print(f"| {scene} | {best['rapier']:.1f} | {best['reduced']:.1f} | {best['mujoco']:.1f} | {best['reduced'] / best['mujoco']:.2f} "
+                  f"| {gap['rapier']:.1e} | {gap['reduced']:.1e} | {gap['mujoco']:.1e} |")
 
 
 if __name__ == "__main__":

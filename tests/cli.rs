@@ -106,6 +106,13 @@ fn sim_json_summary_of_the_psm_scene() {
     let yaw = &v["joints"][0];
     assert_eq!(yaw["joint"], "outer_yaw");
     assert!(yaw["rms_error"].as_f64().unwrap() < 0.05);
+    // The default engine is the reduced one; a rapier option (or the flag) picks rapier, and the
+    // reduced engine refuses contacts in one line.
+    assert_eq!(v["engine"], "reduced");
+    let rapier: Value = serde_json::from_str(&dvrk_ok(&["sim", "--scene", "psm", "--duration", "0.2", "--contacts", "--json"])).unwrap();
+    assert_eq!(rapier["engine"], "rapier");
+    let e = crate::util::dvrk_err(&["sim", "--scene", "psm", "--duration", "0.2", "--engine", "reduced", "--contacts"]);
+    assert!(e.contains("contacts") && e.contains("rapier") && e.trim().lines().count() == 1, "{e}");
 }
 
 #[test]

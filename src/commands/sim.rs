@@ -59,9 +59,10 @@ pub struct SimArgs {
     /// (16-bit depth in mm).
     #[arg(long)]
     pub frames_dir: Option<std::path::PathBuf>,
-    /// Physics engine: rapier (the multibody with impulse-closed loops; contacts) or reduced
-    /// (forward dynamics in the actuated joints, loops exact; no contacts). The scene's
-    /// choice when absent (rapier unless the scene file says `engine = "reduced"`).
+    /// Physics engine: reduced (forward dynamics in the actuated joints, loops exact; 10x
+    /// rapier's speed) or rapier (the multibody with impulse-closed loops; contacts). When
+    /// absent: the scene file's `engine`, else rapier with --contacts, --loops or
+    /// --solver-iterations (its options), else reduced.
     #[arg(long, value_parser = ["rapier", "reduced"])]
     pub engine: Option<String>,
     /// Let the link geometry of different arms in one rapier world touch (contacts are off by
@@ -71,6 +72,19 @@ pub struct SimArgs {
     /// Print the summary as one JSON object.
     #[arg(long)]
     pub json: bool,
+}
+
+/// The engine a run uses: the flag's, the scene file's, rapier when a rapier option is given,
+/// else the reduced engine (the fastest that holds the scene's physics: the cross-checks of
+/// `crates/dvrk-sim/tests/reduced.rs`).
+fn engine(args: &SimArgs, scene: &Scene) -> Engine {
+    match (args.engine.as_deref(), scene.engine) {
+        (Some("reduced"), _) => Engine::Reduced,
+        (Some(_), _) => Engine::Rapier,
+        (None, Some(e)) => e,
+        (None, None) if args.contacts || args.loops != "impulse-joints" || args.solver_iterations.is_some() => Engine::Rapier,
+        (None, None) => Engine::Reduced,
+    }
 }
 
 pub fn run(args: &SimArgs) -> Result<()> {
@@ -115,7 +129,7 @@ pub fn run(args: &SimArgs) -> Result<()> {
             solver_iterations: args.solver_iterations,
             parallel: args.parallel,
             colliders: if args.contacts { Colliders::Contacts } else { Colliders::NoContacts },
-            engine: args.engine.as_deref().map(|e| if e == "reduced" { Engine::Reduced } else { Engine::Rapier }),
+            engine: Some(engine(args, &scene)),
             ..Default::default()
         },
     };

@@ -1,9 +1,11 @@
 //! # dvrk-sim
 //!
-//! Headless dynamic simulation of the dvrk-kin closed-loop models on rapier (f64): one rigid
-//! body per dvrk-kin body, the frame tree as a reduced-coordinate multibody, loops closed by
-//! impulse joints, per-joint PID / position / effort actuators with the paper's gains (Table 8),
-//! joint damping 0.1 and a reflected drive inertia (armature) on the light wrist joints.
+//! Headless dynamic simulation of the dvrk-kin closed-loop models (f64) on two engines: the
+//! reduced one ([`reduced`]: forward dynamics in the actuated joints, loops exact by
+//! construction) and rapier's (one rigid body per dvrk-kin body, the frame tree as a
+//! multibody, loops closed by impulse joints; contacts). Both share per-joint PID / position /
+//! effort actuators with the paper's gains (Table 8), joint damping 0.1, a reflected drive
+//! inertia (armature) on the light wrist joints and the effects of the vocabulary.
 //!
 //! ```no_run
 //! let scene = dvrk_sim::Scene::load("psm").unwrap();

@@ -61,9 +61,9 @@ struct SceneFile {
     stabilization_iterations: usize,
     #[serde(default)]
     warmstart_joints: bool,
-    /// The physics engine (`rapier` unless the file says `reduced`).
+    /// The physics engine, if the file chooses one (`rapier` or `reduced`).
     #[serde(default)]
-    engine: crate::sim::Engine,
+    engine: Option<crate::sim::Engine>,
     /// m/s^2, world frame
     #[serde(default = "default_gravity", deserialize_with = "dvrk_kin::exact::vec3")]
     gravity: [f64; 3],
@@ -210,8 +210,9 @@ pub struct Scene {
     pub title: String,
     /// Time step (s).
     pub dt: f64,
-    /// The physics engine the file asks for (a [`crate::SimOptions`] can override it).
-    pub engine: crate::sim::Engine,
+    /// The physics engine the file asks for, if any (a [`crate::SimOptions`] overrides it;
+    /// the library's default is rapier, `dvrk sim`'s the reduced engine).
+    pub engine: Option<crate::sim::Engine>,
     pub solver: SolverSettings,
     /// m/s^2
     pub gravity: [f64; 3],

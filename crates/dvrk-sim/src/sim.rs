@@ -555,7 +555,7 @@ impl Sim {
     /// Build the rapier world of `scene` with every joint at its home position, in PID mode
     /// holding home.
     pub fn new(scene: &Scene, options: &SimOptions) -> Result<Sim> {
-        if options.engine.unwrap_or(scene.engine) == Engine::Reduced {
+        if options.engine.or(scene.engine) == Some(Engine::Reduced) {
             return Sim::new_reduced(scene, options);
         }
         let solver = options.solver_settings(scene);

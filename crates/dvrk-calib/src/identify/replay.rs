@@ -8,7 +8,9 @@
 //! drifting away over 30 s. The better the model, the less the feedback has to correct: the
 //! per-joint RMS of simulated minus recorded motion measures it.
 //!
-//! The identified scene runs more Gauss-Seidel sweeps than the CAD scene file's 12
+//! The replay runs on the reduced engine (`dvrk_sim::reduced`): the loops exact, no sweeps to
+//! converge, ten times rapier's speed. On rapier, the identified scene runs more Gauss-Seidel
+//! sweeps than the CAD scene file's 12
 //! ([`IDENTIFIED_PGS_ITERATIONS`]): the loop closures are impulse joints between links of the
 //! arm's multibody, and an under-converged closure solve stops the yaw joint dead (velocity held
 //! at 0 while the drive saturates at its 3.3 N·m limit, for up to 1.6 s). The identified
@@ -51,7 +53,8 @@ pub fn torque_replay(scene: &Scene, arm: usize, rec: &TorqueRecording, feedback:
     let tau: Vec<Vec<f64>> = rec.tau.iter().map(|r| efforts(r)).collect();
     let mut scene = scene.clone();
     scene.set_start_recorded(arm, &q[0], dvrk_sim::scene::RECORDED_START_SLACK).map_err(|e| CalibError::data("torque replay", e.to_string()))?;
-    let mut sim = Sim::new(&scene, &SimOptions::default()).map_err(|e| CalibError::data("torque replay", e.to_string()))?;
+    let options = SimOptions { engine: Some(dvrk_sim::Engine::Reduced), ..SimOptions::default() };
+    let mut sim = Sim::new(&scene, &options).map_err(|e| CalibError::data("torque replay", e.to_string()))?;
     let off = sim.arms[arm].q_offset;
     for k in 0..n {
         let g = scene.arms[arm].gains[k];

@@ -5,7 +5,7 @@ use dvrk_sim::{Gains, Scene, Sim, SimOptions};
 /// Built-in scene `name` on the engine under test.
 fn load(name: &str) -> Scene {
     let mut scene = Scene::load(name).unwrap();
-    scene.engine = ENGINE;
+    scene.engine = Some(ENGINE);
     scene
 }
 use std::path::Path;
