@@ -336,6 +336,11 @@ fn mass_matrix_and_bias_in_one_pass_equal_the_separate_calls() {
             inverse_dynamics(&model, &dm, &mut data, &q, &qd, &zero, &gravity(), &mut h2).unwrap();
             assert_eq!(m1, m2, "{name}");
             assert_eq!(h1, h2, "{name}");
+            // On placements already made at q: the same.
+            dvrk_kin::compute_frame_placements(&model, &mut data.kin, &q);
+            dvrk_kin::mass_matrix_and_bias_placed(&model, &dm, &mut data, &qd, &gravity(), &mut h1, &mut m1).unwrap();
+            assert_eq!(m1, m2, "{name}");
+            assert_eq!(h1, h2, "{name}");
         }
         let mut small = DMatrix::zeros(n - 1, n - 1);
         let e = dvrk_kin::mass_matrix_and_bias(&model, &dm, &mut data, &zero, &zero, &gravity(), &mut h1, &mut small).unwrap_err().to_string();

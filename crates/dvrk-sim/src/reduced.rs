@@ -68,11 +68,16 @@ pub struct ReducedTree {
     damping: DMatrix<f64>,
     /// `sum_i c_i c_i^T` (the damping per unit of a common `d`).
     unit_damping: DMatrix<f64>,
+    /// `drive inertia + dt D` for the step `constant_dt` (s): the constant part of the step's
+    /// matrix (NaN: to be formed).
+    constant: DMatrix<f64>,
+    constant_dt: f64,
     lower: Vec<f64>,
     upper: Vec<f64>,
     /// Link positions and velocities of every arm of the tree, arm after arm (rad, m; rad/s, m/s).
-    pub q: Vec<f64>,
-    pub qd: Vec<f64>,
+    /// Only [`ReducedTree::step`] moves them: it leaves the frames placed at `q`.
+    pub(crate) q: Vec<f64>,
+    pub(crate) qd: Vec<f64>,
     /// Per joint: a position-mode target (rad or m, rad/s or m/s), `None` when driven by effort.
     pub hold: Vec<Option<(f64, f64)>>,
     /// Joint efforts (N·m, N) for the next step, arm after arm.
@@ -149,6 +154,8 @@ impl ReducedTree {
             drive_inertia,
             damping,
             unit_damping: unit,
+            constant: DMatrix::zeros(n, n),
+            constant_dt: f64::NAN,
             lower,
             upper,
             q,
@@ -174,21 +181,24 @@ impl ReducedTree {
     pub fn step(&mut self, dt: f64) {
         let n = self.q.len();
         let (m, dm) = (&self.model, &self.dynamics);
-        if dvrk_kin::mass_matrix_and_bias(m, dm, &mut self.data, &self.q, &self.qd, &self.gravity, &mut self.bias, &mut self.mass).is_err() {
+        // The frames were placed at q at the end of the last step (or at the start).
+        if self.q.iter().any(|x| !x.is_finite()) || dvrk_kin::mass_matrix_and_bias_placed(m, dm, &mut self.data, &self.qd, &self.gravity, &mut self.bias, &mut self.mass).is_err() {
             // dvrk-kin refuses only non-finite input: let it show in the state.
             self.qd.fill(f64::NAN);
             return;
         }
         // (M + dt D) q'' = tau - h - D q': the damping on the velocity the step ends with.
-        self.mass += &self.drive_inertia;
+        if self.constant_dt != dt {
+            self.constant.copy_from(&self.drive_inertia);
+            for (c, d) in self.constant.iter_mut().zip(self.damping.iter()) {
+                *c += dt * d;
+            }
+            self.constant_dt = dt;
+        }
+        self.mass += &self.constant;
         for i in 0..n {
             let damp: f64 = (0..n).map(|j| self.damping[(i, j)] * self.qd[j]).sum();
             self.rhs[i] = self.tau[i] - self.bias[i] - damp;
-        }
-        for i in 0..n {
-            for j in 0..n {
-                self.mass[(i, j)] += dt * self.damping[(i, j)];
-            }
         }
         // A held joint: an implicit spring-damper to its target, scaled by its own inertia.
         for k in 0..n {
@@ -254,6 +264,7 @@ impl ReducedTree {
     pub fn set_damping_and_armature(&mut self, d: f64, armature_scale: f64) {
         self.damping.copy_from(&(&self.unit_damping * d));
         self.drive_inertia *= armature_scale;
+        self.constant_dt = f64::NAN;
     }
 
     /// World pose of frame `frame` of arm `k` of the tree (the arm's own numbering) at the

@@ -3,6 +3,7 @@
 use super::rigid::RigidInertia;
 use super::rnea::body_world_inertia;
 use super::setup::{check_common, placements_and_axes, DynamicsData, DynamicsModel};
+use crate::fk::compute_frame_placements;
 use crate::error::{KinError, Result};
 use crate::model::Model;
 use nalgebra::DMatrix;
@@ -36,10 +37,36 @@ pub fn mass_matrix_and_bias(model: &Model, dm: &DynamicsModel, data: &mut Dynami
     if mass.nrows() != n || mass.ncols() != n {
         return Err(KinError::Size { what: "mass matrix rows and columns (nq)".into(), expected: n, got: if mass.nrows() != n { mass.nrows() } else { mass.ncols() } });
     }
-    placements_and_axes(model, dm, data, q);
-    super::rnea::bias_pass(model, dm, data, qd, gravity, bias);
-    composite_pass(model, dm, data, mass);
+    compute_frame_placements(model, &mut data.kin, q);
+    both_passes(model, dm, data, qd, gravity, bias, mass);
     Ok(())
+}
+
+/// [`mass_matrix_and_bias`] on the placements already in `data.kin`: a stepper that placed the
+/// frames at the end of its last step (for the bodies' poses) need not place them again. `data.kin`
+/// must hold [`compute_frame_placements`] of `model` at the `q` meant (the caller's contract:
+/// stale placements give the dynamics of the configuration they were computed at). `qd`,
+/// `bias` and `mass` are checked as there.
+pub fn mass_matrix_and_bias_placed(model: &Model, dm: &DynamicsModel, data: &mut DynamicsData, qd: &[f64], gravity: &nalgebra::Vector3<f64>, bias: &mut [f64], mass: &mut DMatrix<f64>) -> Result<()> {
+    super::setup::check_vector(qd, model.nq(), "qd")?;
+    super::setup::check_gravity(gravity)?;
+    super::rnea::check_out(bias, model.nq())?;
+    let n = model.nq();
+    if data.kin.frames.len() != model.frames.len() || data.composite.len() != model.frames.len() {
+        return Err(KinError::Size { what: "workspace frames (another model's data?)".into(), expected: model.frames.len(), got: data.kin.frames.len() });
+    }
+    if mass.nrows() != n || mass.ncols() != n {
+        return Err(KinError::Size { what: "mass matrix rows and columns (nq)".into(), expected: n, got: if mass.nrows() != n { mass.nrows() } else { mass.ncols() } });
+    }
+    both_passes(model, dm, data, qd, gravity, bias, mass);
+    Ok(())
+}
+
+/// Axes, Newton-Euler (keeping the body inertias), then the composite pass.
+fn both_passes(model: &Model, dm: &DynamicsModel, data: &mut DynamicsData, qd: &[f64], gravity: &nalgebra::Vector3<f64>, bias: &mut [f64], mass: &mut DMatrix<f64>) {
+    super::setup::axes(model, dm, data);
+    super::rnea::bias_pass(model, dm, data, qd, gravity, bias);
+    accumulate(model, dm, data, mass);
 }
 
 /// The composite-rigid-body pass after [`placements_and_axes`].
@@ -50,6 +77,12 @@ fn composite_pass(model: &Model, dm: &DynamicsModel, data: &mut DynamicsData, ou
             None => RigidInertia::zero(),
         };
     }
+    accumulate(model, dm, data, out);
+}
+
+/// `M` from each frame's own body inertia in `data.composite` (world axes), summed into subtree
+/// composites on the way.
+fn accumulate(model: &Model, dm: &DynamicsModel, data: &mut DynamicsData, out: &mut DMatrix<f64>) {
     for (i, f) in model.frames.iter().enumerate().rev() {
         if let Some(p) = f.parent {
             let ci = data.composite[i];
@@ -63,12 +96,7 @@ fn composite_pass(model: &Model, dm: &DynamicsModel, data: &mut DynamicsData, ou
         }
         // Force needed to accelerate the subtree of i at a unit rate of phi_i.
         let force = data.composite[i].apply(&data.axis[i]);
-        let mut cur = Some(i);
-        while let Some(j) = cur {
-            cur = model.frames[j].parent;
-            if dm.terms[j].is_empty() {
-                continue;
-            }
+        for &j in &dm.moving_ancestors[i] {
             let mij = data.axis[j].dot(&force);
             for &(k, ck) in &dm.terms[i] {
                 for &(l, cl) in &dm.terms[j] {

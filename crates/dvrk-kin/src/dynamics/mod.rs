@@ -23,7 +23,7 @@ mod rnea;
 mod setup;
 mod spatial;
 
-pub use crba::{mass_matrix, mass_matrix_and_bias};
+pub use crba::{mass_matrix, mass_matrix_and_bias, mass_matrix_and_bias_placed};
 pub use inertia::{BodyInertia, PARAMETERS_PER_BODY, PARAMETER_NAMES};
 pub use regressor::regressor;
 pub use rnea::{actuator_effort, frame_bias_forces, gravity_torque, inverse_dynamics};

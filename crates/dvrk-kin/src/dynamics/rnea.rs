@@ -104,8 +104,9 @@ pub fn frame_bias_forces(model: &Model, dm: &DynamicsModel, data: &mut DynamicsD
 }
 
 /// The bias efforts `c(q, q') + g(q)` into `bias` (length nq), after [`placements_and_axes`].
+/// Leaves each frame's body inertia in `data.composite` ([`rnea_keeping`]).
 pub(crate) fn bias_pass(model: &Model, dm: &DynamicsModel, data: &mut DynamicsData, qd: &[f64], gravity: &Vector3<f64>, bias: &mut [f64]) {
-    rnea(model, dm, data, Rates::Joints(qd), Rates::Zero, gravity);
+    rnea_keeping(model, dm, data, Rates::Joints(qd), Rates::Zero, gravity, true);
     project(dm, &data.tau_phi, bias);
 }
 
@@ -140,6 +141,12 @@ impl Rates<'_> {
 /// `data.tau_phi`. Gravity enters as an upward acceleration `-g` of the base, which every body
 /// inherits.
 fn rnea(model: &Model, dm: &DynamicsModel, data: &mut DynamicsData, qd: Rates, qdd: Rates, gravity: &Vector3<f64>) {
+    rnea_keeping(model, dm, data, qd, qdd, gravity, false)
+}
+
+/// [`rnea`]; with `keep`, each frame's body inertia in world axes is left in `data.composite`
+/// for the composite-rigid-body pass that follows (computed once for both).
+fn rnea_keeping(model: &Model, dm: &DynamicsModel, data: &mut DynamicsData, qd: Rates, qdd: Rates, gravity: &Vector3<f64>, keep: bool) {
     let base_a = Spatial { ang: Vector3::zeros(), lin: -gravity };
     for (i, f) in model.frames.iter().enumerate() {
         let (vp, ap) = match f.parent {
@@ -157,9 +164,17 @@ fn rnea(model: &Model, dm: &DynamicsModel, data: &mut DynamicsData, qd: Rates, q
         data.f[i] = match dm.carries[i] {
             Some(b) => {
                 let ine = body_world_inertia(dm, b, data, i);
+                if keep {
+                    data.composite[i] = ine;
+                }
                 ine.apply(&a) + v.cross_force(&ine.apply(&v))
             }
-            None => Spatial::zero(),
+            None => {
+                if keep {
+                    data.composite[i] = RigidInertia::zero();
+                }
+                Spatial::zero()
+            }
         };
     }
     for (i, f) in model.frames.iter().enumerate().rev() {

@@ -32,6 +32,9 @@ pub struct DynamicsModel {
     pub(crate) kind: Vec<Kind>,
     /// Per frame: the non-zero coefficients `(joint, c)` of its variable `phi = c . q + b`.
     pub(crate) terms: Vec<Vec<(usize, f64)>>,
+    /// Per frame with a variable: itself and its ancestors that have one, nearest first (the
+    /// composite-rigid-body pass walks these, not every fixed frame up to the base).
+    pub(crate) moving_ancestors: Vec<Vec<usize>>,
 }
 
 impl DynamicsModel {
@@ -60,8 +63,21 @@ impl DynamicsModel {
                 Motion::Prismatic => Kind::Prismatic,
             })
             .collect();
-        let terms = model.frames.iter().map(|f| f.variable().map(|v| v.joints().collect()).unwrap_or_default()).collect();
-        Ok(DynamicsModel { model_name: model.name.clone(), nq: model.nq(), nframes: nf, inertias, carries, kind, terms })
+        let terms: Vec<Vec<(usize, f64)>> = model.frames.iter().map(|f| f.variable().map(|v| v.joints().collect()).unwrap_or_default()).collect();
+        let moving_ancestors = (0..nf)
+            .map(|i| {
+                let mut up = Vec::new();
+                let mut cur = Some(i);
+                while let Some(j) = cur {
+                    if !terms[i].is_empty() && !terms[j].is_empty() {
+                        up.push(j);
+                    }
+                    cur = model.frames[j].parent;
+                }
+                up
+            })
+            .collect();
+        Ok(DynamicsModel { model_name: model.name.clone(), nq: model.nq(), nframes: nf, inertias, carries, kind, terms, moving_ancestors })
     }
 
     /// The body inertias, in [`Model::bodies`] order.
@@ -162,6 +178,11 @@ pub(crate) fn check_gravity(g: &Vector3<f64>) -> Result<()> {
 /// `parent * pre`, fixed in both the parent and the frame.
 pub(crate) fn placements_and_axes(model: &Model, dm: &DynamicsModel, data: &mut DynamicsData, q: &[f64]) {
     compute_frame_placements(model, &mut data.kin, q);
+    axes(model, dm, data);
+}
+
+/// Each frame's joint axis from the placements in `data.kin` (see [`placements_and_axes`]).
+pub(crate) fn axes(model: &Model, dm: &DynamicsModel, data: &mut DynamicsData) {
     for (i, f) in model.frames.iter().enumerate() {
         data.axis[i] = match dm.kind[i] {
             Kind::Fixed => Spatial::zero(),
