@@ -10,7 +10,8 @@ use std::io::{IsTerminal, Write};
 /// The default scene: the whole cart (SUJ held, PSMs on the tracking test, ECM holding).
 const DEFAULT_SCENE: &str = "full";
 /// Default simulated time (s): one period of the 0.1 Hz tracking sine; the full scene runs at a
-/// real-time factor of ~4 (criterion bench `rtf/full_1s_sine`), so a few seconds of wall time.
+/// real-time factor of ~70 on the reduced engine (~3 on rapier; criterion bench
+/// `rtf/full_1s_sine_reduced`), so a fraction of a second of wall time.
 const DEFAULT_DURATION: f64 = 10.0;
 
 #[derive(Debug, Args)]
@@ -44,7 +45,8 @@ pub struct SimArgs {
     #[arg(long)]
     pub solver_iterations: Option<usize>,
     /// Step the independent arm groups (each arm on the cart with what it carries) on separate
-    /// threads; results are the same as the sequential run.
+    /// threads; results are the same as the sequential run (rapier; the reduced engine's steps
+    /// are too small a task for threads and ignore it).
     #[arg(long)]
     pub parallel: bool,
     /// Draw the tracking of the tracked joints (the PSMs on the sine) as a PNG or SVG like the

@@ -2,7 +2,8 @@
 //! of the section 4.3 tracking test per iteration (each arm as its scene says: the PSMs on the
 //! sines, the ECM of the cart scenes and the setup joints holding), dt = 1 ms: single thread
 //! (`{scene}_1s_sine`), and for the multi-arm scenes with the arm groups stepped in parallel
-//! (`{scene}_1s_sine_parallel`, `SimOptions::parallel`). RTF = 1 s / time per iteration.
+//! (`{scene}_1s_sine_parallel`, `SimOptions::parallel`), on rapier; and on the reduced engine
+//! (`{scene}_1s_sine_reduced`, one thread). RTF = 1 s / time per iteration.
 //! full-camera is full plus the stereo camera rendering both eyes at 30 Hz inside the loop (no
 //! files written); `camera/stereo_frame` times one frame of it (both eyes, with noise).
 
@@ -10,26 +11,32 @@ use criterion::{criterion_group, criterion_main, Criterion};
 use dvrk_sim::camera::StereoCamera;
 use dvrk_sim::scene::Tracking;
 use dvrk_sim::trajectory::Trajectory;
-use dvrk_sim::{Scene, Sim, SimOptions};
+use dvrk_sim::{Engine, Scene, Sim, SimOptions};
 
 fn one_second(c: &mut Criterion) {
     let mut group = c.benchmark_group("rtf");
     group.sample_size(10);
+    let (rapier, reduced) = (Engine::Rapier, Engine::Reduced);
     let runs = [
-        ("psm", false),
-        ("ecm", false),
-        ("2psm-ecm", false),
-        ("3psm", false),
-        ("full", false),
-        ("full-camera", false),
-        ("2psm-ecm", true),
-        ("3psm", true),
-        ("full", true),
-        ("full-camera", true),
+        ("psm", false, rapier),
+        ("ecm", false, rapier),
+        ("2psm-ecm", false, rapier),
+        ("3psm", false, rapier),
+        ("full", false, rapier),
+        ("full-camera", false, rapier),
+        ("2psm-ecm", true, rapier),
+        ("3psm", true, rapier),
+        ("full", true, rapier),
+        ("full-camera", true, rapier),
+        ("psm", false, reduced),
+        ("ecm", false, reduced),
+        ("2psm-ecm", false, reduced),
+        ("3psm", false, reduced),
+        ("full", false, reduced),
     ];
-    for (name, parallel) in runs {
+    for (name, parallel, engine) in runs {
         let scene = Scene::load(name).unwrap();
-        let mut sim = Sim::new(&scene, &SimOptions { parallel, ..SimOptions::default() }).unwrap();
+        let mut sim = Sim::new(&scene, &SimOptions { parallel, engine: Some(engine), ..SimOptions::default() }).unwrap();
         let trajectories: Vec<(usize, usize, Trajectory)> = sim
             .arms
             .iter()
@@ -47,7 +54,12 @@ fn one_second(c: &mut Criterion) {
         }
         let n = sim.nq();
         let (mut q, mut qd) = (vec![0.0; n], vec![0.0; n]);
-        group.bench_function(format!("{name}_1s_sine{}", if parallel { "_parallel" } else { "" }), |b| {
+        let suffix = match (parallel, engine) {
+            (_, Engine::Reduced) => "_reduced",
+            (true, _) => "_parallel",
+            _ => "",
+        };
+        group.bench_function(format!("{name}_1s_sine{suffix}"), |b| {
             b.iter(|| {
                 for _ in 0..1000 {
                     for (off, nk, traj) in &trajectories {
