@@ -590,3 +590,19 @@ pub(crate) fn apply_link_lengths(spec: &mut crate::ModelSpec) -> Result<()> {
     }
     Ok(())
 }
+
+impl crate::model::Model {
+    /// This model with `effect` added to its file's effects, compiled again (a kinematic effect
+    /// moves the frames, a physical one joins [`Model::effects`]); the base (a scene's mount
+    /// included: a simulator that mounts the model again wants the file's own base), file and
+    /// tool file are kept. What a hypothesis test or a generator does to a model.
+    pub fn with_effect(&self, effect: &EffectSpec) -> Result<crate::model::Model> {
+        let mut spec = self.spec.clone();
+        spec.effects.push(effect.clone());
+        let mut m = crate::model::Model::compile(spec)?;
+        m.base = self.base;
+        m.origin = self.origin.clone();
+        m.tool_file = self.tool_file.clone();
+        Ok(m)
+    }
+}

@@ -180,6 +180,14 @@ impl Inertials {
     }
 
     /// Every body's inertia in [`Model::bodies`] order, for dvrk-kin's dynamics.
+    /// `model`'s counterweight travel ratio `mu` and the counterweight's mass here (kg); `None`
+    /// when the model has no counterweight (or these inertials do not cover it).
+    pub fn counterweight(&self, model: &Model) -> Option<[f64; 2]> {
+        let mu = model.spec.parameters.get("mu")?.value;
+        let frame = model.counterweight_frame()?;
+        Some([mu, self.body_inertias(model).ok()?[model.frames[frame].body].mass])
+    }
+
     pub fn body_inertias(&self, model: &Model) -> Result<Vec<dvrk_kin::BodyInertia>> {
         (0..model.bodies.len())
             .map(|b| {

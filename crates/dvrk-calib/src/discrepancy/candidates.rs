@@ -5,7 +5,6 @@
 //! workflow re-takes it as a secant, [`secant`]) except latency, whose 1-D profile (the
 //! prediction shifted in time) is scanned in [`super::workflow`].
 
-use super::generate::with_effect;
 use super::signals::{Predictor, Prepared};
 use super::stats::Bounds;
 use crate::error::Result;
@@ -139,8 +138,7 @@ fn rms_joint(t: &Table, j: usize) -> f64 {
 /// The Coulomb smoothing velocities tried (rad/s, m/s).
 pub const COULOMB_SMOOTHING: [f64; 6] = [5e-4, 1e-3, 2e-3, 4e-3, 8e-3, 1.6e-2];
 
-/// The Coulomb smoothing velocity (rad/s, m/s) of a model's friction that names none.
-pub const COULOMB_SMOOTHING_DEFAULT: f64 = 2.0 * dvrk_sim::effects::COULOMB_VELOCITY;
+pub use super::signals::COULOMB_SMOOTHING_DEFAULT;
 
 /// Joint `j`'s Coulomb signature, `tanh(qd_j / v)` (`v`: the smoothing, rad/s or m/s): the sign
 /// taken at the recording's rate, then band-limited as the measured effort was. Inverse dynamics
@@ -226,7 +224,7 @@ pub fn offset_sensitivities(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, g
             parameters: BTreeMap::from([("offset".into(), h)]),
             source: String::new(),
         };
-        let shifted = Predictor::new(&with_effect(model, &spec)?, arm, gravity)?.series(prep)?;
+        let shifted = Predictor::new(&model.with_effect(&spec)?, arm, gravity)?.series(prep)?;
         let d = diff(&shifted, base, h);
         if rms_joint(&d, j) > 1e-6 {
             out.push((j, d));
@@ -347,7 +345,7 @@ fn finite_differences(
         .map(|(name, h)| {
             let mut e = effect.clone();
             *e.parameters.entry(name.clone()).or_insert(0.0) += h;
-            Ok(diff(&Predictor::new(&with_effect(&predictor.model, &e)?, arm, gravity)?.series(prep)?, base, *h))
+            Ok(diff(&Predictor::new(&predictor.model.with_effect(&e)?, arm, gravity)?.series(prep)?, base, *h))
         })
         .collect()
 }
@@ -360,7 +358,7 @@ fn counterweight(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f6
     // The model's own: its counterweight_error if it has one, else its mu and the inertials' mass.
     let at = match model.effects.iter().rfind(|e| e.kind == kind) {
         Some(e) => [e.get("mu"), e.get("mass")],
-        None => match super::generate::counterweight_at(model, &arm.inertials) {
+        None => match arm.inertials.counterweight(model) {
             Some(at) => at,
             None => return Ok(vec![]),
         },

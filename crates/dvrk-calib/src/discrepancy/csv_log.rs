@@ -23,8 +23,6 @@ use crate::error::{CalibError, Result};
 use std::fmt::Write as _;
 use std::path::Path;
 
-/// The note when the file has no setpoint columns.
-pub const NO_SETPOINTS: &str = "no setpoint columns: the encoder positions stand in for the setpoints (the tracking channel then replays the recording's own motion)";
 
 /// A CSV joint log read for a model.
 #[derive(Debug, Clone, PartialEq)]
@@ -72,7 +70,7 @@ pub fn parse(text: &str, path: &Path, model: &dvrk_kin::Model) -> Result<CsvLog>
         notes.push(format!("{}: ignored column(s) {}", path.display(), ignored.join(", ")));
     }
     if !has_setpoints {
-        notes.push(format!("{}: {NO_SETPOINTS}", path.display()));
+        notes.push(format!("{}: {}", path.display(), super::joint_log::NO_SETPOINTS));
     }
     let mut log = JointLog { names: model.joints.iter().map(|j| j.name.clone()).collect(), ..Default::default() };
     let mut record = csv::StringRecord::new();

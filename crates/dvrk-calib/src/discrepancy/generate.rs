@@ -248,14 +248,6 @@ fn joints_for(kind: EffectKind) -> &'static [usize] {
     }
 }
 
-/// The model's counterweight travel ratio `mu` and the counterweight's mass (kg) in `inertials`
-/// (`None`: the model has no counterweight).
-pub(crate) fn counterweight_at(model: &Model, inertials: &dvrk_sim::inertials::Inertials) -> Option<[f64; 2]> {
-    let mu = model.spec.parameters.get("mu")?.value;
-    let frame = model.counterweight_frame()?;
-    Some([mu, inertials.body_inertias(model).ok()?[model.frames[frame].body].mass])
-}
-
 /// Draw `kind` with realistic magnitudes (times `scale`); a DH length on a link the tracker on
 /// frame `marker` can see.
 fn draw(kind: EffectKind, model: &Model, inertials: &dvrk_sim::inertials::Inertials, rng: &mut ChaCha8Rng, scale: f64, marker: Option<usize>, payload_link: Option<&str>) -> Result<EffectSpec> {
@@ -327,7 +319,7 @@ fn draw(kind: EffectKind, model: &Model, inertials: &dvrk_sim::inertials::Inerti
         EffectKind::CounterweightError => {
             // Its travel ratio off by a few percent (pulley radii), its mass by up to a fifth
             // (the CAD has no counterweight: balance is what sets it).
-            let at = counterweight_at(model, inertials).ok_or_else(|| CalibError::field("effect", "counterweight_error needs a model with a counterweight (a frame moving by its parameter mu)"))?;
+            let at = inertials.counterweight(model).ok_or_else(|| CalibError::field("effect", "counterweight_error needs a model with a counterweight (a frame moving by its parameter mu)"))?;
             let sign = |rng: &mut ChaCha8Rng| if rng.random::<bool>() { 1.0 } else { -1.0 };
             p.insert("mu".into(), at[0] * (1.0 + sign(rng) * scale * rng.random_range(0.03..0.1)));
             p.insert("mass".into(), at[1] * (1.0 + sign(rng) * scale * rng.random_range(0.05..0.2)));
@@ -414,18 +406,6 @@ pub fn payload_frame(model: &Model) -> &'static str {
     } else {
         "tool_tip"
     }
-}
-
-/// `model` with `effect` added to its `[[effects]]`, on the same base (a scene's mount included;
-/// reset `base` to the arm's `original_base` before [`Scene::set_model`]).
-pub fn with_effect(model: &Model, effect: &EffectSpec) -> Result<Model> {
-    let mut spec = model.spec.clone();
-    spec.effects.push(effect.clone());
-    let mut m = Model::compile(spec)?;
-    m.base = model.base;
-    m.origin = model.origin.clone();
-    m.tool_file = model.tool_file.clone();
-    Ok(m)
 }
 
 fn sim_error(e: dvrk_sim::SimError) -> CalibError {
@@ -557,7 +537,7 @@ pub fn hidden_effect(scene_name: &str, o: &HiddenOptions) -> Result<HiddenRecord
     let truth_model = |specs: &[EffectSpec], keep: &[usize]| -> Result<Model> {
         let mut m = nominal.clone();
         for &i in keep {
-            m = with_effect(&m, &specs[i])?;
+            m = m.with_effect(&specs[i])?;
         }
         m.base = scene.arms[0].original_base;
         Ok(m)

@@ -8,6 +8,9 @@ use std::collections::BTreeMap;
 use std::io::Cursor;
 use std::path::Path;
 
+/// The note when the file has no setpoint columns.
+pub const NO_SETPOINTS: &str = "no setpoint columns: the encoder positions stand in for the setpoints (the tracking channel then replays the recording's own motion)";
+
 /// Setpoints and measurements of one arm, on one clock.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct JointLog {
@@ -134,7 +137,7 @@ pub fn read_mcap(path: &Path, arm: &str) -> Result<(JointLog, Vec<String>)> {
         }
         Some(set) => set,
         None => {
-            notes.push(format!("{}: {}", path.display(), super::csv_log::NO_SETPOINTS));
+            notes.push(format!("{}: {}", path.display(), NO_SETPOINTS));
             meas.clone()
         }
     };

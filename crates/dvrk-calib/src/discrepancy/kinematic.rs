@@ -439,7 +439,7 @@ pub fn observable_lengths(model: &Model, frame: usize) -> Vec<(usize, Model)> {
         .filter(|&k| moving.iter().any(|&c| c != k && is_ancestor(model, c, k)) && moving.iter().any(|&c| is_ancestor(model, k, c)))
         // A length that would make one declared body two, or open a closed loop, is not one the
         // mechanism can have on its own (a loop's links change together).
-        .filter_map(|k| super::generate::with_effect(model, &length_effect(model, k, LENGTH_STEP)).ok().filter(keeps_loops_closed).map(|m| (k, m)))
+        .filter_map(|k| model.with_effect(&length_effect(model, k, LENGTH_STEP)).ok().filter(keeps_loops_closed).map(|m| (k, m)))
         .collect()
 }
 

@@ -13,7 +13,8 @@ use super::kinematic::{analyse, Inputs};
 use super::plot::Residuals;
 use super::report::Report;
 use super::signals::{prepare, Predictor};
-use super::workflow::{separating_experiment, Options, Outcome};
+use super::options::{Options, Outcome};
+use super::separation::separating_experiment;
 use crate::error::{CalibError, Result};
 use dvrk_kin::Model;
 use dvrk_sim::Scene;
@@ -52,7 +53,7 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
     let channel = kc.report(&arm.model, named.as_ref(), "dvrk discrepancy", &strong);
     let effects = channel.candidates.iter().filter(|c| Some(&c.label) == label.as_ref()).map(|c| c.effect.clone()).collect();
     let tracking = match o.tracking {
-        true => Some(super::tracking::compare(&scene, a, log, model, named.as_ref().map(|e| super::generate::with_effect(model, e)).transpose()?.as_ref())?),
+        true => Some(super::tracking::compare(&scene, a, log, model, named.as_ref().map(|e| model.with_effect(e)).transpose()?.as_ref())?),
         false => None,
     };
     let residuals = Residuals {

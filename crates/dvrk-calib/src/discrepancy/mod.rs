@@ -30,11 +30,13 @@ pub mod kinematic_only;
 pub mod locate;
 pub mod markers;
 pub mod nuisance;
+pub mod options;
 pub mod payload;
 pub mod plot;
 pub mod registration;
 pub mod repeat;
 pub mod report;
+pub mod separation;
 pub mod run;
 pub mod signals;
 pub mod stats;
@@ -47,7 +49,8 @@ pub use nuisance::InertiaPrior;
 pub use plot::Residuals;
 pub use repeat::{discrepancy_repeated, Repeated};
 pub use report::Report;
-pub use workflow::{discrepancy, Options, Outcome};
+pub use options::{Options, Outcome};
+pub use workflow::discrepancy;
 
 /// The built-in scene that carries arm `arm`'s inertials, drive and gains (`PSM1..3`: the psm
 /// scene, `ECM`: the ecm scene), its arm renamed to `arm` (the recording's topic prefix).

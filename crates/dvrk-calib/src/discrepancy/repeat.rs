@@ -9,11 +9,11 @@
 //! coordinate sweep, [`Options::only`]), and one no longer supported given the others is dropped
 //! (backward elimination: a play that stood in for a Coulomb friction named later).
 
-use super::generate::with_effect;
 use super::joint_log::JointLog;
 use super::plot::Residuals;
 use super::report::{Report, StepReport};
-use super::workflow::{discrepancy, same_effect, Options};
+use super::options::Options;
+use super::workflow::{discrepancy, same_effect};
 use crate::error::Result;
 use dvrk_kin::effects::EffectSpec;
 use dvrk_kin::Model;
@@ -55,7 +55,7 @@ fn moved(old: &EffectSpec, new: &super::report::EffectReport) -> f64 {
 
 /// `model` with `effects` added.
 fn with_effects(model: &Model, effects: &[EffectSpec]) -> Result<Model> {
-    effects.iter().try_fold(model.clone(), |m, e| with_effect(&m, e))
+    Ok(effects.iter().try_fold(model.clone(), |m, e| m.with_effect(e))?)
 }
 
 /// Run [`discrepancy`] up to `max_rounds` times, each round on the model with the effects named

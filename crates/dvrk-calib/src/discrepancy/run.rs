@@ -3,7 +3,7 @@
 
 use super::joint_log::{self, JointLog};
 use super::repeat::{discrepancy_repeated, Repeated};
-use super::workflow::Options;
+use super::options::Options;
 use crate::error::{CalibError, Result};
 use dvrk_kin::Model;
 use std::path::Path;
@@ -14,7 +14,7 @@ pub fn read_log(path: &Path, format: &str, model: &Model, arm: &str) -> Result<(
     let resolved = crate::recording_format::resolve(path, format)?;
     let (log, mut notes) = match resolved {
         "mcap" | "bag" => joint_log::read_mcap(path, arm)?,
-        "wpi-csv" => (joint_log::read_wpi_csv(path, model)?, vec![format!("{}: {}", path.display(), super::csv_log::NO_SETPOINTS)]),
+        "wpi-csv" => (joint_log::read_wpi_csv(path, model)?, vec![format!("{}: {}", path.display(), joint_log::NO_SETPOINTS)]),
         _ => super::csv_log::read(path, model).map(|c| (c.log, c.notes))?,
     };
     notes.splice(0..0, crate::recording_format::auto_note(path, format, resolved));

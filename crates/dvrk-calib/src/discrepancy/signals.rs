@@ -13,6 +13,9 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 
+/// The Coulomb smoothing velocity (rad/s, m/s) of a model's friction that names none.
+pub const COULOMB_SMOOTHING_DEFAULT: f64 = 2.0 * dvrk_sim::effects::COULOMB_VELOCITY;
+
 /// How the log is processed.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Processing {
@@ -300,7 +303,7 @@ impl Predictor {
             motor,
             damping,
             gravity: Vector3::from(gravity),
-            velocity_scale: super::candidates::COULOMB_SMOOTHING_DEFAULT,
+            velocity_scale: COULOMB_SMOOTHING_DEFAULT,
         })
     }
 

@@ -116,7 +116,7 @@ mod tests {
             parameters: [("stiffness".to_string(), stiffness)].into(),
             source: String::new(),
         };
-        let stiff = crate::discrepancy::generate::with_effect(&scene.arms[0].model, &spec).unwrap();
+        let stiff = scene.arms[0].model.with_effect(&spec).unwrap();
         scene.set_model(0, stiff).unwrap();
         assert!(scene.max_stable_dt() < 0.6 * dt, "{}", scene.max_stable_dt());
         let reduced = SimOptions { engine: Some(dvrk_sim::Engine::Reduced), ..SimOptions::default() };

@@ -5,13 +5,15 @@
 //! the held-out part, and a verdict.
 
 use super::candidates::{self, Candidate, Table};
+pub use super::options::{Options, Outcome};
+use super::separation::separating_experiment;
 use super::consistency;
 use super::fit::{per_joint_ratio, Fitter, Rows};
 use super::joint_log::JointLog;
-use super::nuisance::{InertiaPrior, Nuisance};
+use super::nuisance::Nuisance;
 use super::plot::Residuals;
 use super::report::{CandidateReport, EffectReport, JointExplained, JointRms, Report};
-use super::signals::{prepare, Predictor, Prepared, Processing};
+use super::signals::{prepare, Predictor, Prepared};
 use super::stats::{chi2_sf, effective_fraction};
 use crate::error::{CalibError, Result};
 use dvrk_kin::effects::{EffectKind, EffectSpec};
@@ -21,53 +23,6 @@ use nalgebra::{DMatrix, DVector};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::collections::BTreeMap;
-
-/// Thresholds and settings.
-#[derive(Debug, Clone)]
-pub struct Options {
-    pub processing: Processing,
-    /// Strong evidence: a change in BIC above this (Kass and Raftery's "very strong", 10).
-    pub min_delta_bic: f64,
-    /// ... and a nested-model p-value below this (0.05 shared among ~40 candidates).
-    pub max_p_value: f64,
-    /// ... and the fitted effect at least this many times its joint's effort noise (RMS): below,
-    /// the residual left by the rigid model's own small errors would be named as an effect.
-    pub min_effect_to_noise: f64,
-    /// ... the same for an effect only the tracker sees, over the tracker's noise: the kinematic
-    /// chain leaves no residual of its own (effect-free, the tracker's held-out RMS is at its
-    /// noise), so a smaller effect seen over thousands of samples is no model error.
-    pub min_kinematic_effect_to_noise: f64,
-    /// Two candidates whose changes in BIC differ by less than this are not told apart.
-    pub ambiguity_bic: f64,
-    /// Bootstrap replicates for p-values on a bound.
-    pub bootstrap: usize,
-    /// Replay the setpoints through the simulator before and after (the tracking channel).
-    pub tracking: bool,
-    pub seed: u64,
-    /// The inertias re-estimated next to every candidate, within this prior.
-    pub inertia_prior: InertiaPrior,
-    /// Analyse only this effect's candidate ([`same_effect`]): the repeated workflow's refit of
-    /// an effect named in an earlier round, the model holding every other.
-    pub only: Option<EffectSpec>,
-}
-
-impl Default for Options {
-    fn default() -> Self {
-        Options {
-            processing: Processing::default(),
-            min_delta_bic: 10.0,
-            max_p_value: 1e-3,
-            min_effect_to_noise: 1.0,
-            min_kinematic_effect_to_noise: 0.5,
-            ambiguity_bic: 10.0,
-            bootstrap: 199,
-            tracking: true,
-            seed: 1,
-            inertia_prior: InertiaPrior::default(),
-            only: None,
-        }
-    }
-}
 
 /// Whether two effects are the same one: a kind on one joint, link or actuator (a coupling error, on
 /// neither, by its entry: the parameter it names), whatever their values.
@@ -94,15 +49,6 @@ fn profiled_spec(model: &Model, kind: EffectKind, joint: Option<usize>, value: f
         parameters: BTreeMap::from([(profiled_name(kind).into(), value)]),
         source: "dvrk discrepancy".into(),
     }
-}
-
-/// The report and, when an effect is named, the model with it.
-#[derive(Debug, Clone)]
-pub struct Outcome {
-    pub report: Report,
-    pub named: Option<EffectSpec>,
-    /// The band-limited residual before and after, for the plot (not in the report).
-    pub residuals: Residuals,
 }
 
 /// Scores of one candidate.
@@ -748,33 +694,6 @@ fn geometric(lo: f64, hi: f64, n: usize) -> Vec<f64> {
     (0..n).map(|i| lo * (hi / lo).powf(i as f64 / (n - 1) as f64)).collect()
 }
 
-/// The experiment that separates two candidates whose signatures look alike.
-pub fn separating_experiment(a: EffectKind, b: EffectKind) -> String {
-    use EffectKind::*;
-    let pair = |x: EffectKind, y: EffectKind| (a == x && b == y) || (a == y && b == x);
-    if a == CouplingError && b == CouplingError {
-        "a motion that moves the two entries' actuators apart (each coupled joint on its own, the jaw against the wrist): a held joint's actuator moves with the others, and its entries read as theirs".into()
-    } else if a == b && matches!(a, ActuatorCoulombFriction | ActuatorViscousFriction | ActuatorSpring | MotorInertia) {
-        format!("a motion that moves the two actuators apart: an actuator turns with every joint its cables couple, so two actuators differing only by a held joint's weight (the wrist yaw's and the jaw's, the jaw held) move alike; open and close the jaw (or move the joint that tells them apart) to separate the two places of {}", a.name())
-    } else if pair(ViscousFriction, ActuatorViscousFriction) || pair(CoulombFriction, ActuatorCoulombFriction) || pair(Spring, ActuatorSpring) {
-        "a motion that moves the joints the actuator couples in other proportions (each wrist joint on its own, then together): a joint's friction follows that joint alone, an actuator's its cables' combination".into()
-    } else if pair(CounterweightError, PayloadMass) {
-        "a slow insertion sweep at two pitch angles: the counterweight moves against the insertion by its travel ratio, a payload with it".into()
-    } else if a == b {
-        format!("a motion or a tracker that moves the two places of {} separately (another marker link, other poses)", a.name())
-    } else if pair(ViscousFriction, Latency) {
-        "a speed sweep: viscous friction grows with speed at any frequency, a latency's residual with speed times frequency".into()
-    } else if pair(JointCompliance, LinkLength) || pair(JointCompliance, JointOffset) || pair(JointCompliance, PayloadMass) {
-        "a payload change: a compliant drive's deflection follows the load, a geometric error does not".into()
-    } else if pair(CoulombFriction, Backlash) || pair(Backlash, JointOffset) || pair(Backlash, JointCompliance) {
-        "a tracker on the link: play shows as dead travel between encoder and link at reversals, friction and offsets do not".into()
-    } else if pair(Spring, JointOffset) || pair(Spring, PayloadMass) || pair(JointOffset, PayloadMass) {
-        "a slow sweep of the joint at two other poses of the arm: gravity's torque changes with the pose, a spring's does not".into()
-    } else {
-        format!("a recording that excites {} and {} independently (different speeds, loads and poses)", a.name(), b.name())
-    }
-}
-
 /// RMS (noise-normalised: each joint's band-limited residual over its noise floor in the band)
 /// over the active joints: 1 at the noise floor.
 fn normalised_rms(prep: &Prepared, r: &Table, range: std::ops::Range<usize>) -> f64 {
@@ -1237,7 +1156,7 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
         heldout_from: prep.t[prep.split],
     };
     let tracking = match o.tracking {
-        true => Some(super::tracking::compare(&scene, a, log, model, named.as_ref().map(|e| super::generate::with_effect(model, e)).transpose()?.as_ref())?),
+        true => Some(super::tracking::compare(&scene, a, log, model, named.as_ref().map(|e| model.with_effect(e)).transpose()?.as_ref())?),
         false => None,
     };
     let mimicked = mimicked_note(nuisance, &scored);
