@@ -5,6 +5,7 @@ mod util;
 mod bad_input;
 mod cli;
 mod dvrk_files;
+mod fuzz;
 mod kinematics;
 mod outputs;
 mod paper_tables;

@@ -46,7 +46,7 @@ fn main() {
         for e in h.answer.effects.iter().filter(|e| which == "1" || which.split(',').any(|n| n == e.spec.name)) {
             let mut spec = e.spec.clone();
             spec.parameters.values_mut().for_each(|v| *v *= scale);
-            model = generate::with_effect(&model, &spec).unwrap();
+            model = model.with_effect(&spec).unwrap();
         }
     }
     let o = Options { tracking: args.get(4).is_some(), ..Default::default() };

@@ -118,31 +118,72 @@ pub fn for_each(path: &Path, visit: impl FnMut(&Message) -> Result<()>) -> Resul
     }
 }
 
-/// [`for_each`] over the bytes of an MCAP file; `path` names them in errors.
+/// Every message of the MCAP file `bytes` (from `path`), in file order, through the `mcap`
+/// crate's sans-io reader with a record length limit ([`record_length_limit`]): its
+/// `MessageStream` has none, and a damaged record inside a chunk (found by the fuzz target
+/// `tests/fuzz.rs::mcap_joint_states`) made it reserve 3.5e18 bytes and abort the process.
+/// Returns the number of messages.
 pub fn for_each_mcap(bytes: &[u8], path: &Path, mut visit: impl FnMut(&Message) -> Result<()>) -> Result<usize> {
-    let stream = mcap::MessageStream::new(bytes).map_err(|e| CalibError::file(path, format!("not an MCAP file: {e}")))?;
+    use mcap::records::Record;
+    use mcap::sans_io::linear_reader::{LinearReadEvent, LinearReader, LinearReaderOptions};
+    let options = LinearReaderOptions::default().with_record_length_limit(record_length_limit(bytes.len()));
+    let mut reader = LinearReader::new_with_options(options);
+    let mut fed = 0usize;
     let mut count = 0usize;
-    // Type names, normalised once per channel.
+    let damaged = |count: usize, e: &dyn std::fmt::Display| match count {
+        _ if !bytes.starts_with(MCAP_MAGIC) => CalibError::file(path, "not an MCAP file (it does not start with the MCAP magic bytes)"),
+        _ => CalibError::file(path, format!("truncated or damaged after {count} message(s): {e}; nothing was fitted (recover the file with `mcap recover`)")),
+    };
+    // Schema names (normalised once) by id; channels' topic, encoding and schema id by id.
+    let mut schemas: BTreeMap<u16, String> = BTreeMap::new();
+    let mut channels: BTreeMap<u16, (String, Encoding, u16)> = BTreeMap::new();
     let mut names: BTreeMap<u16, String> = BTreeMap::new();
-    for m in stream {
-        let m = m.map_err(|e| match e {
-            mcap::McapError::BadMagic if count == 0 => CalibError::file(path, "not an MCAP file (it does not start with the MCAP magic bytes)"),
-            e => CalibError::file(path, format!("truncated or damaged after {count} message(s): {e}; nothing was fitted (recover the file with `mcap recover`)")),
-        })?;
-        count += 1;
-        let ch = &m.channel;
-        let enc = encoding(&ch.message_encoding);
-        let schema = names.entry(ch.id).or_insert_with(|| {
-            let s = ch.schema.as_ref().map_or("", |s| s.name.as_str());
-            if enc == Encoding::Ros1 {
-                ros2_type_name(s)
-            } else {
-                s.to_string()
+    loop {
+        let want = match reader.next_event() {
+            None => break,
+            Some(Err(e)) => return Err(damaged(count, &e)),
+            Some(Ok(LinearReadEvent::ReadRequest(n))) => n,
+            Some(Ok(LinearReadEvent::Record { data, opcode })) => {
+                match mcap::parse_record(opcode, data).map_err(|e| damaged(count, &e))? {
+                    Record::Schema { header, .. } => {
+                        schemas.insert(header.id, header.name);
+                    }
+                    Record::Channel(c) => {
+                        channels.insert(c.id, (c.topic, encoding(&c.message_encoding), c.schema_id));
+                    }
+                    Record::Message { header, data } => {
+                        count += 1;
+                        let Some((topic, enc, schema_id)) = channels.get(&header.channel_id) else {
+                            return Err(damaged(count - 1, &format!("message {count} is on channel {}, which the file never declares", header.channel_id)));
+                        };
+                        let schema = names.entry(header.channel_id).or_insert_with(|| {
+                            let s = schemas.get(schema_id).map_or("", |s| s.as_str());
+                            if *enc == Encoding::Ros1 {
+                                ros2_type_name(s)
+                            } else {
+                                s.to_string()
+                            }
+                        });
+                        visit(&Message { index: count, topic, schema, encoding: *enc, log_time_ns: header.log_time, data: &data })?;
+                    }
+                    _ => {}
+                }
+                continue;
             }
-        });
-        visit(&Message { index: count, topic: &ch.topic, schema, encoding: enc, log_time_ns: m.log_time, data: &m.data })?;
+        };
+        let n = want.min(bytes.len() - fed);
+        reader.insert(n).copy_from_slice(&bytes[fed..fed + n]);
+        reader.notify_read(n);
+        fed += n;
     }
     Ok(count)
+}
+
+/// The longest record (bytes) an MCAP of `file_len` bytes may hold, inside a chunk or not: 64 MiB
+/// or four times the file (a record decompressed from a chunk may be larger than its share of
+/// the file), at most 1 GiB. A damaged length field past it is an error, not an allocation.
+fn record_length_limit(file_len: usize) -> usize {
+    (64usize << 20).max(file_len.saturating_mul(4)).min(1 << 30)
 }
 
 /// The bag header's `index_pos` (where the index section starts), checked against the file's
