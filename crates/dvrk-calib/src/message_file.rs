@@ -130,9 +130,12 @@ pub fn for_each_mcap(bytes: &[u8], path: &Path, mut visit: impl FnMut(&Message) 
     let mut reader = LinearReader::new_with_options(options);
     let mut fed = 0usize;
     let mut count = 0usize;
-    let damaged = |count: usize, e: &dyn std::fmt::Display| match count {
-        _ if !bytes.starts_with(MCAP_MAGIC) => CalibError::file(path, "not an MCAP file (it does not start with the MCAP magic bytes)"),
-        _ => CalibError::file(path, format!("truncated or damaged after {count} message(s): {e}; nothing was fitted (recover the file with `mcap recover`)")),
+    let damaged = |count: usize, e: &dyn std::fmt::Display| {
+        if bytes.starts_with(MCAP_MAGIC) {
+            CalibError::file(path, format!("truncated or damaged after {count} message(s): {e}; nothing was fitted (recover the file with `mcap recover`)"))
+        } else {
+            CalibError::file(path, "not an MCAP file (it does not start with the MCAP magic bytes)")
+        }
     };
     // Schema names (normalised once) by id; channels' topic, encoding and schema id by id.
     let mut schemas: BTreeMap<u16, String> = BTreeMap::new();

@@ -32,6 +32,9 @@ pub const COULOMB_VELOCITY: f64 = 1e-3;
 /// backlash without compliance (rad/s); explicit integration keeps `w dt` at 0.2.
 const CONTACT_BANDWIDTH_DT: f64 = 0.2;
 
+/// The largest `w dt` the explicit transmission step holds for a drive's motor mode `w`.
+const MODE_DT: f64 = 0.5;
+
 /// The motor side of a two-mass drive.
 #[derive(Debug, Clone)]
 pub struct Transmission {
@@ -152,8 +155,8 @@ pub fn drive_armature(model: &Model, armature: &[f64]) -> Vec<f64> {
 
 /// The largest time step (s) that resolves every compliant drive of `model` (`joint_compliance`
 /// on a drive of inertia [`drive_armature`]): the motor's mode `w = sqrt(k / I)` needs
-/// `w dt <= 0.5` in the explicit transmission step. Infinite when no drive is compliant (backlash
-/// alone takes a contact stiffness scaled to the step).
+/// `w dt <= MODE_DT` (0.5) in the explicit transmission step. Infinite when no drive is
+/// compliant (backlash alone takes a contact stiffness scaled to the step).
 pub fn max_stable_dt(model: &Model, armature: &[f64]) -> f64 {
     let inertia = drive_armature(model, armature);
     model
@@ -163,7 +166,7 @@ pub fn max_stable_dt(model: &Model, armature: &[f64]) -> f64 {
         .filter_map(|e| {
             let j = e.joint?;
             let (k, i) = (e.get("stiffness"), *inertia.get(j)?);
-            (k > 0.0 && i > 0.0).then(|| 0.5 / (k / i).sqrt())
+            (k > 0.0 && i > 0.0).then(|| MODE_DT / (k / i).sqrt())
         })
         .fold(f64::INFINITY, f64::min)
 }
@@ -258,13 +261,13 @@ impl ArmEffects {
                 t.stiffness = contact;
             }
             let w = (t.stiffness / t.inertia).sqrt();
-            if w * dt > 0.5 {
+            if w * dt > MODE_DT {
                 return Err(SimError::Build(format!(
                     "{name} joint {}: transmission stiffness {} on motor inertia {} has a {w:.0} rad/s mode, too stiff for dt = {dt} s (at most {:.3e}; use a smaller dt)",
                     model.joints[j].name,
                     t.stiffness,
                     t.inertia,
-                    t.inertia * (0.5 / dt).powi(2)
+                    t.inertia * (MODE_DT / dt).powi(2)
                 )));
             }
             // A lightly damped transmission (damping ratio 0.1 on the motor's own mode).

@@ -344,14 +344,7 @@ impl crate::sim::Sim {
         let mut q_offset = 0;
         for arm in &scene.arms {
             // The mechanism on the true joints, as the rapier path builds it.
-            let link_model = arm.model.without_coupling_error();
-            let start = match arm.model.coupling_error_map() {
-                Some(b) => (b * DVector::from_column_slice(&arm.start)).as_slice().to_vec(),
-                None => arm.start.clone(),
-            };
-            let inertias = dvrk_kin::effects::effect_inertias(&link_model, &link_model.effects, &arm.inertials.body_inertias(&link_model)?)?;
-            let armature = crate::effects::drive_armature(&arm.model, &arm.armature);
-            let effects = crate::effects::ArmEffects::new(&arm.name, &arm.model, &armature, &arm.start, scene.dt)?;
+            let crate::sim::ArmPhysics { link_model, home: start, inertias, effects, .. } = crate::sim::ArmPhysics::new(arm, scene.dt)?;
             let transmission: Vec<bool> = effects.transmissions.iter().map(Option::is_some).collect();
             // On the world: the model's base is the mount. On an arm: the base relative to the
             // carrier's frame at the carrier's home, where the scene placed it.
@@ -371,9 +364,7 @@ impl crate::sim::Sim {
             place.push((t, trees[t].1.len()));
             trees[t].1.push(TreeArm { name: arm.name.clone(), model, effects_model: arm.model.clone(), parent, mount, inertias: inertias.clone(), armature: arm.armature.clone(), transmission, damping: arm.damping, start });
             let gravity_compensation = GravityCompensation::of(arm, scene, options, &inertias)?;
-            let mut state = ArmState::without_rapier(&arm.name, &arm.model, q_offset, crate::sim::actuators(arm), arm.tracking, effects, gravity_compensation);
-            state.set_tree(t, arm.parent);
-            arms.push(state);
+            arms.push(ArmState::without_rapier(arm, q_offset, effects, gravity_compensation));
             q_offset += arm.model.nq();
         }
         let reduced = trees.iter().map(|(name, a)| ReducedTree::new(name, a, g)).collect::<Result<Vec<_>>>()?;

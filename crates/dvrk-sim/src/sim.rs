@@ -263,32 +263,27 @@ pub struct ArmState {
 }
 
 impl ArmState {
-    /// An arm without a rapier part (the reduced engine's), mounted on the world.
-    pub(crate) fn without_rapier(name: &str, model: &Model, q_offset: usize, actuators: Vec<Actuator>, tracking: crate::scene::Tracking, effects: crate::effects::ArmEffects, gravity_compensation: Option<GravityCompensation>) -> ArmState {
+    /// Scene arm `arm` without a rapier part (the reduced engine's, whose trees hold the
+    /// mechanism; `world` is unused there).
+    pub(crate) fn without_rapier(arm: &crate::scene::Arm, q_offset: usize, effects: crate::effects::ArmEffects, gravity_compensation: Option<GravityCompensation>) -> ArmState {
         ArmState {
-            name: name.to_string(),
-            model: model.clone(),
+            name: arm.name.clone(),
+            model: arm.model.clone(),
             q_offset,
             bodies: Vec::new(),
             dofs: Vec::new(),
             drives: Vec::new(),
             closures: Vec::new(),
             cables: Vec::new(),
-            actuators,
-            tracking,
-            parent: None,
+            actuators: actuators(arm),
+            tracking: arm.tracking,
+            parent: arm.parent,
             world: 0,
             effects,
             gravity_compensation,
             explicit_damping: 0.0,
             coriolis: None,
         }
-    }
-
-    /// With the reduced engine: the tree the arm is in, and the arm carrying it.
-    pub(crate) fn set_tree(&mut self, tree: usize, parent: Option<(usize, usize)>) {
-        self.world = tree;
-        self.parent = parent;
     }
 
     /// The controllers' efforts on this arm's links (N·m, N) into `effects.drive`: the
@@ -398,6 +393,34 @@ pub(crate) struct GravityCompensation {
     pub(crate) gravity: Vector3<f64>,
     /// N·m, N per joint
     pub(crate) torque: Vec<f64>,
+}
+
+/// What both engines build of a scene arm before their own part.
+pub(crate) struct ArmPhysics {
+    /// The mechanism on the true joints: those of a coupling error's map (`q_true = B q`), which
+    /// the controller reads through ([`crate::effects`]).
+    pub link_model: Model,
+    /// The arm's start configuration on those joints (home unless the scene says otherwise).
+    pub home: Vec<f64>,
+    /// The bodies' inertials with any payload_mass effect added.
+    pub inertias: Vec<dvrk_kin::BodyInertia>,
+    /// Per joint, the drive's inertia ([`crate::effects::drive_armature`]).
+    pub armature: Vec<f64>,
+    pub effects: crate::effects::ArmEffects,
+}
+
+impl ArmPhysics {
+    pub(crate) fn new(arm: &crate::scene::Arm, dt: f64) -> Result<ArmPhysics> {
+        let link_model = arm.model.without_coupling_error();
+        let home = match arm.model.coupling_error_map() {
+            Some(b) => (b * nalgebra::DVector::from_column_slice(&arm.start)).as_slice().to_vec(),
+            None => arm.start.clone(),
+        };
+        let inertias = dvrk_kin::effects::effect_inertias(&link_model, &link_model.effects, &arm.inertials.body_inertias(&link_model)?)?;
+        let armature = crate::effects::drive_armature(&arm.model, &arm.armature);
+        let effects = crate::effects::ArmEffects::new(&arm.name, &arm.model, &armature, &arm.start, dt)?;
+        Ok(ArmPhysics { link_model, home, inertias, armature, effects })
+    }
 }
 
 impl GravityCompensation {
@@ -582,21 +605,12 @@ impl Sim {
             wp.num_internal_pgs_iterations = if arm.parent.is_some() { wp.num_internal_pgs_iterations.max(pgs) } else { pgs };
             let World { bodies, colliders, impulse_joints, multibody_joints, ground, .. } = &mut worlds[world];
             let ground = *ground;
-            // The mechanism is built on the true joints: those of a coupling error's map
-            // (`q_true = B q`), which the controller reads through (crate::effects).
-            let link_model = arm.model.without_coupling_error();
+            let ArmPhysics { link_model, home, inertias, armature, effects } = ArmPhysics::new(arm, scene.dt)?;
             let model = &link_model;
-            // Built at the arm's start configuration (home unless the scene says otherwise).
-            let home = match arm.model.coupling_error_map() {
-                Some(b) => (b * nalgebra::DVector::from_column_slice(&arm.start)).as_slice().to_vec(),
-                None => arm.start.clone(),
-            };
             let fk = model.fk(&home)?;
             // One rigid body per dvrk-kin body, placed at its first frame.
             let body_pose: Vec<Pose> = model.bodies.iter().map(|b| fk[b.frames[0]]).collect();
             let mut handles = Vec::with_capacity(model.bodies.len());
-            // The bodies' inertials with any payload_mass effect added.
-            let inertias = dvrk_kin::effects::effect_inertias(model, &model.effects, &arm.inertials.body_inertias(model)?)?;
             for (bi, ine) in inertias.iter().enumerate() {
                 let mp = mass_properties(ine.mass, &ine.com, &ine.inertia);
                 let rb = RigidBodyBuilder::dynamic().pose(to_rapier(&body_pose[bi])).additional_mass_properties(mp).can_sleep(false);
@@ -750,7 +764,6 @@ impl Sim {
                 mb.damping_mut()[assembly] = arm.damping;
                 mb.armature_mut()[assembly] = 0.0;
             }
-            let armature = crate::effects::drive_armature(&arm.model, &arm.armature);
             for (k, dr) in drives.iter().enumerate() {
                 let assembly = mb.link(link_ids[dr.dof]).map(|l| l.assembly_id()).unwrap_or(0);
                 split_drive_damping(mb, assembly, arm.damping);
@@ -770,7 +783,6 @@ impl Sim {
             mb.forward_kinematics(bodies, true);
             mb.update_rigid_bodies(bodies, true);
             let actuators = actuators(arm);
-            let effects = crate::effects::ArmEffects::new(&arm.name, &arm.model, &armature, &arm.start, scene.dt)?;
             {
                 let mb = multibody_joints.get_multibody_mut(mb_index).ok_or_else(|| SimError::Build("multibody vanished".into()))?;
                 for (k, t) in effects.transmissions.iter().enumerate() {

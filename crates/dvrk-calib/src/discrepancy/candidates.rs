@@ -5,7 +5,7 @@
 //! workflow re-takes it as a secant, [`secant`]) except latency, whose 1-D profile (the
 //! prediction shifted in time) is scanned in [`super::workflow`].
 
-use super::signals::{Predictor, Prepared};
+use super::signals::{Predictor, Prepared, COULOMB_SMOOTHING_DEFAULT};
 use super::stats::Bounds;
 use crate::error::Result;
 use dvrk_kin::effects::{EffectKind, EffectSpec};
@@ -137,8 +137,6 @@ fn rms_joint(t: &Table, j: usize) -> f64 {
 
 /// The Coulomb smoothing velocities tried (rad/s, m/s).
 pub const COULOMB_SMOOTHING: [f64; 6] = [5e-4, 1e-3, 2e-3, 4e-3, 8e-3, 1.6e-2];
-
-pub use super::signals::COULOMB_SMOOTHING_DEFAULT;
 
 /// Joint `j`'s Coulomb signature, `tanh(qd_j / v)` (`v`: the smoothing, rad/s or m/s): the sign
 /// taken at the recording's rate, then band-limited as the measured effort was. Inverse dynamics

@@ -13,7 +13,7 @@ use super::joint_log::JointLog;
 use super::nuisance::Nuisance;
 use super::plot::Residuals;
 use super::report::{CandidateReport, EffectReport, JointExplained, JointRms, Report};
-use super::signals::{prepare, Predictor, Prepared};
+use super::signals::{prepare, Predictor, Prepared, COULOMB_SMOOTHING_DEFAULT};
 use super::stats::{chi2_sf, effective_fraction};
 use crate::error::{CalibError, Result};
 use dvrk_kin::effects::{EffectKind, EffectSpec};
@@ -720,12 +720,12 @@ fn rms(r: &Table, k: usize, range: std::ops::Range<usize>) -> f64 {
 fn coulomb_as_fitted(base: &mut Table, model: &Model, prep: &Prepared) {
     let nq = model.nq();
     let mut kin = vec![0.0; nq];
-    let smoothing = |e: &dvrk_kin::effects::Effect| if e.get("smoothing") > 0.0 { e.get("smoothing") } else { candidates::COULOMB_SMOOTHING_DEFAULT };
+    let smoothing = |e: &dvrk_kin::effects::Effect| if e.get("smoothing") > 0.0 { e.get("smoothing") } else { COULOMB_SMOOTHING_DEFAULT };
     for e in model.effects.iter().filter(|e| e.kind == EffectKind::ActuatorCoulombFriction) {
         let sign = candidates::actuator_friction_sign(prep, nq, &e.transmission, smoothing(e));
         for ((row, s), (q, qd)) in base.iter_mut().zip(&sign).zip(prep.q.iter().zip(&prep.qd)) {
             kin.fill(0.0);
-            dvrk_kin::effects::effort(std::slice::from_ref(e), q, qd, candidates::COULOMB_SMOOTHING_DEFAULT, &mut kin);
+            dvrk_kin::effects::effort(std::slice::from_ref(e), q, qd, COULOMB_SMOOTHING_DEFAULT, &mut kin);
             // The offset reaches the joints as the friction does: w_j offset.
             for (j, w) in &e.transmission {
                 row[*j] += kin[*j] + e.get("fc") * s[*j] + w * e.get("offset");
@@ -734,12 +734,12 @@ fn coulomb_as_fitted(base: &mut Table, model: &Model, prep: &Prepared) {
     }
     for e in model.effects.iter().filter(|e| e.kind == EffectKind::CoulombFriction) {
         let Some(j) = e.joint else { continue };
-        let v = if e.get("smoothing") > 0.0 { e.get("smoothing") } else { candidates::COULOMB_SMOOTHING_DEFAULT };
+        let v = if e.get("smoothing") > 0.0 { e.get("smoothing") } else { COULOMB_SMOOTHING_DEFAULT };
         let sign = candidates::friction_sign(prep, nq, j, v);
         for ((row, s), (q, qd)) in base.iter_mut().zip(&sign).zip(prep.q.iter().zip(&prep.qd)) {
             // dvrk-kin's term (`effort` writes the joint's force on the link: its negative).
             kin[j] = 0.0;
-            dvrk_kin::effects::effort(std::slice::from_ref(e), q, qd, candidates::COULOMB_SMOOTHING_DEFAULT, &mut kin);
+            dvrk_kin::effects::effort(std::slice::from_ref(e), q, qd, COULOMB_SMOOTHING_DEFAULT, &mut kin);
             row[j] += kin[j] + e.get("fc") * s[j] + e.get("offset");
         }
     }

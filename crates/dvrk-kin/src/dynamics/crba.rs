@@ -14,10 +14,7 @@ use nalgebra::DMatrix;
 /// `M = C^T M_phi C`. `out` must be nq x nq; it is overwritten. Allocates nothing.
 pub fn mass_matrix(model: &Model, dm: &DynamicsModel, data: &mut DynamicsData, q: &[f64], out: &mut DMatrix<f64>) -> Result<()> {
     check_common(model, dm, data, q)?;
-    let n = model.nq();
-    if out.nrows() != n || out.ncols() != n {
-        return Err(KinError::Size { what: "mass matrix rows and columns (nq)".into(), expected: n, got: if out.nrows() != n { out.nrows() } else { out.ncols() } });
-    }
+    check_mass(out, model.nq())?;
     placements_and_axes(model, dm, data, q);
     composite_pass(model, dm, data, out);
     Ok(())
@@ -30,16 +27,8 @@ pub fn mass_matrix(model: &Model, dm: &DynamicsModel, data: &mut DynamicsData, q
 #[allow(clippy::too_many_arguments)]
 pub fn mass_matrix_and_bias(model: &Model, dm: &DynamicsModel, data: &mut DynamicsData, q: &[f64], qd: &[f64], gravity: &nalgebra::Vector3<f64>, bias: &mut [f64], mass: &mut DMatrix<f64>) -> Result<()> {
     check_common(model, dm, data, q)?;
-    super::setup::check_vector(qd, model.nq(), "qd")?;
-    super::setup::check_gravity(gravity)?;
-    super::rnea::check_out(bias, model.nq())?;
-    let n = model.nq();
-    if mass.nrows() != n || mass.ncols() != n {
-        return Err(KinError::Size { what: "mass matrix rows and columns (nq)".into(), expected: n, got: if mass.nrows() != n { mass.nrows() } else { mass.ncols() } });
-    }
     compute_frame_placements(model, &mut data.kin, q);
-    both_passes(model, dm, data, qd, gravity, bias, mass);
-    Ok(())
+    mass_matrix_and_bias_placed(model, dm, data, qd, gravity, bias, mass)
 }
 
 /// [`mass_matrix_and_bias`] on the placements already in `data.kin`: a stepper that placed the
@@ -51,22 +40,23 @@ pub fn mass_matrix_and_bias_placed(model: &Model, dm: &DynamicsModel, data: &mut
     super::setup::check_vector(qd, model.nq(), "qd")?;
     super::setup::check_gravity(gravity)?;
     super::rnea::check_out(bias, model.nq())?;
-    let n = model.nq();
     if data.kin.frames.len() != model.frames.len() || data.composite.len() != model.frames.len() {
         return Err(KinError::Size { what: "workspace frames (another model's data?)".into(), expected: model.frames.len(), got: data.kin.frames.len() });
     }
-    if mass.nrows() != n || mass.ncols() != n {
-        return Err(KinError::Size { what: "mass matrix rows and columns (nq)".into(), expected: n, got: if mass.nrows() != n { mass.nrows() } else { mass.ncols() } });
-    }
-    both_passes(model, dm, data, qd, gravity, bias, mass);
-    Ok(())
-}
-
-/// Axes, Newton-Euler (keeping the body inertias), then the composite pass.
-fn both_passes(model: &Model, dm: &DynamicsModel, data: &mut DynamicsData, qd: &[f64], gravity: &nalgebra::Vector3<f64>, bias: &mut [f64], mass: &mut DMatrix<f64>) {
+    check_mass(mass, model.nq())?;
+    // Axes, Newton-Euler (keeping the body inertias), then the composite pass.
     super::setup::axes(model, dm, data);
     super::rnea::bias_pass(model, dm, data, qd, gravity, bias);
     accumulate(model, dm, data, mass);
+    Ok(())
+}
+
+/// `out` is nq x nq.
+fn check_mass(out: &DMatrix<f64>, n: usize) -> Result<()> {
+    if out.nrows() != n || out.ncols() != n {
+        return Err(KinError::Size { what: "mass matrix rows and columns (nq)".into(), expected: n, got: if out.nrows() != n { out.nrows() } else { out.ncols() } });
+    }
+    Ok(())
 }
 
 /// The composite-rigid-body pass after [`placements_and_axes`].
