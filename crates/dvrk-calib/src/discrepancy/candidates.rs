@@ -206,6 +206,15 @@ pub fn payload_at(at: &[f64], x: &[f64]) -> Option<[f64; 3]> {
     (x[0] > 1e-3).then(|| std::array::from_fn(|k| (at[k + 1] + x[k + 1] / x[0]).clamp(r[0], r[1])))
 }
 
+/// Whether a payload fit `x = (m, m dx, m dy, m dz)` linearised at `at` is a point mass: 1 g
+/// or more, at a place within the vocabulary's range. Outside, the fit's first-moment columns
+/// explain what no mass on the body can (WPI 105 g: a refit put 1 g on the tool's roll link at
+/// 100 m from it, clamped to the range's edge, and the report lost the weight).
+pub fn payload_is_a_point_mass(at: &[f64], x: &[f64]) -> bool {
+    let r = EffectKind::PayloadMass.range("x").unwrap_or([-1.0, 1.0]);
+    x[0] > 1e-3 && (0..3).all(|k| (r[0]..=r[1]).contains(&(at[k + 1] + x[k + 1] / x[0])))
+}
+
 /// Per moving joint where an offset shows (gravity or coupling load it), the change of every
 /// joint's effort per unit offset of that joint (the joint's true position is the reading plus
 /// the offset): the model's own sensitivity, by finite difference.
@@ -422,6 +431,18 @@ fn coupling(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f64; 3]
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_payload_fit_is_a_point_mass_only_with_a_mass_at_a_place_in_range() {
+        let at = [0.0, 0.1, -0.5, 0.0];
+        // 0.2 kg moved 5 cm: a point mass at (0.15, -0.5, 0).
+        assert!(payload_is_a_point_mass(&at, &[0.2, 0.01, 0.0, 0.0]));
+        // The WPI 105 g refit: 1.25 g whose first-moment columns move it 56 m.
+        assert!(!payload_is_a_point_mass(&at, &[0.00125, 0.0, 0.0, -0.07]));
+        // A place past the range's 1 m, and no mass at all.
+        assert!(!payload_is_a_point_mass(&at, &[0.2, 0.0, -0.11, 0.0]));
+        assert!(!payload_is_a_point_mass(&at, &[0.0, 0.0, 0.0, 0.0]));
+    }
 
     fn candidate(kind: EffectKind, names: &[&str], at: &[f64]) -> Candidate {
         Candidate { kind, joint: None, link: None, actuator: None, names: super::names(names), columns: vec![], at: at.to_vec(), range: None, focus: 0, profile: None }

@@ -228,7 +228,8 @@ fn score_linear(c: &Candidate, fit: &Fitter, r: &Table, o: &Options, rng: &mut C
     // A payload's mass at its upper bound is not an implausible fit but an unfixed one: the mass
     // trades with its distance from the axis, gravity fixing their product (reported with an
     // equivalent placement, [`super::payload::report`]).
-    let at_edge = bounds.iter().zip(x.iter()).enumerate().any(|(i, (b, v))| b.held_at(*v).is_some_and(|b| b != 0.0) && !unfixed_mass(i, b, *v));
+    let at_edge = bounds.iter().zip(x.iter()).enumerate().any(|(i, (b, v))| b.held_at(*v).is_some_and(|b| b != 0.0) && !unfixed_mass(i, b, *v))
+        || (c.kind == EffectKind::PayloadMass && !candidates::payload_is_a_point_mass(&c.at, x.as_slice()));
     let nuisance_correlation = fit.nuisance.and_then(|_| {
         let c0 = a.column(0).into_owned();
         let n2 = c0.norm_squared();
