@@ -9,9 +9,7 @@
 //! against their published 0.134. So a comparison with their numbers takes this protocol.
 
 use super::filter::Butterworth;
-use super::problem::Regression;
 use super::TorqueRecording;
-use nalgebra::DVector;
 use serde::Serialize;
 
 /// The protocol's settings.
@@ -115,18 +113,18 @@ pub fn relative_error(tau: &[f64], pred: impl Fn(usize) -> f64, window: &Window,
     (num / den.max(1e-300)).sqrt()
 }
 
-/// Per channel, [`relative_error`] of `reg`'s prediction `Y theta`; `reg` is `rec`'s regression,
-/// whose rows start `reg_trim` samples into the recording (`Processing::trim`).
-pub fn relative_errors(reg: &Regression, theta: &DVector<f64>, rec: &TorqueRecording, reg_trim: usize, protocol: &Protocol) -> Option<AsPublished> {
-    let rows = reg.tau.first().map(|t| t.len()).unwrap_or(0);
+/// Per channel, [`relative_error`] of a regression's prediction `predicted` (`[channel][row]`,
+/// [`super::problem::Regression::predict`]) of `rec`, whose rows start `reg_trim` samples into
+/// the recording (`Processing::trim`).
+pub fn relative_errors(predicted: &[Vec<f64>], rec: &TorqueRecording, reg_trim: usize, protocol: &Protocol) -> Option<AsPublished> {
+    let rows = predicted.first().map_or(0, |t| t.len());
     let w = window(rec, reg_trim, reg_trim + rows, protocol)?;
-    let relative_error = reg
-        .y
+    let relative_error = predicted
         .iter()
         .enumerate()
-        .map(|(c, y)| {
+        .map(|(c, pred)| {
             let tau: Vec<f64> = rec.tau.iter().map(|t| t[c]).collect();
-            relative_error(&tau, |i| y.row(i - reg_trim).dot(&theta.transpose()), &w, protocol)
+            relative_error(&tau, |i| pred[i - reg_trim], &w, protocol)
         })
         .collect();
     Some(AsPublished {

@@ -258,22 +258,22 @@ pub fn prior_scale(layout: &Layout, theta0: &DVector<f64>, fraction: f64) -> DVe
 }
 
 /// Per channel: `|tau - Y theta| / |tau|` against the efforts as recorded.
-pub fn relative_errors(reg: &Regression, theta: &DVector<f64>) -> Vec<f64> {
-    relative_errors_against(reg, theta, &reg.tau)
+pub fn relative_errors(reg: &Regression, theta: &DVector<f64>) -> Result<Vec<f64>> {
+    Ok(errors_against(&reg.predict(theta)?, &reg.tau))
 }
 
 /// [`relative_errors`] against the efforts low-passed like the motion (the band the model is
 /// fitted in): what is left once the sensor noise above the band is not counted.
-pub fn relative_errors_in_band(reg: &Regression, theta: &DVector<f64>) -> Vec<f64> {
-    relative_errors_against(reg, theta, &reg.tau_filtered)
+pub fn relative_errors_in_band(reg: &Regression, theta: &DVector<f64>) -> Result<Vec<f64>> {
+    Ok(errors_against(&reg.predict(theta)?, &reg.tau_filtered))
 }
 
-fn relative_errors_against(reg: &Regression, theta: &DVector<f64>, measured: &[Vec<f64>]) -> Vec<f64> {
-    reg.y
+/// Per channel `|measured - predicted| / |measured|`.
+fn errors_against(predicted: &[Vec<f64>], measured: &[Vec<f64>]) -> Vec<f64> {
+    predicted
         .iter()
         .zip(measured)
-        .map(|(y, tau)| {
-            let pred = y * theta;
+        .map(|(pred, tau)| {
             let num: f64 = pred.iter().zip(tau).map(|(p, t)| (t - p) * (t - p)).sum();
             let den: f64 = tau.iter().map(|t| t * t).sum();
             (num / den.max(1e-300)).sqrt()
@@ -289,12 +289,13 @@ fn relative_errors_against(reg: &Regression, theta: &DVector<f64>, measured: &[V
 /// (the filter passes zero frequency unchanged), for smooth model error it is many times the
 /// variance. An AR(1) inflation `(1 + rho) / (1 - rho)` instead took the filter's own smoothing
 /// for information loss and made synthetic intervals several times too wide.
-fn residual_statistics(reg: &Regression, theta: &DVector<f64>) -> Vec<(f64, f64)> {
-    reg.y
+fn residual_statistics(reg: &Regression, theta: &DVector<f64>) -> Result<Vec<(f64, f64)>> {
+    Ok(reg
+        .predict(theta)?
         .iter()
         .zip(&reg.tau_filtered)
-        .map(|(y, tau)| {
-            let r: Vec<f64> = (y * theta).iter().zip(tau).map(|(p, t)| t - p).collect();
+        .map(|(pred, tau)| {
+            let r: Vec<f64> = pred.iter().zip(tau).map(|(p, t)| t - p).collect();
             let n = r.len();
             let gamma = |k: usize| r[..n - k].iter().zip(&r[k..]).map(|(a, b)| a * b).sum::<f64>() / n as f64;
             let var = gamma(0);
@@ -302,7 +303,7 @@ fn residual_statistics(reg: &Regression, theta: &DVector<f64>) -> Vec<(f64, f64)
             let long_run = var + 2.0 * (1..=lags).map(|k| (1.0 - k as f64 / (lags + 1) as f64) * gamma(k)).sum::<f64>();
             (var, long_run.max(1e-3 * var))
         })
-        .collect()
+        .collect())
 }
 
 /// Identify `model`'s inertial parameters and effects from `rec`, starting from the CAD
@@ -353,12 +354,7 @@ pub fn identify_regression(model: &Model, prior: &[BodyInertia], reg: &Regressio
     }
     let prior_precision = DVector::from_iterator(n, scale.iter().map(|s| 1.0 / (s * s)));
     // Per-channel normal equations, once.
-    let normal: Vec<(DMatrix<f64>, DVector<f64>)> = reg
-        .y
-        .iter()
-        .zip(&reg.tau_filtered)
-        .map(|(y, tau)| (y.transpose() * y, y.transpose() * DVector::from_column_slice(tau)))
-        .collect();
+    let normal: Vec<(DMatrix<f64>, DVector<f64>)> = reg.normal_equations(&reg.tau_filtered)?;
     let objective = |w: &[f64]| {
         let mut h = DMatrix::from_diagonal(&prior_precision);
         let mut g = prior_precision.component_mul(&theta0);
@@ -376,7 +372,7 @@ pub fn identify_regression(model: &Model, prior: &[BodyInertia], reg: &Regressio
     // 200 Hz filtered data are autocorrelated, so the covariance weights each channel by its
     // residuals' long-run variance instead; the point estimate does not (on real data, where
     // model error makes it many times the variance, that would hand the fit to the prior).
-    let stats = residual_statistics(reg, &theta1);
+    let stats = residual_statistics(reg, &theta1)?;
     let weights: Vec<f64> = stats.iter().map(|(var, _)| 1.0 / var.max(1e-12)).collect();
     let o2 = objective(&weights);
     let fit = solve::solve(&layout, &o2, &theta0, &scale, options.consistency_margin)?;
@@ -405,7 +401,7 @@ pub fn identify_regression(model: &Model, prior: &[BodyInertia], reg: &Regressio
         })
         .collect();
     let warnings = excitation_warnings(&layout, &estimates, reg, channels);
-    let relative_error = relative_errors(reg, &fit.theta);
+    let relative_error = relative_errors(reg, &fit.theta)?;
     let samples = reg.tau.first().map(|t| t.len()).unwrap_or(0);
     let nb = layout.nbodies * PARAMETERS_PER_BODY;
     let sensor: Vec<f64> = reg.tau.iter().map(|t| 1.0 / sensor_noise_variance(t).max(1e-18)).collect();
@@ -480,14 +476,16 @@ impl Identification {
     /// Also the same against the efforts in the analysis band ([`relative_errors_in_band`]).
     pub fn validate(&self, model: &Model, rec: &TorqueRecording, options: &IdentifyOptions) -> Result<(Vec<f64>, Vec<f64>)> {
         let reg = problem::regression(model, rec, &self.layout, &options.processing)?;
-        Ok((relative_errors(&reg, &self.theta), relative_errors_in_band(&reg, &self.theta)))
+        let predicted = reg.predict(&self.theta)?;
+        Ok((errors_against(&predicted, &reg.tau), errors_against(&predicted, &reg.tau_filtered)))
     }
 
     /// [`Identification::validate`], and the errors with the WPI authors' protocol
     /// ([`as_published`]; `None` for a recording too short for its window).
     pub fn validate_all(&self, model: &Model, rec: &TorqueRecording, options: &IdentifyOptions) -> Result<(Vec<f64>, Vec<f64>, Option<as_published::AsPublished>)> {
         let reg = problem::regression(model, rec, &self.layout, &options.processing)?;
-        let published = as_published::relative_errors(&reg, &self.theta, rec, options.processing.trim, &as_published::Protocol::default());
-        Ok((relative_errors(&reg, &self.theta), relative_errors_in_band(&reg, &self.theta), published))
+        let predicted = reg.predict(&self.theta)?;
+        let published = as_published::relative_errors(&predicted, rec, options.processing.trim, &as_published::Protocol::default());
+        Ok((errors_against(&predicted, &reg.tau), errors_against(&predicted, &reg.tau_filtered), published))
     }
 }

@@ -7,7 +7,7 @@ use super::recording::TorqueRecording;
 use crate::error::{CalibError, Result};
 use dvrk_kin::dynamics::{PARAMETERS_PER_BODY, PARAMETER_NAMES};
 use dvrk_kin::{DynamicsData, DynamicsModel, Model};
-use nalgebra::{DMatrix, Vector3};
+use nalgebra::{DMatrix, DVector, DVectorView, DVectorViewMut, Vector3};
 use serde::Serialize;
 
 /// A per-channel effect term of the regression.
@@ -229,17 +229,184 @@ pub fn dahl_state(q: &[f64], sigma: f64) -> Vec<f64> {
         .collect()
 }
 
-/// A recording as a regression: per channel, `y[c]` (samples x parameters) and the efforts.
+/// Rows per block of a pass over the regression: the block's matrices (channels x rows x
+/// parameters, 4 MB for the PSM's 7 channels and 150 parameters) bound the memory, and a block
+/// is large enough for the matrix products to run at speed.
+const BLOCK_ROWS: usize = 512;
+
+/// A recording as a regression `tau_c = Y_c theta` per channel `c`: the normal equations' matrix
+/// `Y_c^T Y_c`, the efforts, and what the rows are computed from. The rows themselves are not
+/// kept (10 kB per sample for the PSM: 2.5 GB for a 1 kHz, 5 min recording); a pass over them
+/// ([`Regression::predict`], [`Regression::project`]) computes them again in blocks.
 #[derive(Debug, Clone)]
 pub struct Regression {
-    /// Per channel: the regressor rows.
-    pub y: Vec<DMatrix<f64>>,
+    /// Per channel: `Y^T Y` over every row, once asked for ([`Regression::gram`]).
+    gram: std::sync::OnceLock<Vec<DMatrix<f64>>>,
     /// Per channel: the measured efforts as recorded (N·m, N).
     pub tau: Vec<Vec<f64>>,
     /// Per channel: the efforts through the same zero-phase filter as the velocities.
     pub tau_filtered: Vec<Vec<f64>>,
     /// Per channel: velocity range seen (min, max), for excitation checks.
     pub velocity_range: Vec<(f64, f64)>,
+    rows: RowSource,
+}
+
+/// What a regression row is computed from: per channel over the kept samples, the encoder
+/// positions, the filtered velocities and accelerations and the Dahl states.
+#[derive(Debug, Clone)]
+struct RowSource {
+    model: Model,
+    layout: Layout,
+    processing: Processing,
+    to_joint: DMatrix<f64>,
+    q: Vec<Vec<f64>>,
+    qd: Vec<Vec<f64>>,
+    qdd: Vec<Vec<f64>>,
+    dahl: Vec<Vec<f64>>,
+}
+
+impl Regression {
+    /// Rows (samples) of the regression.
+    pub fn len(&self) -> usize {
+        self.tau.first().map_or(0, |t| t.len())
+    }
+
+    /// Whether it has no rows.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Per channel, the normal equations `Y_c^T Y_c` and `Y_c^T v_c` for per-row values `v`
+    /// (`[channel][row]`): one pass over the rows, `Y_c^T Y_c` kept for the next call.
+    pub fn normal_equations(&self, v: &[Vec<f64>]) -> Result<Vec<(DMatrix<f64>, DVector<f64>)>> {
+        if let Some(g) = self.gram.get() {
+            return Ok(g.iter().cloned().zip(self.project(v)?).collect());
+        }
+        let p = self.rows.layout.len();
+        let mut gram = vec![DMatrix::zeros(p, p); self.tau.len()];
+        let mut yv = vec![DVector::zeros(p); self.tau.len()];
+        let mut rows_major = DMatrix::zeros(BLOCK_ROWS, p);
+        self.rows.for_each_block(|start, len, blocks| {
+            for (((g, o), yt), vc) in gram.iter_mut().zip(yv.iter_mut()).zip(blocks).zip(v) {
+                let yt = yt.columns(0, len);
+                let mut y = rows_major.rows_mut(0, len);
+                yt.transpose_to(&mut y);
+                // `gemm` (blocked) rather than `gemm_tr` (a dot product per entry: 4x slower here).
+                g.gemm(1.0, &yt, &y, 1.0);
+                o.gemv(1.0, &yt, &DVectorView::from_slice(&vc[start..start + len], len), 1.0);
+            }
+        })?;
+        Ok(self.gram.get_or_init(|| gram).iter().cloned().zip(yv).collect())
+    }
+
+    /// Per channel, the prediction `Y_c theta` at every row (N·m, N).
+    pub fn predict(&self, theta: &DVector<f64>) -> Result<Vec<Vec<f64>>> {
+        let mut out = vec![vec![0.0; self.len()]; self.tau.len()];
+        self.rows.for_each_block(|start, len, blocks| {
+            for (o, yt) in out.iter_mut().zip(blocks) {
+                let mut o = DVectorViewMut::from_slice(&mut o[start..start + len], len);
+                o.gemv_tr(1.0, &yt.columns(0, len), theta, 0.0);
+            }
+        })?;
+        Ok(out)
+    }
+
+    /// Per channel, `Y_c^T v_c` for per-row values `v` (`[channel][row]`).
+    pub fn project(&self, v: &[Vec<f64>]) -> Result<Vec<DVector<f64>>> {
+        let p = self.rows.layout.len();
+        let mut out = vec![DVector::zeros(p); self.tau.len()];
+        self.rows.for_each_block(|start, len, blocks| {
+            for ((o, yt), vc) in out.iter_mut().zip(blocks).zip(v) {
+                o.gemv(1.0, &yt.columns(0, len), &DVectorView::from_slice(&vc[start..start + len], len), 1.0);
+            }
+        })?;
+        Ok(out)
+    }
+}
+
+impl RowSource {
+    /// Every row in blocks of [`BLOCK_ROWS`]: `f(start, len, blocks)`, `blocks[c]`'s first `len`
+    /// columns channel `c`'s rows `start..start + len` (transposed: a row is written and read
+    /// contiguously, where a column-major block strided every write by the block's height).
+    fn for_each_block(&self, mut f: impl FnMut(usize, usize, &[DMatrix<f64>])) -> Result<()> {
+        let (model, layout, processing, map) = (&self.model, &self.layout, &self.processing, &self.to_joint);
+        let nc = self.q.len();
+        let rows = self.q.first().map_or(0, |q| q.len());
+        let p = layout.len();
+        let inertias = (0..model.bodies.len()).map(|_| dvrk_kin::BodyInertia::new(1.0, [0.0; 3], [[1e-3, 0.0, 0.0], [0.0, 1e-3, 0.0], [0.0, 0.0, 1e-3]])).collect();
+        let dm = DynamicsModel::new(model, inertias)?;
+        let mut data = DynamicsData::new(model);
+        let nq = model.nq();
+        let nbp = PARAMETERS_PER_BODY * model.bodies.len();
+        let mut yj = DMatrix::zeros(nq, nbp);
+        let mut mapped = DMatrix::zeros(nbp, nc);
+        let (mut qj, mut qdj, mut qddj) = (vec![0.0; nq], vec![0.0; nq], vec![0.0; nq]);
+        let mut y: Vec<DMatrix<f64>> = (0..nc).map(|_| DMatrix::zeros(p, BLOCK_ROWS)).collect();
+        let (q, qd_f, qdd_f, dahl) = (&self.q, &self.qd, &self.qdd, &self.dahl);
+        let mut start = 0;
+        while start < rows {
+            let len = BLOCK_ROWS.min(rows - start);
+            for yc in y.iter_mut() {
+                yc.fill(0.0);
+            }
+            for r in 0..len {
+                let i = start + r;
+                for j in 0..nq {
+                    qj[j] = (0..nc).map(|c| map[(j, c)] * q[c][i]).sum();
+                    qdj[j] = (0..nc).map(|c| map[(j, c)] * qd_f[c][i]).sum();
+                    qddj[j] = (0..nc).map(|c| map[(j, c)] * qdd_f[c][i]).sum();
+                }
+                dvrk_kin::regressor(model, &dm, &mut data, &qj, &qdj, &qddj, &processing.gravity, &mut yj)?;
+                // Channel effort = sum over joints of to_joint[j][c] * joint effort.
+                mapped.gemm_tr(1.0, &yj, map, 0.0);
+                for (c, yc) in y.iter_mut().enumerate() {
+                    yc.view_mut((0, r), (nbp, 1)).copy_from(&mapped.column(c));
+                }
+                for (col, param) in layout.params.iter().enumerate().skip(nbp) {
+                    match *param {
+                        Param::Effect { term, channel } => {
+                            let v = qd_f[channel][i];
+                            let vc = processing.coulomb_velocity_of(channel);
+                            y[channel][(col, r)] = match term {
+                                EffectTerm::Coulomb => (v / vc).tanh(),
+                                EffectTerm::Offset => 1.0,
+                                EffectTerm::Viscous => v,
+                                EffectTerm::Armature => qdd_f[channel][i],
+                                EffectTerm::Spring => q[channel][i],
+                                EffectTerm::Stribeck => (v / vc).tanh() * (-(v / processing.stribeck_velocity).powi(2)).exp(),
+                                EffectTerm::Winding => (v / vc).tanh() * q[channel][i].powi(2),
+                                EffectTerm::Dahl => dahl[channel][i],
+                            };
+                        }
+                        Param::Joint { term, joint } => {
+                            // A joint friction force f does virtual work f v_j = sum_c map[j][c] f qd_c.
+                            let v = qdj[joint];
+                            let f = match term {
+                                EffectTerm::Coulomb => (v / processing.coulomb_velocity_of(joint)).tanh(),
+                                _ => v,
+                            };
+                            for (c, yc) in y.iter_mut().enumerate() {
+                                yc[(col, r)] = map[(joint, c)] * f;
+                            }
+                        }
+                        Param::Cross { term, channel, source } => {
+                            let v = qd_f[source][i];
+                            y[channel][(col, r)] = match term {
+                                EffectTerm::Coulomb => (v / processing.coulomb_velocity_of(source)).tanh(),
+                                EffectTerm::Viscous => v,
+                                EffectTerm::Armature => qdd_f[source][i],
+                                _ => q[source][i],
+                            };
+                        }
+                        Param::Body { .. } => {}
+                    }
+                }
+            }
+            f(start, len, &y);
+            start += len;
+        }
+        Ok(())
+    }
 }
 
 /// Build the regression of `rec` for `model`: filtered velocities, accelerations by
@@ -280,75 +447,71 @@ pub fn regression(model: &Model, rec: &TorqueRecording, layout: &Layout, process
     // The presliding state along the recorded (unfiltered: encoder) positions, where asked for.
     let dahl: Vec<Vec<f64>> = (0..nc).map(|c| if layout.params.contains(&Param::Effect { term: EffectTerm::Dahl, channel: c }) { dahl_state(&column(&rec.q, c), processing.dahl_displacement_of(c)) } else { Vec::new() }).collect();
     let keep = processing.trim..n - processing.trim;
-    let rows = keep.len();
-    let p = layout.len();
-    let mut y: Vec<DMatrix<f64>> = (0..nc).map(|_| DMatrix::zeros(rows, p)).collect();
-    let inertias = (0..model.bodies.len()).map(|_| dvrk_kin::BodyInertia::new(1.0, [0.0; 3], [[1e-3, 0.0, 0.0], [0.0, 1e-3, 0.0], [0.0, 0.0, 1e-3]])).collect();
-    let dm = DynamicsModel::new(model, inertias)?;
-    let mut data = DynamicsData::new(model);
-    let nq = model.nq();
-    let nbp = PARAMETERS_PER_BODY * model.bodies.len();
-    let mut yj = DMatrix::zeros(nq, nbp);
-    let (mut qj, mut qdj, mut qddj) = (vec![0.0; nq], vec![0.0; nq], vec![0.0; nq]);
-    let map = &rec.to_joint;
-    for (r, i) in keep.clone().enumerate() {
-        for j in 0..nq {
-            qj[j] = (0..nc).map(|c| map[(j, c)] * rec.q[i][c]).sum();
-            qdj[j] = (0..nc).map(|c| map[(j, c)] * qd_f[c][i]).sum();
-            qddj[j] = (0..nc).map(|c| map[(j, c)] * qdd_f[c][i]).sum();
-        }
-        dvrk_kin::regressor(model, &dm, &mut data, &qj, &qdj, &qddj, &processing.gravity, &mut yj)?;
-        for (c, yc) in y.iter_mut().enumerate() {
-            // Channel effort = sum over joints of to_joint[j][c] * joint effort.
-            for k in 0..nbp {
-                yc[(r, k)] = (0..nq).map(|j| map[(j, c)] * yj[(j, k)]).sum();
-            }
-        }
-        for (col, param) in layout.params.iter().enumerate().skip(nbp) {
-            match *param {
-                Param::Effect { term, channel } => {
-                    let v = qd_f[channel][i];
-                    let vc = processing.coulomb_velocity_of(channel);
-                    y[channel][(r, col)] = match term {
-                        EffectTerm::Coulomb => (v / vc).tanh(),
-                        EffectTerm::Offset => 1.0,
-                        EffectTerm::Viscous => v,
-                        EffectTerm::Armature => qdd_f[channel][i],
-                        EffectTerm::Spring => rec.q[i][channel],
-                        EffectTerm::Stribeck => (v / vc).tanh() * (-(v / processing.stribeck_velocity).powi(2)).exp(),
-                        EffectTerm::Winding => (v / vc).tanh() * rec.q[i][channel].powi(2),
-                        EffectTerm::Dahl => dahl[channel][i],
-                    };
-                }
-                Param::Joint { term, joint } => {
-                    // A joint friction force f does virtual work f v_j = sum_c map[j][c] f qd_c.
-                    let v = qdj[joint];
-                    let f = match term {
-                        EffectTerm::Coulomb => (v / processing.coulomb_velocity_of(joint)).tanh(),
-                        _ => v,
-                    };
-                    for (c, yc) in y.iter_mut().enumerate() {
-                        yc[(r, col)] = map[(joint, c)] * f;
-                    }
-                }
-                Param::Cross { term, channel, source } => {
-                    let v = qd_f[source][i];
-                    y[channel][(r, col)] = match term {
-                        EffectTerm::Coulomb => (v / processing.coulomb_velocity_of(source)).tanh(),
-                        EffectTerm::Viscous => v,
-                        EffectTerm::Armature => qdd_f[source][i],
-                        _ => rec.q[i][source],
-                    };
-                }
-                Param::Body { .. } => {}
-            }
-        }
-    }
+    let trimmed = |v: &Vec<f64>| v[keep.clone()].to_vec();
+    let rows = RowSource {
+        model: model.clone(),
+        layout: layout.clone(),
+        processing: processing.clone(),
+        to_joint: rec.to_joint.clone(),
+        q: (0..nc).map(|c| trimmed(&column(&rec.q, c))).collect(),
+        qd: qd_f.iter().map(trimmed).collect(),
+        qdd: qdd_f.iter().map(trimmed).collect(),
+        dahl: dahl.iter().map(|d| if d.is_empty() { Vec::new() } else { trimmed(d) }).collect(),
+    };
     let velocity_range = qd_f.iter().map(|v| v[keep.clone()].iter().fold((f64::MAX, f64::MIN), |(a, b), x| (a.min(*x), b.max(*x)))).collect();
     Ok(Regression {
-        y,
+        gram: std::sync::OnceLock::new(),
         tau: (0..nc).map(|c| rec.tau[keep.clone()].iter().map(|r| r[c]).collect()).collect(),
         tau_filtered: tau_f.iter().map(|v| v[keep.clone()].to_vec()).collect(),
         velocity_range,
+        rows,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A PSM moving every joint on its own sine for 1300 samples at 200 Hz (three blocks, the
+    /// last partial), efforts arbitrary.
+    fn recording(model: &Model) -> TorqueRecording {
+        let nq = model.nq();
+        let n = 2 * BLOCK_ROWS + 276;
+        let t: Vec<f64> = (0..n).map(|i| i as f64 / 200.0).collect();
+        let wave = |j: usize, t: f64| 0.2 * (1.0 + 0.3 * j as f64) * (t * (1.0 + 0.4 * j as f64)).sin();
+        let dwave = |j: usize, t: f64| 0.2 * (1.0 + 0.3 * j as f64) * (1.0 + 0.4 * j as f64) * (t * (1.0 + 0.4 * j as f64)).cos();
+        let mid = |j: usize| 0.5 * (model.joints[j].lower + model.joints[j].upper);
+        TorqueRecording {
+            source: "sines".into(),
+            q: t.iter().map(|&s| (0..nq).map(|j| mid(j) + 0.1 * wave(j, s)).collect()).collect(),
+            qd: t.iter().map(|&s| (0..nq).map(|j| 0.1 * dwave(j, s)).collect()).collect(),
+            tau: t.iter().map(|&s| (0..nq).map(|j| (s * (j + 1) as f64).cos()).collect()).collect(),
+            channels: model.joints.iter().map(|j| j.name.clone()).collect(),
+            to_joint: DMatrix::identity(nq, nq),
+            t,
+        }
+    }
+
+    #[test]
+    fn the_block_passes_agree_with_each_other_across_block_edges() {
+        let model = dvrk_kin::load("psm", None).unwrap();
+        let rec = recording(&model);
+        let layout = Layout::new(&model, rec.channels.len(), &Terms::default());
+        let reg = regression(&model, &rec, &layout, &Processing::default()).unwrap();
+        assert_eq!(reg.len(), rec.len() - 2 * Processing::default().trim);
+        let theta = DVector::from_fn(layout.len(), |i, _| ((i * 7919) % 101) as f64 / 101.0 - 0.5);
+        // `Y^T (Y theta)` by a prediction pass then a projection pass, and `(Y^T Y) theta` from
+        // the normal equations' pass.
+        let predicted = reg.predict(&theta).unwrap();
+        let projected = reg.project(&predicted).unwrap();
+        let normal = reg.normal_equations(&predicted).unwrap();
+        for ((g, yv), pr) in normal.iter().zip(&projected) {
+            let scale = pr.amax().max(1e-12);
+            assert!((g * &theta - pr).amax() < 1e-9 * scale, "{}", (g * &theta - pr).amax() / scale);
+            assert!((yv - pr).amax() < 1e-9 * scale);
+        }
+        // The second call reuses `Y^T Y` and still projects.
+        let again = reg.normal_equations(&reg.tau_filtered).unwrap();
+        assert!((&again[0].0 - &normal[0].0).amax() == 0.0 && again[0].1.amax() > 0.0);
+    }
 }

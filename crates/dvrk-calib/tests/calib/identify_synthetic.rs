@@ -77,7 +77,7 @@ fn synthetic_recordings_are_identified_within_their_95_percent_intervals() {
                 };
         }
     }
-    let clean: Vec<DVector<f64>> = reg.y.iter().map(|y| y * &truth).collect();
+    let clean: Vec<DVector<f64>> = reg.predict(&truth).unwrap().into_iter().map(DVector::from_vec).collect();
     // Effort noise per channel: about 3% of each channel's effort (N·m, N).
     let sd: Vec<f64> = clean.iter().map(|c| 0.03 * c.norm() / (c.len() as f64).sqrt()).collect();
     let (n, trim) = (rec.len(), options.processing.trim);
