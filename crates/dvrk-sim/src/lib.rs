@@ -37,7 +37,7 @@ pub use control::{Actuator, Gains, Mode};
 pub use error::{Result, SimError};
 pub use mjcf::export_mjcf;
 pub use recording::{RecordOptions, Recorder};
-pub use run::{run, run_recorded, run_staged, run_traced, run_with, CameraSummary, Outputs, Run, RunOptions, Summary, Trace};
+pub use run::{run, run_recorded, run_staged, run_traced, run_with, CameraSummary, Outputs, Run, RunOptions, Summary, Trace, WindowSummary};
 pub use scene::{Scene, SolverSettings};
 pub use sim::{ClosingLinks, Colliders, Coriolis, Engine, LoopMode, Sim, SimOptions};
 pub use dvrk_kin;

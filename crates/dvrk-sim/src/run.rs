@@ -94,6 +94,9 @@ pub struct Summary {
     pub final_closure_error: f64,
     /// Largest distance of an insertion axis from its arm's kinematic RCM (m).
     pub max_rcm_error: f64,
+    /// The run in ten equal windows of simulated time, each with its largest loop-closure gap
+    /// and RCM distance: the first against the last says whether anything drifts over a long run.
+    pub windows: Vec<WindowSummary>,
     /// False if any state went non-finite.
     pub finite: bool,
     /// Amplitudes scaled to the joint limits, and other remarks.
@@ -102,6 +105,21 @@ pub struct Summary {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub camera: Option<CameraSummary>,
 }
+
+/// One tenth of a run ([`Summary::windows`]).
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct WindowSummary {
+    /// s of simulated time
+    pub start: f64,
+    pub end: f64,
+    /// Largest loop-closure gap in the window (m).
+    pub max_closure_error: f64,
+    /// Largest distance of an insertion axis from its arm's RCM in the window (m).
+    pub max_rcm_error: f64,
+}
+
+/// Windows of a run ([`Summary::windows`]).
+const WINDOWS: u64 = 10;
 
 /// What the camera cost in a run.
 #[derive(Debug, Clone, Serialize)]
@@ -336,6 +354,9 @@ pub fn run_staged(scene: &Scene, options: &RunOptions, outputs: &Outputs, mut pr
     let mut max_eff = vec![0.0_f64; n];
     let (mut max_closure, mut final_closure, mut max_rcm) = (0.0_f64, 0.0_f64, 0.0_f64);
     let mut max_closure_time = 0.0;
+    let mut windows: Vec<WindowSummary> = (0..WINDOWS)
+        .map(|w| WindowSummary { start: (w * steps / WINDOWS) as f64 * sim.dt, end: ((w + 1) * steps / WINDOWS) as f64 * sim.dt, max_closure_error: 0.0, max_rcm_error: 0.0 })
+        .collect();
     let mut finite = true;
     let every = (steps / 100).max(1);
     let mut trace = trace_rate.map(|rate| {
@@ -404,6 +425,8 @@ pub fn run_staged(scene: &Scene, options: &RunOptions, outputs: &Outputs, mut pr
         if s >= steps - steps / 10 {
             final_closure = final_closure.max(c);
         }
+        let window = &mut windows[(s * WINDOWS / steps) as usize];
+        window.max_closure_error = window.max_closure_error.max(c);
         for (a, r) in rcms.iter().enumerate() {
             if let Some((frame, rel, point)) = r {
                 let pose = sim.frame_pose(a, *frame, rel);
@@ -411,7 +434,9 @@ pub fn run_staged(scene: &Scene, options: &RunOptions, outputs: &Outputs, mut pr
                     Some((pa, body, local)) => (sim.body_pose(pa, body) * nalgebra::Point3::from(local)).coords,
                     None => *point,
                 };
-                max_rcm = max_rcm.max(distance_to_axis(&pose, &point));
+                let d = distance_to_axis(&pose, &point);
+                max_rcm = max_rcm.max(d);
+                window.max_rcm_error = window.max_rcm_error.max(d);
             }
         }
         if let Some((stride, tr)) = trace.as_mut() {
@@ -450,6 +475,8 @@ pub fn run_staged(scene: &Scene, options: &RunOptions, outputs: &Outputs, mut pr
         }
     }
     let simulated = done as f64 * sim.dt;
+    // A run stopped early (a signal, a non-finite state) reports the windows it reached.
+    windows.retain(|w| w.start < done as f64 * sim.dt);
     let summary = Summary {
         scene: scene.name.clone(),
         trajectory: options.trajectory.label(),
@@ -468,6 +495,7 @@ pub fn run_staged(scene: &Scene, options: &RunOptions, outputs: &Outputs, mut pr
         max_closure_time,
         final_closure_error: final_closure,
         max_rcm_error: max_rcm,
+        windows,
         finite,
         notes,
         camera: camera.map(|c| CameraSummary {
