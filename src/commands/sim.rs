@@ -71,6 +71,16 @@ pub struct SimArgs {
     /// default, as in the paper).
     #[arg(long)]
     pub contacts: bool,
+    /// Serve the running simulation live over the Foxglove WebSocket protocol (Foxglove,
+    /// Lichtblick: open a connection to ws://HOST:PORT): the recording's topics (CRTK joint
+    /// states, poses, /tf) sampled at --rate. HOST:PORT, PORT or HOST; 127.0.0.1:8765 when given
+    /// no value. Pair it with --realtime and a long --duration to watch; Ctrl-C stops cleanly.
+    #[arg(long, value_name = "HOST:PORT", num_args = 0..=1, default_missing_value = "")]
+    pub live: Option<String>,
+    /// Pace the simulation to wall-clock time (1: real time; 0.5: half speed); without it the
+    /// simulation runs as fast as it can and the live view samples it.
+    #[arg(long, value_name = "FACTOR", num_args = 0..=1, default_missing_value = "1")]
+    pub realtime: Option<f64>,
     /// Print the summary as one JSON object.
     #[arg(long)]
     pub json: bool,
@@ -161,7 +171,22 @@ pub fn run(args: &SimArgs) -> Result<()> {
     }
     // A long run stops cleanly on SIGINT/SIGTERM: its recording holds what ran.
     let stop = crate::signals::stop_flag();
-    let outputs = Outputs { record: record.as_ref(), trace_rate, frames_dir: args.frames_dir.as_deref(), stop: Some(stop) };
+    if let Some(f) = args.realtime {
+        if !(f.is_finite() && f > 0.0) {
+            bail!("--realtime {f}: must be a positive factor of wall-clock time (1: real time)");
+        }
+    }
+    let live = match &args.live {
+        Some(a) => {
+            let options = dvrk_sim::LiveOptions::parse(a).map_err(anyhow::Error::msg)?;
+            let live = dvrk_sim::Live::serve(&options, &format!("dvrk-twin {}", args.scene))?;
+            // stderr: stdout stays the summary (--json scripts read it).
+            eprintln!("live: serving {} (Foxglove WebSocket protocol): open it in Foxglove or Lichtblick; Ctrl-C stops", live.url());
+            Some(std::sync::Mutex::new(Some(live)))
+        }
+        None => None,
+    };
+    let outputs = Outputs { record: record.as_ref(), trace_rate, frames_dir: args.frames_dir.as_deref(), stop: Some(stop), live: live.as_ref(), realtime: args.realtime };
     let run = dvrk_sim::run_staged(&scene, &options, &outputs, |f| {
         if tty {
             let n = (f * 40.0).round() as usize;

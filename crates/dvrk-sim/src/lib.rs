@@ -22,6 +22,7 @@ pub mod effects;
 mod error;
 pub mod geometry;
 pub mod inertials;
+pub mod live;
 pub mod mjcf;
 pub mod pivot;
 pub mod plot;
@@ -35,6 +36,7 @@ pub mod trajectory;
 
 pub use control::{Actuator, Gains, Mode};
 pub use error::{Result, SimError};
+pub use live::{Live, LiveOptions};
 pub use mjcf::export_mjcf;
 pub use recording::{RecordOptions, Recorder};
 pub use run::{run, run_recorded, run_staged, run_traced, run_with, CameraSummary, Outputs, Run, RunOptions, Summary, Trace, WindowSummary};

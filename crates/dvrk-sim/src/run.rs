@@ -146,6 +146,12 @@ pub struct Outputs<'a> {
     /// Stop early once this is set (a SIGINT handler's flag): the run ends after the step under
     /// way, and its summary (with a note) and recording cover the time that ran.
     pub stop: Option<&'a std::sync::atomic::AtomicBool>,
+    /// Serve the run live on this view (started by the caller, so it can say where before the
+    /// run begins; the run takes it and stops it at the end), at the recording's rate.
+    pub live: Option<&'a std::sync::Mutex<Option<crate::live::Live>>>,
+    /// Pace the simulation to this many times wall-clock time (1: real time); as fast as it can
+    /// when absent.
+    pub realtime: Option<f64>,
 }
 
 /// A finished run: its summary, its trace, and its recording complete but not yet moved over its
@@ -296,7 +302,16 @@ pub fn run_staged(scene: &Scene, options: &RunOptions, outputs: &Outputs, mut pr
         _ => scene,
     };
     let mut sim = Sim::new(scene, &options.sim)?;
-    let mut recorder = record.map(|r| Recorder::create(&sim, r)).transpose()?;
+    if let Some(f) = outputs.realtime {
+        if !(f.is_finite() && f > 0.0) {
+            return Err(SimError::value("real-time factor (--realtime)", f, "must be a positive finite number"));
+        }
+    }
+    let live = outputs.live.and_then(|m| m.lock().ok()?.take());
+    let mut recorder = match (record, live) {
+        (None, None) => None,
+        (record, live) => Some(Recorder::open(&sim, record, live, record.map_or(RecordOptions::DEFAULT_RATE, |r| r.rate))?),
+    };
     let mut camera = scene.camera.as_ref().map(|c| StereoCamera::new(c, &sim, &scene.file)).transpose()?;
     if let Some(c) = camera.as_mut() {
         c.parallel = options.sim.parallel;
@@ -451,6 +466,13 @@ pub fn run_staged(scene: &Scene, options: &RunOptions, outputs: &Outputs, mut pr
         if s % every == 0 {
             progress(s as f64 / steps as f64);
         }
+        if let Some(f) = outputs.realtime {
+            // Sleep until the wall clock catches up with the simulated time over the factor.
+            let ahead = t / f - start.elapsed().as_secs_f64();
+            if ahead > 1e-3 {
+                std::thread::sleep(std::time::Duration::from_secs_f64(ahead));
+            }
+        }
         if outputs.stop.is_some_and(|f| f.load(std::sync::atomic::Ordering::Relaxed)) && s + 1 < steps {
             done = s + 1;
             notes.push(format!("stopped at {:.3} s of the {:.3} s asked for; the summary and the recording cover what ran", done as f64 * sim.dt, steps as f64 * sim.dt));
@@ -458,7 +480,7 @@ pub fn run_staged(scene: &Scene, options: &RunOptions, outputs: &Outputs, mut pr
         }
     }
     let wall = start.elapsed().as_secs_f64();
-    let recording = recorder.map(|r| r.finish_staged()).transpose()?;
+    let recording = recorder.map(|r| r.finish_staged()).transpose()?.flatten();
     progress(1.0);
     let mut joints = Vec::with_capacity(n);
     for arm in &sim.arms {

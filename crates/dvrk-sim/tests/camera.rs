@@ -181,7 +181,7 @@ fn a_recorded_camera_image_decodes_to_the_frame_file_and_the_calibration_matches
     let frames = dir.path().join("frames");
     std::fs::create_dir(&frames).unwrap();
     let options = RunOptions { duration: 0.05, trajectory: TrajectoryKind::Sine, sim: SimOptions::default() };
-    let (summary, _) = dvrk_sim::run_with(&scene, &options, &Outputs { record: Some(&record), trace_rate: None, frames_dir: Some(&frames), stop: None }, |_| {}).unwrap();
+    let (summary, _) = dvrk_sim::run_with(&scene, &options, &Outputs { record: Some(&record), trace_rate: None, frames_dir: Some(&frames), ..Default::default() }, |_| {}).unwrap();
     let cam = summary.camera.unwrap();
     // Frames at t = 0.001 s (the first step), 1/30 s: 2 in 0.05 s.
     assert_eq!(cam.frames, 2);

@@ -24,6 +24,8 @@
 //! its destination and renamed over it by [`Recorder::finish`], so a reader never sees half a file.
 
 use crate::error::{Result, SimError};
+use crate::live::Live;
+use foxglove::Schema;
 use crate::camera::{Eye, StereoCamera};
 use crate::recording::{camera_msgs, frame_transform};
 use crate::recording::ros_msgs::{self, Header, JointState, PoseStamped};
@@ -85,9 +87,45 @@ struct ArmChannels {
     tip_rel: Pose,
 }
 
-/// Writes a run as MCAP; see the module documentation for the topics.
+/// Where the recorder's messages go: an MCAP file, a live view ([`Live`]), or both. Every
+/// schema and channel is added to each, under one id of the recorder's own.
+struct Sinks {
+    file: Option<mcap::Writer<BufWriter<File>>>,
+    live: Option<Live>,
+    /// Per recorder schema: its MCAP id, and the schema for the live channels.
+    schemas: Vec<(u16, Schema)>,
+    /// Per recorder channel: its MCAP id and its live index.
+    channels: Vec<(u16, usize)>,
+}
+
+impl Sinks {
+    fn add_schema(&mut self, name: &str, encoding: &str, data: &[u8]) -> std::result::Result<u16, mcap::McapError> {
+        let id = match self.file.as_mut() {
+            Some(w) => w.add_schema(name, encoding, data)?,
+            None => 0,
+        };
+        self.schemas.push((id, Schema::new(name, encoding, data.to_vec())));
+        Ok((self.schemas.len() - 1) as u16)
+    }
+
+    fn add_channel(&mut self, schema: u16, topic: &str, encoding: &str, meta: &BTreeMap<String, String>) -> std::result::Result<u16, mcap::McapError> {
+        let (file_schema, live_schema) = self.schemas[schema as usize].clone();
+        let id = match self.file.as_mut() {
+            Some(w) => w.add_channel(file_schema, topic, encoding, meta)?,
+            None => 0,
+        };
+        let live = match self.live.as_mut() {
+            Some(l) => l.add_channel(topic, live_schema, encoding).map_err(|e| mcap::McapError::Io(std::io::Error::other(e.to_string())))?,
+            None => 0,
+        };
+        self.channels.push((id, live));
+        Ok((self.channels.len() - 1) as u16)
+    }
+}
+
+/// Writes a run as MCAP, serves it live, or both; see the module documentation for the topics.
 pub struct Recorder {
-    writer: Option<mcap::Writer<BufWriter<File>>>,
+    sinks: Sinks,
     /// The file being written (removed if the recorder is dropped unfinished).
     staged: Option<Staged>,
     tmp: PathBuf,
@@ -121,16 +159,31 @@ impl Recorder {
     /// Open a recording of `sim` (channels for each of its arms). Nothing appears at `options.path`
     /// until [`Recorder::finish`].
     pub fn create(sim: &Sim, options: &RecordOptions) -> Result<Recorder> {
-        let rate = options.rate;
+        Self::open(sim, Some(options), None, options.rate)
+    }
+
+    /// Record `sim` to the file `file` asks for, serve it on `live`, or both, sampled at `rate`
+    /// (Hz of simulated time). Nothing appears at the file's path until [`Recorder::finish`].
+    pub fn open(sim: &Sim, file: Option<&RecordOptions>, live: Option<Live>, rate: f64) -> Result<Recorder> {
         if !(rate.is_finite() && rate > 0.0 && rate <= 1.0 / sim.dt + 1e-9) {
             return Err(SimError::value("recording rate (Hz)", rate, format!("must be in (0, {}] (one sample per step of {} s at most)", 1.0 / sim.dt, sim.dt)));
         }
         let stride = (1.0 / (rate * sim.dt)).round().max(1.0) as u64;
-        let path = options.path.clone();
-        dvrk_kin::atomic::check_outputs(&[], &[("recording", &path)]).map_err(|e| SimError::Io { path: path.display().to_string(), source: std::io::Error::other(e.to_string()) })?;
-        let (staged, file) = Staged::create(&path).map_err(|e| SimError::Io { path: path.display().to_string(), source: std::io::Error::other(e.to_string()) })?;
-        let tmp = staged.temp().to_path_buf();
-        let mut w = mcap::Writer::with_options(BufWriter::new(file), mcap::WriteOptions::new().profile("ros2")).map_err(|e| mcap_error(&tmp, e))?;
+        let (staged, path, tmp, writer) = match file {
+            Some(options) => {
+                let path = options.path.clone();
+                dvrk_kin::atomic::check_outputs(&[], &[("recording", &path)]).map_err(|e| SimError::Io { path: path.display().to_string(), source: std::io::Error::other(e.to_string()) })?;
+                let (staged, file) = Staged::create(&path).map_err(|e| SimError::Io { path: path.display().to_string(), source: std::io::Error::other(e.to_string()) })?;
+                let tmp = staged.temp().to_path_buf();
+                let w = mcap::Writer::with_options(BufWriter::new(file), mcap::WriteOptions::new().profile("ros2")).map_err(|e| mcap_error(&tmp, e))?;
+                (Some(staged), path, tmp, Some(w))
+            }
+            None => {
+                let url = PathBuf::from(live.as_ref().map_or_else(String::new, |l| l.url()));
+                (None, url.clone(), url, None)
+            }
+        };
+        let mut w = Sinks { file: writer, live, schemas: Vec::new(), channels: Vec::new() };
         let meta = BTreeMap::new();
         let io = |e| mcap_error(&tmp, e);
         let (n, t) = ros_msgs::joint_state_schema();
@@ -184,7 +237,7 @@ impl Recorder {
             });
             body_names.push(m.bodies.iter().map(|b| format!("{}/{}", arm.name, b.name)).collect());
         }
-        Ok(Recorder { writer: Some(w), staged: Some(staged), tmp, path, stride, arms, tf, body_names, sequence: BTreeMap::new(), samples: 0, camera: None })
+        Ok(Recorder { sinks: w, staged, tmp, path, stride, arms, tf, body_names, sequence: BTreeMap::new(), samples: 0, camera: None })
     }
 
     /// Simulated time between samples (s) for a sim of time step `dt`.
@@ -223,8 +276,12 @@ impl Recorder {
         let seq = self.sequence.entry(channel).or_default();
         *seq += 1;
         let ns = (t.max(0.0) * 1e9).round() as u64;
-        let header = mcap::records::MessageHeader { channel_id: channel, sequence: *seq, log_time: ns, publish_time: ns };
-        let Some(w) = self.writer.as_mut() else { return Ok(()) };
+        let (file_channel, live_channel) = self.sinks.channels[channel as usize];
+        if let Some(l) = self.sinks.live.as_ref() {
+            l.log(live_channel, ns, data);
+        }
+        let header = mcap::records::MessageHeader { channel_id: file_channel, sequence: *seq, log_time: ns, publish_time: ns };
+        let Some(w) = self.sinks.file.as_mut() else { return Ok(()) };
         w.write_to_known_channel(&header, data).map_err(|e| mcap_error(&self.tmp, e))
     }
 
@@ -279,7 +336,7 @@ impl Recorder {
     pub fn add_camera(&mut self) -> Result<()> {
         let tmp = self.tmp.clone();
         let io = |e| mcap_error(&tmp, e);
-        let Some(w) = self.writer.as_mut() else { return Ok(()) };
+        let w = &mut self.sinks;
         let meta = BTreeMap::new();
         let img = w.add_schema("foxglove.CompressedImage", "jsonschema", camera_msgs::IMAGE_SCHEMA.as_bytes()).map_err(io)?;
         let cal = w.add_schema("foxglove.CameraCalibration", "jsonschema", camera_msgs::CALIBRATION_SCHEMA.as_bytes()).map_err(io)?;
@@ -333,19 +390,30 @@ impl Recorder {
     /// Close the file and move it to its destination.
     pub fn finish(self) -> Result<PathBuf> {
         let path = self.path.clone();
-        self.finish_staged()?.commit().map_err(|e| SimError::Io { path: path.display().to_string(), source: std::io::Error::other(e.to_string()) })?;
+        if let Some(staged) = self.finish_staged()? {
+            staged.commit().map_err(|e| SimError::Io { path: path.display().to_string(), source: std::io::Error::other(e.to_string()) })?;
+        }
         Ok(path)
     }
 
-    /// Close the file, complete and synced, but leave it staged beside its destination: the caller
-    /// commits it with its other outputs (all or none), or drops it.
-    pub fn finish_staged(mut self) -> Result<Staged> {
-        if let Some(mut w) = self.writer.take() {
+    /// The live view, if the run is served.
+    pub fn live(&self) -> Option<&Live> {
+        self.sinks.live.as_ref()
+    }
+
+    /// Stop serving, close the file, complete and synced, but leave it staged beside its
+    /// destination: the caller commits it with its other outputs (all or none), or drops it.
+    /// `None` for a run that was only served.
+    pub fn finish_staged(mut self) -> Result<Option<Staged>> {
+        if let Some(l) = self.sinks.live.take() {
+            l.stop();
+        }
+        if let Some(mut w) = self.sinks.file.take() {
             w.finish().map_err(|e| mcap_error(&self.tmp, e))?;
             let buf = w.into_inner();
             let file = buf.into_inner().map_err(|e| SimError::Io { path: self.tmp.display().to_string(), source: e.into_error() })?;
             file.sync_all().map_err(|e| SimError::Io { path: self.tmp.display().to_string(), source: e })?;
         }
-        self.staged.take().ok_or_else(|| SimError::Build("the recording was already finished".into()))
+        Ok(self.staged.take())
     }
 }

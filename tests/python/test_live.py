@@ -1,0 +1,126 @@
+"""The live view (`dvrk sim --live`) read by an independent client: the Python `websockets`
+package speaking the Foxglove WebSocket protocol as its specification says (under its current
+name, `foxglove.sdk.v1`: the `foxglove.websocket.v1` protocol renamed, identical on the wire;
+the Foxglove app speaks it, Lichtblick since its pull request 819 of December 2025), and rosbags decoding the CDR messages."""
+
+import asyncio
+import json
+import os
+import pathlib
+import signal
+import socket
+import struct
+import subprocess
+import time
+
+import numpy as np
+import pytest
+
+websockets = pytest.importorskip("websockets")
+from rosbags.typesys import Stores, get_typestore  # noqa: E402
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+
+
+def dvrk_binary():
+    path = pathlib.Path(os.environ.get("DVRK_BIN", ROOT / "target" / "release" / "dvrk"))
+    assert path.exists(), f"{path}: build the CLI first (cargo build --release) or set DVRK_BIN"
+    return str(path)
+
+
+def free_port():
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def start(port, *extra):
+    proc = subprocess.Popen(
+        [dvrk_binary(), "sim", "--scene", "psm", "--duration", "120", "--realtime", "1", "--live", f"127.0.0.1:{port}", *extra],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    # The server is up once the CLI says where (it binds before the run starts).
+    line = proc.stderr.readline()
+    assert "live: serving ws://127.0.0.1:" in line, line
+    return proc
+
+
+def stop(proc):
+    proc.send_signal(signal.SIGINT)
+    try:
+        out, err = proc.communicate(timeout=20)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        raise
+    return proc.returncode, out, err
+
+
+async def joint_states(port, topic, count):
+    """Subscribe to `topic`; the first `count` messages' (timestamp ns, CDR payload)."""
+    async with websockets.connect(f"ws://127.0.0.1:{port}", subprotocols=["foxglove.sdk.v1"]) as ws:
+        assert ws.subprotocol == "foxglove.sdk.v1"
+        channels = {}
+        while topic not in channels:
+            msg = json.loads(await asyncio.wait_for(ws.recv(), 10))
+            if msg["op"] == "advertise":
+                channels.update({c["topic"]: c for c in msg["channels"]})
+        ch = channels[topic]
+        assert (ch["encoding"], ch["schemaName"], ch["schemaEncoding"]) == ("cdr", "sensor_msgs/msg/JointState", "ros2msg")
+        assert {"/PSM1/setpoint_js", "/PSM1/measured_cp", "/PSM1/jaw/measured_js", "/tf"} <= set(channels)
+        await ws.send(json.dumps({"op": "subscribe", "subscriptions": [{"id": 7, "channelId": ch["id"]}]}))
+        got = []
+        while len(got) < count:
+            frame = await asyncio.wait_for(ws.recv(), 10)
+            if isinstance(frame, bytes) and frame[0] == 0x01:
+                sub, stamp = struct.unpack_from("<IQ", frame, 1)
+                assert sub == 7
+                got.append((stamp, frame[13:]))
+        return got
+
+
+def test_a_websocket_client_reads_the_live_joint_states():
+    port = free_port()
+    proc = start(port)
+    try:
+        got = asyncio.run(joint_states(port, "/PSM1/measured_js", 100))
+    finally:
+        code, out, err = stop(proc)
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    msgs = [store.deserialize_cdr(data, "sensor_msgs/msg/JointState") for _, data in got]
+    assert list(msgs[0].name) == ["outer_yaw", "outer_pitch", "outer_insertion", "outer_roll", "outer_wrist_pitch", "outer_wrist_yaw"]
+    q = np.array([m.position for m in msgs])
+    stamps = np.array([s for s, _ in got])
+    # The sine moves every joint; the stamps are the simulated time, 10 ms apart at --rate 100.
+    assert np.all(np.ptp(q[:, :3], axis=0) > 1e-4), np.ptp(q, axis=0)
+    assert np.all(np.diff(stamps) > 0) and abs(np.median(np.diff(stamps)) - 1e7) < 1e3
+    # Ctrl-C: a clean stop, the summary printed, nothing left running.
+    assert code == 0, err
+    assert "stopped by a signal" in err and "real-time factor" in out
+    assert proc.poll() is not None
+
+
+def test_a_stopped_live_run_leaves_its_recording_valid(tmp_path):
+    from mcap.reader import make_reader
+
+    port, out_file = free_port(), tmp_path / "live.mcap"
+    proc = start(port, "--out", str(out_file))
+    try:
+        asyncio.run(joint_states(port, "/PSM1/measured_js", 20))
+    finally:
+        code, _, err = stop(proc)
+    assert code == 0, err
+    with open(out_file, "rb") as f:
+        topics = {ch.topic for _, ch, _ in make_reader(f).iter_messages()}
+    assert "/PSM1/measured_js" in topics
+
+
+def test_a_busy_port_is_a_one_line_error():
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        s.listen()
+        port = s.getsockname()[1]
+        r = subprocess.run([dvrk_binary(), "sim", "--scene", "psm", "--duration", "1", "--live", f"127.0.0.1:{port}"], capture_output=True, text=True, timeout=60)
+    assert r.returncode != 0
+    assert f"--live 127.0.0.1:{port}: cannot serve" in r.stderr and r.stderr.count("\n") <= 2, r.stderr
