@@ -108,6 +108,11 @@ impl Live {
         Ok(self.channels.len() - 1)
     }
 
+    /// Whether a client subscribes to channel `channel` now.
+    pub fn subscribed(&self, channel: usize) -> bool {
+        self.channels.get(channel).is_some_and(|c| c.has_sinks())
+    }
+
     /// Send one message on channel `channel` stamped `t_ns` (ns of simulated time); nothing is
     /// encoded or copied when no client subscribes.
     pub fn log(&self, channel: usize, t_ns: u64, data: &[u8]) {

@@ -99,6 +99,12 @@ struct Sinks {
 }
 
 impl Sinks {
+    /// Whether a message on recorder channel `channel` goes anywhere: always into a file, live
+    /// only while a client subscribes (a run that is only served encodes nothing unwatched).
+    fn wanted(&self, channel: u16) -> bool {
+        self.file.is_some() || self.live.as_ref().is_some_and(|l| l.subscribed(self.channels[channel as usize].1))
+    }
+
     fn add_schema(&mut self, name: &str, encoding: &str, data: &[u8]) -> std::result::Result<u16, mcap::McapError> {
         let id = match self.file.as_mut() {
             Some(w) => w.add_schema(name, encoding, data)?,
@@ -294,7 +300,7 @@ impl Recorder {
             let (q, qd) = (&sim.q()[off..off + n], &sim.qd()[off..off + n]);
             let c = &self.arms[a];
             let mut messages = Vec::with_capacity(2 * c.topics.len());
-            for g in &c.topics {
+            for g in c.topics.iter().filter(|g| self.sinks.wanted(g.measured_js) || self.sinks.wanted(g.setpoint_js)) {
                 let pick = |f: &dyn Fn(usize) -> f64| g.joints.iter().map(|&k| f(k)).collect::<Vec<f64>>();
                 let effort = pick(&|k| arm.actuators[k].effort);
                 let measured = JointState { header: Header::at(t, ""), name: g.names.clone(), position: pick(&|k| q[k]), velocity: pick(&|k| qd[k]), effort: effort.clone() };
@@ -308,8 +314,8 @@ impl Recorder {
                 messages.push((g.measured_js, measured.encode()));
                 messages.push((g.setpoint_js, setpoint.encode()));
             }
-            let cp = PoseStamped::from_pose(t, &c.base_frame_id, &self.tip_in_base(sim, a));
             let mc = c.measured_cp;
+            let cp = self.sinks.wanted(mc).then(|| PoseStamped::from_pose(t, &c.base_frame_id, &self.tip_in_base(sim, a)));
             if self.samples == 0 {
                 let state = ros_msgs::OperatingState { header: Header::at(t, ""), state: "ENABLED".into(), is_homed: true, is_busy: false };
                 messages.insert(0, (c.operating_state, state.encode()));
@@ -317,9 +323,12 @@ impl Recorder {
             for (ch, bytes) in messages {
                 self.write(ch, t, &bytes)?;
             }
-            self.write(mc, t, &cp.encode())?;
+            if let Some(cp) = cp {
+                self.write(mc, t, &cp.encode())?;
+            }
         }
-        for a in 0..self.arms.len() {
+        let arms_tf = if self.sinks.wanted(self.tf) { self.arms.len() } else { 0 };
+        for a in 0..arms_tf {
             for b in 0..self.body_names[a].len() {
                 let p = sim.body_pose(a, b);
                 let q = UnitQuaternion::from_rotation_matrix(&p.rotation);
