@@ -104,6 +104,34 @@ def test_a_websocket_client_reads_the_live_joint_states():
     assert proc.poll() is not None
 
 
+async def first_message(port, topic):
+    """The advertised channel `topic` and the first message on it."""
+    async with websockets.connect(f"ws://127.0.0.1:{port}", subprotocols=["foxglove.sdk.v1"], close_timeout=1) as ws:
+        channels = {}
+        while topic not in channels:
+            msg = json.loads(await asyncio.wait_for(ws.recv(), 10))
+            if msg["op"] == "advertise":
+                channels.update({c["topic"]: c for c in msg["channels"]})
+        await ws.send(json.dumps({"op": "subscribe", "subscriptions": [{"id": 1, "channelId": channels[topic]["id"]}]}))
+        while True:
+            frame = await asyncio.wait_for(ws.recv(), 10)
+            if isinstance(frame, bytes) and frame[0] == 0x01:
+                return channels[topic], frame[13:]
+
+
+def test_a_late_client_gets_the_link_geometry_as_a_scene_update():
+    port = free_port()
+    proc = start(port)
+    try:
+        time.sleep(0.5)
+        channel, data = asyncio.run(first_message(port, "/scene"))
+    finally:
+        stop(proc)
+    assert (channel["schemaName"], channel["encoding"], channel["schemaEncoding"]) == ("foxglove.SceneUpdate", "protobuf", "protobuf")
+    # Each PSM body's triangles: tens of kB; frame ids are the /tf children.
+    assert len(data) > 10_000 and b"PSM1/yaw_link" in data
+
+
 def test_a_stopped_live_run_leaves_its_recording_valid(tmp_path):
     from mcap.reader import make_reader
 

@@ -28,6 +28,14 @@ pub const JAW_SIZE_M: [f64; 3] = [0.0095, 0.003, 0.0015];
 /// Segments shorter than this are not drawn (m).
 const MIN_SEGMENT_M: f64 = 1e-6;
 
+/// Colours of the arms with an RCM, in scene order (RGB, 0-1; camera images and the live view's 3D scene): PSM1 orange, PSM2 blue,
+/// PSM3 green, ... so a person can tell the arms apart. The ECM is not in view of itself.
+pub const ARM_COLORS: [[f32; 3]; 5] = [[0.95, 0.55, 0.15], [0.25, 0.55, 0.95], [0.35, 0.8, 0.35], [0.85, 0.3, 0.75], [0.9, 0.85, 0.3]];
+/// Setup joints: grey.
+pub const SETUP_COLOR: [f32; 3] = [0.6, 0.6, 0.62];
+/// Jaw blades: steel.
+pub const JAW_COLOR: [f32; 3] = [0.85, 0.87, 0.9];
+
 /// What a solid is part of: sets its radius and its colour in camera images.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Part {

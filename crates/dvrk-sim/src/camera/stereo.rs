@@ -10,6 +10,7 @@ use super::image::{EyeImage, Noise};
 use super::params::{CameraParams, Intrinsics};
 use super::raster::{BodyMesh, Marker, Renderer};
 use crate::error::{Result, SimError};
+use crate::geometry::{ARM_COLORS, JAW_COLOR, SETUP_COLOR};
 use crate::geometry::{tessellate, ArmGeometry, Part};
 use crate::sim::Sim;
 use dvrk_kin::Pose;
@@ -32,13 +33,6 @@ impl Eye {
     }
 }
 
-/// Colours of the arms with an RCM, in scene order (RGB, 0-1): PSM1 orange, PSM2 blue,
-/// PSM3 green, ... so a person can tell the arms apart. The ECM is not in view of itself.
-const ARM_COLORS: [[f32; 3]; 5] = [[0.95, 0.55, 0.15], [0.25, 0.55, 0.95], [0.35, 0.8, 0.35], [0.85, 0.3, 0.75], [0.9, 0.85, 0.3]];
-/// Setup joints: grey.
-const SETUP_COLOR: [f32; 3] = [0.6, 0.6, 0.62];
-/// Jaw blades: steel.
-const JAW_COLOR: [f32; 3] = [0.85, 0.87, 0.9];
 
 /// A stereo camera on an arm of a running [`Sim`].
 #[derive(Debug, Clone)]

@@ -6,6 +6,7 @@ pub mod camera_msgs;
 pub mod cdr;
 pub mod frame_transform;
 pub mod ros_msgs;
+pub mod scene_msgs;
 pub mod writer;
 
 pub use writer::{Recorder, RecordOptions};
