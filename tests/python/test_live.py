@@ -214,3 +214,31 @@ def test_ten_clients_coming_and_going_neither_slow_the_simulation_nor_grow_its_m
     # Flat: the last three quarters of the soak grow the memory by less than 10% (no per-client
     # or per-message leak: 30 s is thousands of connections and millions of messages).
     assert late < 1.1 * early, (early, late)
+
+
+def test_sim_serve_publishes_as_python_steps_it():
+    import threading
+
+    import dvrk_twin
+
+    sim = dvrk_twin.Sim.from_scene("psm", engine="reduced")
+    url = sim.serve(port=0)
+    assert url.startswith("ws://127.0.0.1:") and sim.live_url == url
+    port = int(url.rsplit(":", 1)[1])
+    got = {}
+    client = threading.Thread(target=lambda: got.update(msgs=asyncio.run(joint_states(port, "/PSM1/measured_js", 50))))
+    client.start()
+    sim.set_target("PSM1/outer_yaw", 0.3)
+    deadline = time.monotonic() + 30
+    while client.is_alive() and time.monotonic() < deadline:
+        sim.step(10)
+        time.sleep(0.002)
+    client.join(5)
+    sim.stop_serving()
+    assert sim.live_url is None
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    yaw = [store.deserialize_cdr(d, "sensor_msgs/msg/JointState").position[0] for _, d in got["msgs"]]
+    stamps = [s for s, _ in got["msgs"]]
+    # Sampled every 10 ms of simulated time while the yaw moves toward its new target.
+    assert len(yaw) == 50 and yaw[-1] > yaw[0] + 1e-3, yaw
+    assert abs(np.median(np.diff(stamps)) - 1e7) < 1e3

@@ -41,6 +41,8 @@ fn options(loops: &str, solver_iterations: Option<usize>, engine: Option<&str>) 
 pub struct PySim {
     sim: dvrk_sim::Sim,
     names: Vec<String>,
+    /// The live view ([`PySim::serve`]) and the steps taken since it started.
+    live: Option<(dvrk_sim::Recorder, u64)>,
 }
 
 impl PySim {
@@ -73,7 +75,7 @@ impl PySim {
             .iter()
             .flat_map(|a| a.model.joints.iter().map(move |j| format!("{}/{}", a.name, j.name)))
             .collect();
-        Ok(PySim { sim, names })
+        Ok(PySim { sim, names, live: None })
     }
 
     /// Joint names `ARM/joint`, in the order of `q`.
@@ -125,8 +127,39 @@ impl PySim {
         for _ in 0..n {
             self.sim.step();
             self.sim.check_finite()?;
+            if let Some((recorder, steps)) = self.live.as_mut() {
+                *steps += 1;
+                recorder.after_step(&self.sim, *steps)?;
+            }
         }
         Ok(())
+    }
+
+    /// Serve this simulation live over the Foxglove WebSocket protocol (Foxglove, Lichtblick):
+    /// the topics `dvrk sim --out` records (CRTK joint states, poses, /tf, the link geometry on
+    /// /scene), sampled every `1 / rate` s of simulated time as `step` advances it. `port` 0
+    /// picks a free one. Returns the address, `ws://HOST:PORT`. Serving again replaces the view.
+    #[pyo3(signature = (host="127.0.0.1", port=8765, rate=100.0))]
+    fn serve(&mut self, host: &str, port: u16, rate: f64) -> Result<String> {
+        self.stop_serving()?;
+        let live = dvrk_sim::Live::serve(&dvrk_sim::LiveOptions { host: host.into(), port }, &format!("dvrk-twin {}", self.sim.scene_name))?;
+        let url = live.url();
+        self.live = Some((dvrk_sim::Recorder::open(&self.sim, None, Some(live), rate)?, 0));
+        Ok(url)
+    }
+
+    /// Stop the live view (closes the connections); nothing happens when not serving.
+    fn stop_serving(&mut self) -> Result<()> {
+        if let Some((recorder, _)) = self.live.take() {
+            recorder.finish_staged()?;
+        }
+        Ok(())
+    }
+
+    /// The live view's address, `ws://HOST:PORT`, or None.
+    #[getter]
+    fn live_url(&self) -> Option<String> {
+        self.live.as_ref().and_then(|(r, _)| r.live().map(|l| l.url()))
     }
 
     /// Control mode of a joint: "pid", "position" or "effort".
