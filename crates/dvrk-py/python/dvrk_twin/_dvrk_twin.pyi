@@ -186,6 +186,15 @@ class Sim:
         """PID gains (N·m/rad or N/m, per s, times s)."""
     def effort(self, joint: _JointArg) -> float:
         """Effort applied at the last step (N·m, N)."""
+    def serve(self, host: str = "127.0.0.1", port: int = 8765, rate: float = 100.0) -> str:
+        """Serve the simulation live over the Foxglove WebSocket protocol (the topics of
+        ``dvrk sim --out``), sampled every ``1 / rate`` s of simulated time as ``step`` advances
+        it; ``port`` 0 picks a free one. Returns ``ws://HOST:PORT``."""
+    def stop_serving(self) -> None:
+        """Stop the live view (closes the connections)."""
+    @property
+    def live_url(self) -> Optional[str]:
+        """The live view's address, or None."""
 
 def run_scene(
     scene: str,
