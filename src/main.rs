@@ -6,6 +6,7 @@
 mod cli;
 mod commands;
 mod io;
+mod progress;
 mod signals;
 
 use clap::Parser;

@@ -76,8 +76,10 @@ pub fn run(args: &IdentifyArgs) -> Result<()> {
         Some(v) => Some(read_joint_recording(v, format, &model, &args.arm).with_context(|| format!("--validate {}", v.display()))?.0),
         None => None,
     };
-    let result = dvrk_calib::identify::run::run(&model, &inertias, &rec, held_out.as_ref(), &options, &args.recording.display().to_string(), format)
+    let spinner = crate::progress::Progress::spinner("", crate::progress::Progress::wanted(args.json));
+    let result = dvrk_calib::identify::run::run_with(&model, &inertias, &rec, held_out.as_ref(), &options, &args.recording.display().to_string(), format, &mut |stage| spinner.set_message(stage))
         .with_context(|| format!("--recording {}", args.recording.display()))?;
+    spinner.finish();
     let (id, rigid, mut summary) = (&result.identification, &result.rigid, result.summary.clone());
     summary["notes"] = serde_json::json!(notes);
     for n in &notes {

@@ -5,7 +5,7 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use dvrk_sim::run::TrajectoryKind;
 use dvrk_sim::{Colliders, Engine, LoopMode, Outputs, RunOptions, Scene, SimOptions};
-use std::io::{IsTerminal, Write};
+
 
 /// The default scene: the whole cart (SUJ held, PSMs on the tracking test, ECM holding).
 const DEFAULT_SCENE: &str = "full";
@@ -158,7 +158,6 @@ pub fn run(args: &SimArgs) -> Result<()> {
         }
     }
     let record = args.out.as_ref().map(|p| dvrk_sim::RecordOptions { path: p.clone(), rate: args.rate });
-    let tty = std::io::stderr().is_terminal();
     let trace_rate = args.plot.as_ref().map(|_| args.plot_rate);
     if let Some(d) = &args.frames_dir {
         if scene.camera.is_none() {
@@ -187,16 +186,15 @@ pub fn run(args: &SimArgs) -> Result<()> {
         None => None,
     };
     let outputs = Outputs { record: record.as_ref(), trace_rate, frames_dir: args.frames_dir.as_deref(), stop: Some(stop), live: live.as_ref(), realtime: args.realtime };
+    // Simulated time and the real-time factor so far (`--json`: nothing drawn).
+    let started = std::time::Instant::now();
+    let bar = crate::progress::Progress::bar(1000, "{bar:40} {percent:>3}% {msg}", crate::progress::Progress::wanted(args.json));
     let run = dvrk_sim::run_staged(&scene, &options, &outputs, |f| {
-        if tty {
-            let n = (f * 40.0).round() as usize;
-            eprint!("\r[{}{}] {:3.0}%", "#".repeat(n), " ".repeat(40 - n.min(40)), f * 100.0);
-            let _ = std::io::stderr().flush();
-        }
+        bar.set_position((f * 1000.0) as u64);
+        let simulated = f * args.duration;
+        bar.set_message(format!("{simulated:.1} of {:.1} s simulated, {:.0}x real time", args.duration, simulated / started.elapsed().as_secs_f64().max(1e-9)));
     })?;
-    if tty {
-        eprintln!();
-    }
+    bar.finish();
     let (summary, trace) = (run.summary, run.trace);
     if stop.load(std::sync::atomic::Ordering::SeqCst) {
         eprintln!("stopped by a signal after {:.3} s of simulated time: the outputs hold the run up to then", summary.duration);

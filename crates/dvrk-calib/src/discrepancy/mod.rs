@@ -47,7 +47,7 @@ pub use generate::{hidden_effect, Answer, Hidden, HiddenOptions, HiddenRecording
 pub use joint_log::JointLog;
 pub use nuisance::InertiaPrior;
 pub use plot::Residuals;
-pub use repeat::{discrepancy_repeated, Repeated};
+pub use repeat::{discrepancy_repeated, discrepancy_repeated_with, Repeated};
 pub use report::Report;
 pub use options::{Options, Outcome};
 pub use workflow::discrepancy;

@@ -61,6 +61,11 @@ fn with_effects(model: &Model, effects: &[EffectSpec]) -> Result<Model> {
 /// Run [`discrepancy`] up to `max_rounds` times, each round on the model with the effects named
 /// so far. The tracking channel (if `o.tracking`) is replayed on the last round only.
 pub fn discrepancy_repeated(model: &Model, scene: &Scene, arm: &str, log: &JointLog, o: &Options, max_rounds: usize) -> Result<Repeated> {
+    discrepancy_repeated_with(model, scene, arm, log, o, max_rounds, &mut |_| {})
+}
+
+/// [`discrepancy_repeated`], telling `progress` what it is doing (for a progress display).
+pub fn discrepancy_repeated_with(model: &Model, scene: &Scene, arm: &str, log: &JointLog, o: &Options, max_rounds: usize, progress: &mut dyn FnMut(&str)) -> Result<Repeated> {
     let mut current = model.clone();
     let mut named: Vec<EffectSpec> = Vec::new();
     let mut report: Option<Report> = None;
@@ -69,6 +74,7 @@ pub fn discrepancy_repeated(model: &Model, scene: &Scene, arm: &str, log: &Joint
     let mut dropped: Vec<EffectSpec> = Vec::new();
     let quiet = Options { tracking: false, ..o.clone() };
     for round in 1..=max_rounds.max(1) {
+        progress(&format!("round {round} of at most {}: scoring the candidates", max_rounds.max(1)));
         let out = discrepancy(&current, scene, arm, log, &quiet)?;
         let r = out.report;
         steps.push(StepReport {
@@ -134,6 +140,7 @@ pub fn discrepancy_repeated(model: &Model, scene: &Scene, arm: &str, log: &Joint
             while i < named.len() {
                 let mut others = named.clone();
                 let this = others.remove(i);
+                progress(&format!("round {round}: refitting {} with the other named effects", merged.effects[i].label()));
                 let only = Options { only: Some(this.clone()), ..quiet.clone() };
                 let refit = discrepancy(&with_effects(model, &others)?, scene, arm, log, &only)?;
                 match (refit.named, refit.report.effects.first()) {
@@ -170,6 +177,7 @@ pub fn discrepancy_repeated(model: &Model, scene: &Scene, arm: &str, log: &Joint
         return Err(crate::error::CalibError::data("discrepancy", "no round was analysed"));
     };
     if o.tracking {
+        progress("the tracking replay");
         let a = scene.arm_index(arm).map_err(|e| crate::error::CalibError::field("--arm", e.to_string()))?;
         report.tracking = Some(super::tracking::compare(scene, a, log, model, (!named.is_empty()).then_some(&current))?);
     }

@@ -2,7 +2,7 @@
 //! take the arm's built-in scene, run the repeated workflow.
 
 use super::joint_log::{self, JointLog};
-use super::repeat::{discrepancy_repeated, Repeated};
+use super::repeat::{discrepancy_repeated_with, Repeated};
 use super::options::Options;
 use crate::error::{CalibError, Result};
 use dvrk_kin::Model;
@@ -34,6 +34,13 @@ pub struct MarkerSource {
 /// The repeated workflow on recording `path` of arm `arm` against `model`, with the tracked
 /// marker `marker` if given; the reader's notes lead the report's.
 pub fn run(path: &Path, format: &str, model: &Model, arm: &str, marker: Option<&MarkerSource>, options: &Options, max_rounds: usize) -> Result<Repeated> {
+    run_with(path, format, model, arm, marker, options, max_rounds, &mut |_| {})
+}
+
+/// [`run`], telling `progress` what it is doing.
+#[allow(clippy::too_many_arguments)]
+pub fn run_with(path: &Path, format: &str, model: &Model, arm: &str, marker: Option<&MarkerSource>, options: &Options, max_rounds: usize, progress: &mut dyn FnMut(&str)) -> Result<Repeated> {
+    progress("reading the recording");
     let (mut log, notes) = read_log(path, format, model, arm)?;
     if let Some(m) = marker {
         let frame = super::markers::marker_frame(model, &m.link)?;
@@ -50,7 +57,7 @@ pub fn run(path: &Path, format: &str, model: &Model, arm: &str, marker: Option<&
         ));
     }
     let scene = super::scene_for_arm(arm)?;
-    let mut out = discrepancy_repeated(model, &scene, arm, &log, options, max_rounds).map_err(|e| CalibError::data(path.display().to_string(), e.to_string()))?;
+    let mut out = discrepancy_repeated_with(model, &scene, arm, &log, options, max_rounds, progress).map_err(|e| CalibError::data(path.display().to_string(), e.to_string()))?;
     out.report.notes.splice(0..0, notes);
     Ok(out)
 }

@@ -22,15 +22,25 @@ pub struct IdentifyRun {
 /// Identify `model` from `rec` (named `recording` in the report, format `format`), starting at
 /// the CAD `prior`; with `held_out`, validate on it.
 pub fn run(model: &Model, prior: &[BodyInertia], rec: &TorqueRecording, held_out: Option<&TorqueRecording>, options: &IdentifyOptions, recording: &str, format: &str) -> Result<IdentifyRun> {
+    run_with(model, prior, rec, held_out, options, recording, format, &mut |_| {})
+}
+
+/// [`run`], telling `progress` what it is doing.
+#[allow(clippy::too_many_arguments)]
+pub fn run_with(model: &Model, prior: &[BodyInertia], rec: &TorqueRecording, held_out: Option<&TorqueRecording>, options: &IdentifyOptions, recording: &str, format: &str, progress: &mut dyn FnMut(&str)) -> Result<IdentifyRun> {
+    progress("identifying (regression, cutting planes)");
     let (id, _) = identify(model, prior, rec, options)?;
     let rigid_options = options.rigid_only();
+    progress("the rigid-body-only baseline");
     let (rigid, _) = identify(model, prior, rec, &rigid_options)?;
     let mut summary = report::summary(model, &id, recording, format, &rigid.relative_error);
     if let Some(r2) = held_out {
+        progress("validating on the held-out recording");
         let (errors, in_band, as_published) = id.validate_all(model, r2, options)?;
         let (rigid_errors, _) = rigid.validate(model, r2, &rigid_options)?;
         summary["validation"] = json!({"recording": r2.source, "relative_error": errors, "relative_error_in_band": in_band, "rigid_body_only": rigid_errors, "as_published": as_published});
     }
+    progress("the ablation (which effects made the difference)");
     let rows = ablation::ablation(model, prior, rec, held_out, options, Some(&id))?;
     summary["ablation"] = serde_json::to_value(&rows).unwrap_or(Value::Null);
     Ok(IdentifyRun { summary, identification: id, rigid, ablation: rows })
