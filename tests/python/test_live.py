@@ -132,6 +132,29 @@ def test_a_late_client_gets_the_link_geometry_as_a_scene_update():
     assert len(data) > 10_000 and b"PSM1/yaw_link" in data
 
 
+def test_the_robot_description_names_the_tf_frames():
+    import xml.etree.ElementTree as ET
+
+    port = free_port()
+    proc = start(port)
+    try:
+        time.sleep(0.5)
+        channel, data = asyncio.run(first_message(port, "/PSM1/robot_description"))
+        _, tf = asyncio.run(first_message(port, "/tf"))
+    finally:
+        stop(proc)
+    assert (channel["schemaName"], channel["encoding"]) == ("std_msgs/msg/String", "cdr")
+    urdf = get_typestore(Stores.ROS2_HUMBLE).deserialize_cdr(data, "std_msgs/msg/String").data
+    robot = ET.fromstring(urdf)
+    links = {l.get("name") for l in robot.findall("link")}
+    # Every body's link, named as its /tf frame, with visuals; floating joints from world.
+    assert "world" in links and all(l.startswith("PSM1/") for l in links - {"world"}) and len(links) > 10, links
+    assert all(j.get("type") == "floating" and j.find("parent").get("link") == "world" for j in robot.findall("joint"))
+    assert sum(len(l.findall("visual")) for l in robot.findall("link")) > 10
+    child = json.loads(tf)["child_frame_id"]
+    assert child in links, (child, sorted(links))
+
+
 def test_a_stopped_live_run_leaves_its_recording_valid(tmp_path):
     from mcap.reader import make_reader
 

@@ -4,6 +4,7 @@
 
 pub mod camera_msgs;
 pub mod cdr;
+pub mod description;
 pub mod frame_transform;
 pub mod ros_msgs;
 pub mod scene_msgs;

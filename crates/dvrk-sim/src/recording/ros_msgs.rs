@@ -204,6 +204,18 @@ fn header_defs() -> String {
     format!("{SEP}MSG: std_msgs/Header\nbuiltin_interfaces/Time stamp\nstring frame_id\n{SEP}MSG: builtin_interfaces/Time\nint32 sec\nuint32 nanosec\n")
 }
 
+/// Schema name and `ros2msg` text of std_msgs/msg/String.
+pub fn string_schema() -> (&'static str, String) {
+    ("std_msgs/msg/String", "string data\n".into())
+}
+
+/// A std_msgs/msg/String (the robot description's message).
+pub fn encode_string(data: &str) -> Vec<u8> {
+    let mut w = CdrWriter::new();
+    w.string(data);
+    w.finish()
+}
+
 /// Schema name and `ros2msg` text of geometry_msgs/msg/PoseStamped.
 pub fn pose_stamped_schema() -> (&'static str, String) {
     (

@@ -3,7 +3,7 @@
 //! (`PSM1/yaw_link`), so a 3D panel draws the arms moving with the transforms, without a URDF.
 //! The colours are the camera images': each arm with an RCM its own, the setup joints grey.
 
-use crate::geometry::{tessellate, ArmGeometry, Part, ARM_COLORS, JAW_COLOR, SETUP_COLOR};
+use crate::geometry::{tessellate, ArmGeometry, Part, JAW_COLOR, SETUP_COLOR};
 use crate::sim::Sim;
 use crate::Result;
 use foxglove::messages::{Color, Point3, SceneEntity, SceneUpdate, TriangleListPrimitive};
@@ -17,15 +17,10 @@ pub fn schema() -> (Schema, String) {
 /// Every body of every arm of `sim` as one entity, with `body_names[arm][body]` as its frame.
 pub fn scene_update(sim: &Sim, body_names: &[Vec<String>]) -> Result<Vec<u8>> {
     let mut entities = Vec::new();
-    let mut colored = 0;
+    let has_rcm: Vec<bool> = sim.arms.iter().map(|a| a.model.rcm.is_some()).collect();
     for (a, arm) in sim.arms.iter().enumerate() {
         let geometry = ArmGeometry::new(&arm.model)?;
-        let base = if arm.model.rcm.is_some() {
-            colored += 1;
-            ARM_COLORS[(colored - 1) % ARM_COLORS.len()]
-        } else {
-            SETUP_COLOR
-        };
+        let base = super::description::arm_color(&has_rcm, a);
         for (b, solids) in geometry.bodies.iter().enumerate() {
             let triangles: Vec<TriangleListPrimitive> = solids
                 .iter()
@@ -62,6 +57,7 @@ pub fn scene_update(sim: &Sim, body_names: &[Vec<String>]) -> Result<Vec<u8>> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::geometry::ARM_COLORS;
     use foxglove::Decode;
 
     #[test]

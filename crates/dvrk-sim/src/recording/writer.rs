@@ -27,7 +27,7 @@ use crate::error::{Result, SimError};
 use crate::live::Live;
 use foxglove::Schema;
 use crate::camera::{Eye, StereoCamera};
-use crate::recording::{camera_msgs, frame_transform, scene_msgs};
+use crate::recording::{camera_msgs, description, frame_transform, scene_msgs};
 use crate::recording::ros_msgs::{self, Header, JointState, PoseStamped};
 use crate::sim::Sim;
 use dvrk_kin::atomic::Staged;
@@ -145,8 +145,10 @@ pub struct Recorder {
     sequence: BTreeMap<u16, u32>,
     samples: u64,
     camera: Option<CameraChannels>,
-    /// The `/scene` channel, the link geometry's message, and when it last went to the live view.
-    scene: (u16, Vec<u8>, Option<std::time::Instant>),
+    /// Messages that do not change (`/scene`, the robot descriptions) with their channels, and
+    /// when they last went to the live view.
+    statics: Vec<(u16, Vec<u8>)>,
+    statics_sent: Option<std::time::Instant>,
 }
 
 /// Channels of the camera: per eye (left, right) image, depth and calibration.
@@ -245,10 +247,20 @@ impl Recorder {
             });
             body_names.push(m.bodies.iter().map(|b| format!("{}/{}", arm.name, b.name)).collect());
         }
+        // What does not change: the link geometry for a 3D panel, a description per arm for the
+        // panels that want a URDF.
         let (scene_schema, scene_encoding) = scene_msgs::schema();
         let scene_schema = w.add_schema(&scene_schema.name, &scene_schema.encoding, &scene_schema.data).map_err(io)?;
-        let scene = (w.add_channel(scene_schema, "/scene", &scene_encoding, &meta).map_err(io)?, scene_msgs::scene_update(sim, &body_names)?, None);
-        Ok(Recorder { sinks: w, staged, tmp, path, stride, arms, tf, body_names, sequence: BTreeMap::new(), samples: 0, camera: None, scene })
+        let mut statics = vec![(w.add_channel(scene_schema, "/scene", &scene_encoding, &meta).map_err(io)?, scene_msgs::scene_update(sim, &body_names)?)];
+        let (n, t) = ros_msgs::string_schema();
+        let string_schema = w.add_schema(n, "ros2msg", t.as_bytes()).map_err(io)?;
+        let has_rcm: Vec<bool> = sim.arms.iter().map(|a| a.model.rcm.is_some()).collect();
+        for (a, arm) in sim.arms.iter().enumerate() {
+            let urdf = description::arm_urdf(&arm.name, &crate::geometry::ArmGeometry::new(&arm.model)?, &body_names[a], description::arm_color(&has_rcm, a));
+            let topic = format!("/{}/robot_description", arm.name.replace('-', "/"));
+            statics.push((w.add_channel(string_schema, &topic, "cdr", &meta).map_err(io)?, ros_msgs::encode_string(&urdf)));
+        }
+        Ok(Recorder { sinks: w, staged, tmp, path, stride, arms, tf, body_names, sequence: BTreeMap::new(), samples: 0, camera: None, statics, statics_sent: None })
     }
 
     /// Simulated time between samples (s) for a sim of time step `dt`.
@@ -332,19 +344,22 @@ impl Recorder {
                 self.write(mc, t, &cp.encode())?;
             }
         }
-        // The link geometry: once in the file, and to the live view every wall-clock second
-        // (entities are not latched: a client that subscribes later gets it within a second).
-        let (scene, _, sent) = &self.scene;
-        let (scene, due) = (*scene, sent.is_none_or(|s| s.elapsed().as_secs_f64() >= 1.0));
+        // What does not change: once in the file, and to the live view every wall-clock second
+        // (not latched: a client that subscribes later gets it within a second).
         if self.samples == 0 {
-            let bytes = std::mem::take(&mut self.scene.1);
-            self.write(scene, t, &bytes)?;
-            self.scene = (scene, bytes, Some(std::time::Instant::now()));
-        } else if due && self.sinks.wanted(scene) {
-            if let Some(l) = self.sinks.live.as_ref() {
-                l.log(self.sinks.channels[scene as usize].1, (t.max(0.0) * 1e9).round() as u64, &self.scene.1);
+            let statics = std::mem::take(&mut self.statics);
+            for (channel, bytes) in &statics {
+                self.write(*channel, t, bytes)?;
             }
-            self.scene.2 = Some(std::time::Instant::now());
+            self.statics = statics;
+            self.statics_sent = Some(std::time::Instant::now());
+        } else if self.statics_sent.is_none_or(|s| s.elapsed().as_secs_f64() >= 1.0) {
+            if let Some(l) = self.sinks.live.as_ref() {
+                for (channel, bytes) in self.statics.iter().filter(|(c, _)| self.sinks.wanted(*c)) {
+                    l.log(self.sinks.channels[*channel as usize].1, (t.max(0.0) * 1e9).round() as u64, bytes);
+                }
+            }
+            self.statics_sent = Some(std::time::Instant::now());
         }
         let arms_tf = if self.sinks.wanted(self.tf) { self.arms.len() } else { 0 };
         for a in 0..arms_tf {
