@@ -14,7 +14,11 @@
 //!   in the arm's base frame `PSM1_base`, which is the base of the arm's serial dVRK kinematics
 //!   (the RCM frame of a PSM or ECM, as the dVRK reports it) or frame 0 for other models;
 //!
-//! and on `/tf` one foxglove.FrameTransform (JSON) per body: `PSM1/yaw_link` in `world`.
+//! and on `/tf` one foxglove.FrameTransform (JSON) per body: `PSM1/yaw_link` in `world`; once,
+//! the link geometry on `/scene` (foxglove.SceneUpdate, [`super::scene_msgs`]) and per arm
+//! `/PSM1/robot_description` (std_msgs/msg/String, [`super::description`]).
+//!
+//! The same channels go to a live view when one is given ([`Recorder::open`], `crate::live`).
 //!
 //! With a camera ([`Recorder::add_camera`]), per eye at the camera's own rate: `/camera/left/image`
 //! (foxglove.CompressedImage, PNG colour), `/camera/left/depth` (foxglove.CompressedImage, 16-bit
