@@ -1,10 +1,17 @@
 //! # dvrk-calib
 //!
-//! Motion-capture calibration of dvrk-kin models (Gondokaryono et al., sections 2.4 and 4.1):
-//! recordings in (MCAP with ROS 2 or Foxglove messages, OptiTrack Motive CSV, a plain CSV),
-//! joint axes, the axis distances of Table 6 and the DH parameters they imply, the RCM by pivot
-//! calibration (eq. 3-5, Table 7), an updated model file, and a synthetic tracker that writes
-//! what a real one would record.
+//! What a real robot's recordings tell about its model, in three products over shared readers:
+//!
+//! - motion-capture calibration (Gondokaryono et al., sections 2.4 and 4.1): joint axes, the axis
+//!   distances of Table 6 and the DH parameters they imply, the RCM by pivot calibration (eq.
+//!   3-5, Table 7), an updated model file, and a synthetic tracker that writes what a real one
+//!   would record;
+//! - [`identify`]: every body's inertial parameters and the joints' friction, springs and motor
+//!   inertias from a recording of efforts, physically consistent;
+//! - [`discrepancy`]: which physical effect a model is missing, named from a recording.
+//!
+//! Recordings come in as MCAP or ROS 1 bags (ROS 2 CDR, ROS 1, Foxglove messages), OptiTrack
+//! Motive CSV, the WPI CSV layout and plain CSV.
 //!
 //! ```
 //! use dvrk_calib::{pivot_calibration, PivotOptions, synth};
