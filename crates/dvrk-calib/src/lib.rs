@@ -72,7 +72,7 @@ pub mod plot {
             .map(|a| Panel {
                 title: format!("axis {} ({} / {})", a.name, a.reference, a.moving),
                 x_label: "sample".into(),
-                y_label: format!("axis {} residual mm", a.name),
+                y_label: "residual (mm)".into(),
                 points: a.fit.residuals.iter().enumerate().map(|(i, r)| (i as f64, r * 1e3)).collect(),
                 marks: vec![],
                 equal: false,

@@ -195,23 +195,23 @@ impl Trace {
             let name = format!("{} {}", j.arm, j.joint);
             panels.push(Panel {
                 title: format!("{name} position"),
-                x_label: "t s".into(),
-                y_label: format!("{name} q {}", j.unit),
+                x_label: "time (s)".into(),
+                y_label: format!("position ({})", j.unit),
                 points: vec![],
                 marks: vec![],
                 equal: false,
-                lines: vec![Line { points: series(&j.commanded), color: BLUE, width: 3 }, Line { points: series(&j.measured), color: ORANGE, width: 1 }],
+                lines: vec![Line { points: series(&j.commanded), color: BLUE, width: 3, label: "commanded".into() }, Line { points: series(&j.measured), color: ORANGE, width: 1, label: "measured".into() }],
                 scatter: vec![],
             });
             let err: Vec<f64> = j.measured.iter().zip(&j.commanded).map(|(m, c)| m - c).collect();
             panels.push(Panel {
                 title: format!("{name} error"),
-                x_label: "t s".into(),
-                y_label: format!("{name} error {}", j.unit),
+                x_label: "time (s)".into(),
+                y_label: format!("error ({})", j.unit),
                 points: vec![],
                 marks: vec![],
                 equal: false,
-                lines: vec![Line { points: series(&err), color: GREEN, width: 1 }],
+                lines: vec![Line { points: series(&err), color: GREEN, width: 1, label: "measured - commanded".into() }],
                 scatter: vec![],
             });
         }

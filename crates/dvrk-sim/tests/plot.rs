@@ -42,8 +42,16 @@ fn a_psm_run_plots_commanded_measured_and_error_per_joint() {
     assert!(count(GREEN) > 100, "error colour drawn");
     assert!(count([0, 0, 0]) > 1000, "axes and labels drawn");
 
+    // The SVG: each series a polyline in its colour per joint (and its legend entry's), axis
+    // labels with units, the legend's names.
     let svg = fig.svg();
-    assert_eq!(svg.matches("<polyline").count(), 3 * n);
+    let stroked = |c: [u8; 3]| svg.matches(&format!("<polyline fill=\"none\" opacity=\"1\" stroke=\"#{:02X}{:02X}{:02X}\"", c[0], c[1], c[2])).count();
+    for c in [BLUE, ORANGE, GREEN] {
+        assert_eq!(stroked(c), 2 * n, "{c:?}");
+    }
+    for text in ["time (s)", "position (rad)", "error (m)", "commanded", "measured - commanded"] {
+        assert!(svg.contains(text), "{text}");
+    }
 }
 
 #[test]

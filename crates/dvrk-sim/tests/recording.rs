@@ -75,8 +75,13 @@ fn psm_recording_holds_the_simulated_values() {
     let m = messages(&path);
     let topics: Vec<&str> = m.keys().map(|s| s.as_str()).collect();
     // The dVRK's CRTK layout: the jaw on its own topics.
-    assert_eq!(topics, ["/PSM1/jaw/measured_js", "/PSM1/jaw/setpoint_js", "/PSM1/measured_cp", "/PSM1/measured_js", "/PSM1/operating_state", "/PSM1/setpoint_js", "/tf"]);
+    assert_eq!(
+        topics,
+        ["/PSM1/jaw/measured_js", "/PSM1/jaw/setpoint_js", "/PSM1/measured_cp", "/PSM1/measured_js", "/PSM1/operating_state", "/PSM1/robot_description", "/PSM1/setpoint_js", "/scene", "/tf"]
+    );
     assert_eq!(m["/PSM1/operating_state"].len(), 1);
+    // What does not change, once: the link geometry and the robot description.
+    assert_eq!((m["/scene"].len(), m["/PSM1/robot_description"].len()), (1, 1));
     let model = &sim.arms[0].model;
     assert_eq!(m["/tf"].len(), 100 * model.bodies.len());
     let mut unplaced = model.clone();
@@ -133,7 +138,7 @@ const PY: &str = r#"
 import json, sys
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
-out = {"js": [], "jaw": [], "cp": [], "tf": 0, "frame_id": None, "topics": [], "names": None, "jaw_names": None, "state": None}
+out = {"js": [], "jaw": [], "cp": [], "tf": 0, "frame_id": None, "topics": [], "names": None, "jaw_names": None, "state": None, "description": None}
 with open(sys.argv[1], "rb") as f:
     reader = make_reader(f, decoder_factories=[DecoderFactory()])
     out["topics"] = sorted((c.topic, reader.get_summary().schemas[c.schema_id].name) for c in reader.get_summary().channels.values())
@@ -144,8 +149,10 @@ with open(sys.argv[1], "rb") as f:
             assert d["parent_frame_id"] == "world"
     f.seek(0)
     reader = make_reader(f, decoder_factories=[DecoderFactory()])
-    for schema, channel, message, msg in reader.iter_decoded_messages(topics=["/PSM1/measured_js", "/PSM1/jaw/measured_js", "/PSM1/measured_cp", "/PSM1/operating_state"]):
-        if channel.topic == "/PSM1/operating_state":
+    for schema, channel, message, msg in reader.iter_decoded_messages(topics=["/PSM1/measured_js", "/PSM1/jaw/measured_js", "/PSM1/measured_cp", "/PSM1/operating_state", "/PSM1/robot_description"]):
+        if channel.topic == "/PSM1/robot_description":
+            out["description"] = msg.data
+        elif channel.topic == "/PSM1/operating_state":
             out["state"] = [msg.state, msg.is_homed, msg.is_busy]
         elif channel.topic == "/PSM1/measured_js":
             out["names"] = list(msg.name)
@@ -187,9 +194,13 @@ fn python_mcap_ros2_reads_the_recording() {
         ["/PSM1/measured_cp", "geometry_msgs/msg/PoseStamped"],
         ["/PSM1/measured_js", js_type],
         ["/PSM1/operating_state", "crtk_msgs/msg/OperatingState"],
+        ["/PSM1/robot_description", "std_msgs/msg/String"],
         ["/PSM1/setpoint_js", js_type],
+        ["/scene", "foxglove.SceneUpdate"],
         ["/tf", "foxglove.FrameTransform"]
     ]);
+    // mcap-ros2-support decodes the description: a URDF.
+    assert!(v["description"].as_str().unwrap().contains("<robot name=\"PSM1\">"), "{}", v["description"]);
     assert_eq!(v["topics"], want);
     assert_eq!(v["state"], serde_json::json!(["ENABLED", true, false]));
     let js = v["js"].as_array().unwrap();

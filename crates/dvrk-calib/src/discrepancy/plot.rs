@@ -61,30 +61,34 @@ pub fn figure(r: &Residuals, source: &str) -> Result<Figure> {
     for (k, name) in r.joints.iter().enumerate() {
         let (unit, pu) = (r.units[k], r.position_units[k]);
         let axes: [(&str, String, &[f64]); COLUMNS] = [
-            ("time", "time s".into(), &r.t),
-            ("velocity", format!("velocity {pu}/s"), &r.qd[k]),
-            ("load", format!("load {unit}"), &r.load[k]),
-            ("position", format!("position {pu}"), &r.q[k]),
+            ("time", "time (s)".into(), &r.t),
+            ("velocity", format!("velocity ({pu}/s)"), &r.qd[k]),
+            ("load", format!("predicted effort ({unit})"), &r.load[k]),
+            ("position", format!("position ({pu})"), &r.q[k]),
         ];
         let (ylo, yhi) = r.before[k].iter().chain(&r.after[k]).filter(|v| v.is_finite()).fold((-r.floor[k], r.floor[k]), |(a, b), v| (a.min(*v), b.max(*v)));
         for (what, x_label, x) in axes {
-            let series = |y: &[f64], color| Scatter { points: thinned(x.len()).map(|i| (x[i], y[i])).collect(), color };
+            // The legend once per joint, on its time panel.
+            let named = |label: &str| if what == "time" { label.to_string() } else { String::new() };
+            let series = |y: &[f64], color, label: &str| Scatter { points: thinned(x.len()).map(|i| (x[i], y[i])).collect(), color, label: named(label) };
             let (xlo, xhi) = x.iter().filter(|v| v.is_finite()).fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(*v), b.max(*v)));
-            let mut lines: Vec<Line> = [-r.floor[k], r.floor[k]].iter().map(|&f| Line { points: vec![(xlo, f), (xhi, f)], color: FLOOR, width: 1 }).collect();
+            let floor = |f: f64, label: &str| Line { points: vec![(xlo, f), (xhi, f)], color: FLOOR, width: 1, label: named(label) };
+            let mut lines = vec![floor(r.floor[k], "noise floor"), floor(-r.floor[k], "")];
             if what == "time" {
-                lines.push(Line { points: vec![(r.heldout_from, ylo), (r.heldout_from, yhi)], color: GREEN, width: 1 });
+                lines.push(Line { points: vec![(r.heldout_from, ylo), (r.heldout_from, yhi)], color: GREEN, width: 1, label: "held out from".into() });
             }
             panels.push(Panel {
                 title: format!("{name}: residual against {what}"),
                 x_label,
-                y_label: format!("{name} residual {unit}"),
-                scatter: vec![series(&r.before[k], BEFORE), series(&r.after[k], AFTER)],
+                y_label: format!("residual ({unit})"),
+                scatter: vec![series(&r.before[k], BEFORE, "before"), series(&r.after[k], AFTER, "after")],
                 lines,
                 ..Default::default()
             });
         }
     }
-    let title = format!("{source}: torque residual in the analysis band, before (orange) and after (blue), noise floor (grey), held out from {:.1} s (green)", r.heldout_from);
+    let file = std::path::Path::new(source).file_name().map_or(source.to_string(), |f| f.to_string_lossy().into_owned());
+    let title = format!("{file}: effort residual in the analysis band, before (orange) and after (blue) the named effects; noise floor grey, held out from {:.1} s", r.heldout_from);
     Ok(Figure { title, panels, columns: COLUMNS, panel_size: PANEL })
 }
 
