@@ -417,3 +417,30 @@ fn discrepancy_reads_a_csv_joint_log_as_it_reads_mcap() {
     let e = crate::util::dvrk_err(&["discrepancy", "--model", "psm", "--recording", bad.to_str().unwrap(), "--format", "csv", "--report", dir.path().join("rb.json").to_str().unwrap()]);
     assert!(e.contains("bad.csv") && e.contains("tau3"), "{e}");
 }
+
+/// `dvrk identify --plot`: per channel, the measured efforts against the identified model's
+/// prediction, titled with the channel's relative error in the band (the summary's figure), and
+/// committed with the model file (`-o`) or neither.
+#[test]
+fn identify_plots_measured_against_predicted_per_channel() {
+    let dir = tempdir();
+    let rec = hidden_viscous_friction(dir.path(), "mcap");
+    let (out, plot) = (dir.path().join("id.toml"), dir.path().join("id.svg"));
+    let text = dvrk_ok(&["identify", "--recording", &rec, "--model", "psm", "-o", out.to_str().unwrap(), "--plot", plot.to_str().unwrap()]);
+    assert!(text.contains("wrote") && out.exists());
+    let svg = std::fs::read_to_string(&plot).unwrap();
+    for joint in ["outer_yaw", "outer_pitch", "outer_insertion", "jaw"] {
+        assert!(svg.contains(&format!("{joint}: relative error 0.")), "{joint}");
+    }
+    for text in ["effort (N)", "effort (N·m)", "time (s)", "measured (in band)", "identified model"] {
+        assert!(svg.contains(text), "{text}");
+    }
+    // The prediction drawn in blue, the measurement in orange, once per channel (and its legend).
+    let stroke = |c: [u8; 3]| svg.matches(&format!("stroke=\"#{:02X}{:02X}{:02X}\"", c[0], c[1], c[2])).count();
+    assert!(stroke(dvrk_calib::plot::BLUE) >= 7 && stroke(dvrk_calib::plot::ORANGE) >= 7);
+    // A bad plot path fails before any work, leaving no model file.
+    let (out2, bad) = (dir.path().join("id2.toml"), dir.path().join("id.jpg"));
+    let e = crate::util::dvrk_err(&["identify", "--recording", &rec, "--model", "psm", "-o", out2.to_str().unwrap(), "--plot", bad.to_str().unwrap()]);
+    assert!(e.contains("--plot") && e.contains(".png, .svg"), "{e}");
+    assert!(!out2.exists());
+}

@@ -42,6 +42,10 @@ pub struct IdentifyArgs {
     /// Gravity in the model's base frame (m/s^2), `x,y,z`.
     #[arg(long, default_value = "0,0,-9.81", allow_hyphen_values = true)]
     pub gravity: String,
+    /// Draw, per channel, the measured efforts against the identified model's prediction on the
+    /// validation recording (the fitted one without --validate), as PNG or SVG.
+    #[arg(long)]
+    pub plot: Option<PathBuf>,
     /// Print the summary as one JSON object.
     #[arg(long)]
     pub json: bool,
@@ -51,7 +55,10 @@ pub fn run(args: &IdentifyArgs) -> Result<()> {
     let mut inputs = vec![("--recording", args.recording.as_path()), ("--model", std::path::Path::new(&args.model))];
     inputs.extend(args.validate.as_deref().map(|v| ("--validate", v)));
     inputs.extend(args.inertials.as_deref().map(|v| ("--inertials", v)));
-    crate::io::check_outputs(&inputs, &[("-o", args.output.as_deref())])?;
+    crate::io::check_outputs(&inputs, &[("-o", args.output.as_deref()), ("--plot", args.plot.as_deref())])?;
+    if let Some(p) = &args.plot {
+        dvrk_calib::plot::check_path(p)?;
+    }
     let model = dvrk_kin::load(&args.model, None).with_context(|| format!("--model {}", args.model))?;
     let prior = match &args.inertials {
         Some(p) => {
@@ -86,14 +93,26 @@ pub fn run(args: &IdentifyArgs) -> Result<()> {
         eprintln!("note: {n}");
     }
     let ablation = &result.ablation;
+    let mut staged = Vec::new();
     if let Some(o) = &args.output {
         let recording = args.recording.display().to_string();
         let identified = output::identified_model(&model, id, &options.processing, &rec.to_joint, &inertias, &recording)?;
         let text = output::output_toml(&identified, &recording)?;
         summary["not_expressed_as_effects"] = serde_json::json!(identified.not_expressed);
-        crate::io::write_atomic(o, text.as_bytes()).with_context(|| format!("-o {}", o.display()))?;
+        staged.push(crate::io::stage(o, text.as_bytes()).with_context(|| format!("-o {}", o.display()))?);
         summary["output"] = serde_json::json!(o.display().to_string());
     }
+    if let Some(p) = &args.plot {
+        let (shown, source) = match (&held_out, &args.validate) {
+            (Some(r), Some(v)) => (r, v),
+            _ => (&rec, &args.recording),
+        };
+        let image = dvrk_calib::identify::plot::figure(id, &model, shown, &options, &source.display().to_string())?.encode(p)?;
+        staged.push(crate::io::stage(p, &image).with_context(|| format!("--plot {}", p.display()))?);
+        summary["plot"] = serde_json::json!(p.display().to_string());
+    }
+    // Every output staged, then all committed together.
+    dvrk_kin::atomic::commit_all(staged)?;
     for w in &id.warnings {
         eprintln!("warning: {}: {}", w.name, w.message);
     }
@@ -134,7 +153,7 @@ pub fn run(args: &IdentifyArgs) -> Result<()> {
         let ps: Vec<String> = e.parameters.iter().map(|(k, v)| format!("{k} {:.4}", v.as_f64().unwrap_or(f64::NAN))).collect();
         println!("  {} {}: {}", e.name, e.joint, ps.join(", "));
     }
-    if let Some(o) = &args.output {
+    for o in args.output.iter().chain(&args.plot) {
         println!("wrote {}", o.display());
     }
     Ok(())

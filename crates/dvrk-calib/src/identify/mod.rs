@@ -14,6 +14,7 @@ pub mod ablation;
 pub mod as_published;
 pub mod filter;
 pub mod output;
+pub mod plot;
 pub mod problem;
 pub mod recording;
 pub mod replay;

@@ -1,0 +1,44 @@
+//! `dvrk identify --plot`: per channel, the measured efforts (low-passed as the fit sees them)
+//! against the identified model's prediction over a recording (the validation one when given).
+
+use super::{problem, Identification, IdentifyOptions, TorqueRecording};
+use crate::error::Result;
+use crate::plot::{Figure, Line, Panel, BLUE, ORANGE};
+use dvrk_kin::{JointType, Model};
+
+/// Points per line at most (a 30 s, 200 Hz recording is drawn whole).
+const MAX_POINTS: usize = 3000;
+
+/// The figure of `id`'s prediction of `rec` (named `source` in the title).
+pub fn figure(id: &Identification, model: &Model, rec: &TorqueRecording, options: &IdentifyOptions, source: &str) -> Result<Figure> {
+    let reg = problem::regression(model, rec, &id.layout, &options.processing)?;
+    let predicted = reg.predict(&id.theta)?;
+    let trim = options.processing.trim;
+    let t = &rec.t[trim..trim + reg.len()];
+    let stride = reg.len().div_ceil(MAX_POINTS).max(1);
+    let unit = |name: &str| match model.joints.iter().find(|j| j.name == name).map(|j| j.kind) {
+        Some(JointType::Prismatic) => "N",
+        _ => "N·m",
+    };
+    let panels = rec
+        .channels
+        .iter()
+        .enumerate()
+        .map(|(c, name)| {
+            let series = |v: &[f64]| (0..v.len()).step_by(stride).map(|i| (t[i] - t[0], v[i])).collect::<Vec<_>>();
+            let (num, den) = predicted[c].iter().zip(&reg.tau_filtered[c]).fold((0.0, 0.0), |(n, d), (p, m)| (n + (m - p) * (m - p), d + m * m));
+            Panel {
+                title: format!("{name}: relative error {:.3}", (num / f64::max(den, 1e-300)).sqrt()),
+                x_label: "time (s)".into(),
+                y_label: format!("effort ({})", unit(name)),
+                lines: vec![
+                    Line { points: series(&reg.tau_filtered[c]), color: ORANGE, width: 1, label: "measured (in band)".into() },
+                    Line { points: series(&predicted[c]), color: BLUE, width: 1, label: "identified model".into() },
+                ],
+                ..Default::default()
+            }
+        })
+        .collect();
+    let file = std::path::Path::new(source).file_name().map_or(source.to_string(), |f| f.to_string_lossy().into_owned());
+    Ok(Figure { title: format!("{file}: measured efforts against the identified model's prediction"), panels, columns: 2, panel_size: (560, 220) })
+}
