@@ -57,18 +57,24 @@ def stop(proc):
     return proc.returncode, out, err
 
 
+async def advertised(ws, topics):
+    """The channels advertised on `ws`, once every one of `topics` is (they may come in several
+    messages)."""
+    channels = {}
+    while not set(topics) <= set(channels):
+        msg = json.loads(await asyncio.wait_for(ws.recv(), 10))
+        if msg["op"] == "advertise":
+            channels.update({c["topic"]: c for c in msg["channels"]})
+    return channels
+
+
 async def joint_states(port, topic, count):
     """Subscribe to `topic`; the first `count` messages' (timestamp ns, CDR payload). The client
     leaves with an unsubscribe and a close it waits for 1 s at most (a simulation running at
     hundreds of times real time has queued thousands of messages ahead of the server's reply)."""
     async with websockets.connect(f"ws://127.0.0.1:{port}", subprotocols=["foxglove.sdk.v1"], close_timeout=1) as ws:
         assert ws.subprotocol == "foxglove.sdk.v1"
-        channels = {}
-        # Channels may be advertised in several messages: wait for the ones every run has.
-        while not {topic, "/PSM1/setpoint_js", "/PSM1/measured_cp", "/PSM1/jaw/measured_js", "/tf"} <= set(channels):
-            msg = json.loads(await asyncio.wait_for(ws.recv(), 10))
-            if msg["op"] == "advertise":
-                channels.update({c["topic"]: c for c in msg["channels"]})
+        channels = await advertised(ws, [topic, "/PSM1/setpoint_js", "/PSM1/measured_cp", "/PSM1/jaw/measured_js", "/tf"])
         ch = channels[topic]
         assert (ch["encoding"], ch["schemaName"], ch["schemaEncoding"]) == ("cdr", "sensor_msgs/msg/JointState", "ros2msg")
         await ws.send(json.dumps({"op": "subscribe", "subscriptions": [{"id": 7, "channelId": ch["id"]}]}))
@@ -107,11 +113,7 @@ def test_a_websocket_client_reads_the_live_joint_states():
 async def first_message(port, topic):
     """The advertised channel `topic` and the first message on it."""
     async with websockets.connect(f"ws://127.0.0.1:{port}", subprotocols=["foxglove.sdk.v1"], close_timeout=1) as ws:
-        channels = {}
-        while topic not in channels:
-            msg = json.loads(await asyncio.wait_for(ws.recv(), 10))
-            if msg["op"] == "advertise":
-                channels.update({c["topic"]: c for c in msg["channels"]})
+        channels = await advertised(ws, [topic])
         await ws.send(json.dumps({"op": "subscribe", "subscriptions": [{"id": 1, "channelId": channels[topic]["id"]}]}))
         while True:
             frame = await asyncio.wait_for(ws.recv(), 10)
@@ -119,14 +121,20 @@ async def first_message(port, topic):
                 return channels[topic], frame[13:]
 
 
-def test_a_late_client_gets_the_link_geometry_as_a_scene_update():
+def first_messages_of_a_running_sim(*topics):
+    """Each topic's channel and first message, from a client that connects half a second into
+    a served run (what does not change must reach a late client too)."""
     port = free_port()
     proc = start(port)
     try:
         time.sleep(0.5)
-        channel, data = asyncio.run(first_message(port, "/scene"))
+        return [asyncio.run(first_message(port, t)) for t in topics]
     finally:
         stop(proc)
+
+
+def test_a_late_client_gets_the_link_geometry_as_a_scene_update():
+    [(channel, data)] = first_messages_of_a_running_sim("/scene")
     assert (channel["schemaName"], channel["encoding"], channel["schemaEncoding"]) == ("foxglove.SceneUpdate", "protobuf", "protobuf")
     # Each PSM body's triangles: tens of kB; frame ids are the /tf children.
     assert len(data) > 10_000 and b"PSM1/yaw_link" in data
@@ -135,14 +143,7 @@ def test_a_late_client_gets_the_link_geometry_as_a_scene_update():
 def test_the_robot_description_names_the_tf_frames():
     import xml.etree.ElementTree as ET
 
-    port = free_port()
-    proc = start(port)
-    try:
-        time.sleep(0.5)
-        channel, data = asyncio.run(first_message(port, "/PSM1/robot_description"))
-        _, tf = asyncio.run(first_message(port, "/tf"))
-    finally:
-        stop(proc)
+    (channel, data), (_, tf) = first_messages_of_a_running_sim("/PSM1/robot_description", "/tf")
     assert (channel["schemaName"], channel["encoding"]) == ("std_msgs/msg/String", "cdr")
     urdf = get_typestore(Stores.ROS2_HUMBLE).deserialize_cdr(data, "std_msgs/msg/String").data
     robot = ET.fromstring(urdf)
