@@ -94,7 +94,9 @@ fn pivot(a: &PivotArgs) -> Result<()> {
     crate::io::check_outputs(&[("--recording", &a.recording)], &[("--plot", a.plot.as_deref())])?;
     let method: PivotMethod = a.method.parse().map_err(|e| anyhow!("--method: {e}"))?;
     // All topics are read so that `--topic` may be a short name (`end` for /mocap/end/pose).
+    let spinner = crate::progress::Progress::spinner("reading the recording", crate::progress::Progress::wanted(a.json));
     let rec = read_recording(&a.recording, &McapOptions::default())?;
+    spinner.set_message("fitting the pivot");
     let name = match &a.topic {
         Some(t) => t.clone(),
         None => {
@@ -110,6 +112,7 @@ fn pivot(a: &PivotArgs) -> Result<()> {
     let track = rec.poses(&name, None, a.from_markers).map_err(|e| anyhow!("{}: {e}", a.recording.display()))?;
     let fit = pivot_calibration(&track.poses, &PivotOptions { method, ..Default::default() })
         .map_err(|e| anyhow!("{}: rigid body `{}`: {e}", a.recording.display(), track.name))?;
+    spinner.finish();
     let mut warnings: Vec<String> = rec.warnings.clone();
     if track.occluded > 0 || track.outliers > 0 {
         warnings.push(format!("rigid body `{}`: {} occluded and {} outlier frame(s) dropped before the fit", track.name, track.occluded, track.outliers));
@@ -147,8 +150,11 @@ fn axes(a: &AxesArgs) -> Result<()> {
     let text = dvrk_kin::load::read_text(&a.config)?;
     let cfg = AxesConfig::from_toml(&text, &a.config)?;
     let method = a.method.as_deref().map(str::parse).transpose().map_err(|e| anyhow!("--method: {e}"))?;
+    let spinner = crate::progress::Progress::spinner("reading the recording", crate::progress::Progress::wanted(a.json));
     let rec = read_recording(&a.recording, &McapOptions { topics: Vec::new(), joint_topic: a.joint_topic.clone() })?;
+    spinner.set_message("fitting the axes");
     let report = calibrate_axes(&rec, &cfg, &AxesOptions { method, from_markers: a.from_markers }).map_err(|e| anyhow!("{}: {e}", a.recording.display()))?;
+    spinner.finish();
     let has_psm = PSM_AXES.iter().all(|n| report.axis(n).is_some());
     let dh = if has_psm { Some(psm_dh(&report).map_err(|e| anyhow!("{}: {e}", a.recording.display()))?) } else { None };
     let v = dvrk_calib::report_json::axes_json(&report, dh.as_ref());

@@ -174,7 +174,9 @@ fn mocap(a: &MocapArgs) -> Result<()> {
         ..Default::default()
     };
     let scenario = Scenario::new(&model, &options).map_err(|e| anyhow!("synth mocap: {e}"))?;
+    let spinner = crate::progress::Progress::spinner("simulating the tracker", crate::progress::Progress::wanted(false));
     let rec = scenario.record(a.seed);
+    spinner.finish();
     let ext = a.output.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
     let bytes = match ext.as_str() {
         "mcap" => dvrk_calib::mcap_io::write(&rec, layout, &a.joint_topic)?,
