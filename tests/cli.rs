@@ -400,7 +400,8 @@ fn discrepancy_reads_a_csv_joint_log_as_it_reads_mcap() {
         let plot = dir.path().join(format!("p-{ext}.svg"));
         dvrk_ok(&["discrepancy", "--model", "psm", "--recording", &rec, "--format", format, "--report", report.to_str().unwrap(), "--plot", plot.to_str().unwrap(), "--no-tracking", "--max-rounds", "2"]);
         let svg = std::fs::read_to_string(&plot).unwrap();
-        assert!(svg.contains("fill=\"#e6550d\"") && svg.contains("fill=\"#1f77b4\""));
+        // The residual before (orange) and after (blue) drawn as dots (plotters writes colours in capitals).
+        assert!(svg.contains("fill=\"#E6550D\"") && svg.contains("fill=\"#1F77B4\""));
         reports.push(serde_json::from_slice::<Value>(&std::fs::read(&report).unwrap()).unwrap());
     }
     let (m, c) = (&reports[0], &reports[1]);
