@@ -5,6 +5,15 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::io::IsTerminal;
 use std::time::Duration;
 
+/// stderr when `shown`, else nowhere.
+fn target(shown: bool) -> ProgressDrawTarget {
+    if shown {
+        ProgressDrawTarget::stderr()
+    } else {
+        ProgressDrawTarget::hidden()
+    }
+}
+
 /// A bar over `len` units, or a spinner with a message, hidden where it must not draw.
 pub struct Progress {
     bar: ProgressBar,
@@ -18,7 +27,7 @@ impl Progress {
 
     /// A bar over `len` units (`{pos}/{len}` when `len > 0`); `template` decides the rest.
     pub fn bar(len: u64, template: &str, shown: bool) -> Progress {
-        let bar = ProgressBar::with_draw_target(Some(len), if shown { ProgressDrawTarget::stderr() } else { ProgressDrawTarget::hidden() });
+        let bar = ProgressBar::with_draw_target(Some(len), target(shown));
         if let Ok(style) = ProgressStyle::with_template(template) {
             bar.set_style(style.progress_chars("=> "));
         }
@@ -27,7 +36,7 @@ impl Progress {
 
     /// A spinner with a message: for work whose length is not known ahead.
     pub fn spinner(message: &str, shown: bool) -> Progress {
-        let bar = ProgressBar::with_draw_target(None, if shown { ProgressDrawTarget::stderr() } else { ProgressDrawTarget::hidden() });
+        let bar = ProgressBar::with_draw_target(None, target(shown));
         if let Ok(style) = ProgressStyle::with_template("{spinner} {elapsed:>4} {msg}") {
             bar.set_style(style);
         }

@@ -51,6 +51,29 @@ pub enum Part {
     Mesh,
 }
 
+impl Part {
+    /// Its colour on an arm coloured `arm` (RGB, 0-1): the setup joints grey, a jaw blade steel,
+    /// the tool shaft a darker shade of its arm's colour, links and meshes the arm's.
+    pub fn color(self, arm: [f32; 3]) -> [f32; 3] {
+        match self {
+            Part::Setup => SETUP_COLOR,
+            Part::Jaw => JAW_COLOR,
+            Part::Tool => arm.map(|c| 0.75 * c),
+            Part::Link | Part::Mesh => arm,
+        }
+    }
+}
+
+/// The colour of arm `a` of a scene whose arms have an RCM or not (`has_rcm`): the arms with an
+/// RCM take [`ARM_COLORS`] in scene order, the others the setup joints' grey.
+pub fn arm_color(has_rcm: &[bool], a: usize) -> [f32; 3] {
+    if !has_rcm[a] {
+        return SETUP_COLOR;
+    }
+    let k = has_rcm[..=a].iter().filter(|r| **r).count();
+    ARM_COLORS[(k - 1) % ARM_COLORS.len()]
+}
+
 /// One solid of a body: a parry shape placed in the body frame (the body's first frame).
 #[derive(Clone)]
 pub struct Solid {

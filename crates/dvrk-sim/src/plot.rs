@@ -100,6 +100,12 @@ pub fn cloud(points: &[Vector3<f64>], pivot: &Vector3<f64>, title: &str) -> Resu
     })
 }
 
+/// A figure title's name for the file `source`: its file name (a recording's whole path does
+/// not fit a title line).
+pub fn file_label(source: &str) -> String {
+    Path::new(source).file_name().map_or(source.to_string(), |f| f.to_string_lossy().into_owned())
+}
+
 /// The image formats [`Figure::encode`] writes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ImageFormat {

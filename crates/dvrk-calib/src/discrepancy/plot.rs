@@ -87,8 +87,7 @@ pub fn figure(r: &Residuals, source: &str) -> Result<Figure> {
             });
         }
     }
-    let file = std::path::Path::new(source).file_name().map_or(source.to_string(), |f| f.to_string_lossy().into_owned());
-    let title = format!("{file}: effort residual in the analysis band, before (orange) and after (blue) the named effects; noise floor grey, held out from {:.1} s", r.heldout_from);
+    let title = format!("{}: effort residual in the analysis band, before (orange) and after (blue) the named effects; noise floor grey, held out from {:.1} s", crate::plot::file_label(source), r.heldout_from);
     Ok(Figure { title, panels, columns: COLUMNS, panel_size: PANEL })
 }
 

@@ -263,14 +263,8 @@ pub fn relative_errors(reg: &Regression, theta: &DVector<f64>) -> Result<Vec<f64
     Ok(errors_against(&reg.predict(theta)?, &reg.tau))
 }
 
-/// [`relative_errors`] against the efforts low-passed like the motion (the band the model is
-/// fitted in): what is left once the sensor noise above the band is not counted.
-pub fn relative_errors_in_band(reg: &Regression, theta: &DVector<f64>) -> Result<Vec<f64>> {
-    Ok(errors_against(&reg.predict(theta)?, &reg.tau_filtered))
-}
-
 /// Per channel `|measured - predicted| / |measured|`.
-fn errors_against(predicted: &[Vec<f64>], measured: &[Vec<f64>]) -> Vec<f64> {
+pub(crate) fn errors_against(predicted: &[Vec<f64>], measured: &[Vec<f64>]) -> Vec<f64> {
     predicted
         .iter()
         .zip(measured)
@@ -472,20 +466,26 @@ impl Identification {
         Ok(BodyInertia::from_parameters(&p, name)?)
     }
 
-    /// Relative errors of this identification's parameters on another recording of the same
-    /// arm (validation), built with the same processing.
-    /// Also the same against the efforts in the analysis band ([`relative_errors_in_band`]).
-    pub fn validate(&self, model: &Model, rec: &TorqueRecording, options: &IdentifyOptions) -> Result<(Vec<f64>, Vec<f64>)> {
+    /// The regression of another recording of the same arm, built with the same processing, and
+    /// this identification's prediction of it (`[channel][row]`, N·m, N).
+    pub fn predict(&self, model: &Model, rec: &TorqueRecording, options: &IdentifyOptions) -> Result<(Regression, Vec<Vec<f64>>)> {
         let reg = problem::regression(model, rec, &self.layout, &options.processing)?;
         let predicted = reg.predict(&self.theta)?;
+        Ok((reg, predicted))
+    }
+
+    /// Relative errors of this identification's parameters on another recording of the same
+    /// arm (validation): against the efforts as recorded, and against them low-passed like the
+    /// motion (the band the model is fitted in: the sensor noise above it not counted).
+    pub fn validate(&self, model: &Model, rec: &TorqueRecording, options: &IdentifyOptions) -> Result<(Vec<f64>, Vec<f64>)> {
+        let (reg, predicted) = self.predict(model, rec, options)?;
         Ok((errors_against(&predicted, &reg.tau), errors_against(&predicted, &reg.tau_filtered)))
     }
 
     /// [`Identification::validate`], and the errors with the WPI authors' protocol
     /// ([`as_published`]; `None` for a recording too short for its window).
     pub fn validate_all(&self, model: &Model, rec: &TorqueRecording, options: &IdentifyOptions) -> Result<(Vec<f64>, Vec<f64>, Option<as_published::AsPublished>)> {
-        let reg = problem::regression(model, rec, &self.layout, &options.processing)?;
-        let predicted = reg.predict(&self.theta)?;
+        let (reg, predicted) = self.predict(model, rec, options)?;
         let published = as_published::relative_errors(&predicted, rec, options.processing.trim, &as_published::Protocol::default());
         Ok((errors_against(&predicted, &reg.tau), errors_against(&predicted, &reg.tau_filtered), published))
     }

@@ -1,9 +1,9 @@
 //! `dvrk identify --plot`: per channel, the measured efforts (low-passed as the fit sees them)
 //! against the identified model's prediction over a recording (the validation one when given).
 
-use super::{problem, Identification, IdentifyOptions, TorqueRecording};
+use super::{Identification, IdentifyOptions, TorqueRecording};
 use crate::error::Result;
-use crate::plot::{Figure, Line, Panel, BLUE, ORANGE};
+use crate::plot::{file_label, Figure, Line, Panel, BLUE, ORANGE};
 use dvrk_kin::{JointType, Model};
 
 /// Points per line at most (a 30 s, 200 Hz recording is drawn whole).
@@ -11,8 +11,8 @@ const MAX_POINTS: usize = 3000;
 
 /// The figure of `id`'s prediction of `rec` (named `source` in the title).
 pub fn figure(id: &Identification, model: &Model, rec: &TorqueRecording, options: &IdentifyOptions, source: &str) -> Result<Figure> {
-    let reg = problem::regression(model, rec, &id.layout, &options.processing)?;
-    let predicted = reg.predict(&id.theta)?;
+    let (reg, predicted) = id.predict(model, rec, options)?;
+    let in_band = super::errors_against(&predicted, &reg.tau_filtered);
     let trim = options.processing.trim;
     let t = &rec.t[trim..trim + reg.len()];
     let stride = reg.len().div_ceil(MAX_POINTS).max(1);
@@ -26,9 +26,8 @@ pub fn figure(id: &Identification, model: &Model, rec: &TorqueRecording, options
         .enumerate()
         .map(|(c, name)| {
             let series = |v: &[f64]| (0..v.len()).step_by(stride).map(|i| (t[i] - t[0], v[i])).collect::<Vec<_>>();
-            let (num, den) = predicted[c].iter().zip(&reg.tau_filtered[c]).fold((0.0, 0.0), |(n, d), (p, m)| (n + (m - p) * (m - p), d + m * m));
             Panel {
-                title: format!("{name}: relative error {:.3}", (num / f64::max(den, 1e-300)).sqrt()),
+                title: format!("{name}: relative error {:.3}", in_band[c]),
                 x_label: "time (s)".into(),
                 y_label: format!("effort ({})", unit(name)),
                 lines: vec![
@@ -39,6 +38,5 @@ pub fn figure(id: &Identification, model: &Model, rec: &TorqueRecording, options
             }
         })
         .collect();
-    let file = std::path::Path::new(source).file_name().map_or(source.to_string(), |f| f.to_string_lossy().into_owned());
-    Ok(Figure { title: format!("{file}: measured efforts against the identified model's prediction"), panels, columns: 2, panel_size: (560, 220) })
+    Ok(Figure { title: format!("{}: measured efforts against the identified model's prediction", file_label(source)), panels, columns: 2, panel_size: (560, 220) })
 }

@@ -240,7 +240,7 @@ const BLOCK_ROWS: usize = 512;
 /// ([`Regression::predict`], [`Regression::project`]) computes them again in blocks.
 #[derive(Debug, Clone)]
 pub struct Regression {
-    /// Per channel: `Y^T Y` over every row, once asked for ([`Regression::gram`]).
+    /// Per channel: `Y^T Y` over every row, kept by the first [`Regression::normal_equations`].
     gram: std::sync::OnceLock<Vec<DMatrix<f64>>>,
     /// Per channel: the measured efforts as recorded (N·m, N).
     pub tau: Vec<Vec<f64>>,

@@ -10,8 +10,7 @@ use super::image::{EyeImage, Noise};
 use super::params::{CameraParams, Intrinsics};
 use super::raster::{BodyMesh, Marker, Renderer};
 use crate::error::{Result, SimError};
-use crate::geometry::{ARM_COLORS, JAW_COLOR, SETUP_COLOR};
-use crate::geometry::{tessellate, ArmGeometry, Part};
+use crate::geometry::{tessellate, ArmGeometry, ARM_COLORS, SETUP_COLOR};
 use crate::sim::Sim;
 use dvrk_kin::Pose;
 use nalgebra::{Translation3, Vector3};
@@ -88,13 +87,7 @@ impl StereoCamera {
                 let mut mesh = BodyMesh { arm: a, body: b, vertices: Vec::new(), triangles: Vec::new(), colors: Vec::new() };
                 for s in solids {
                     let (v, t) = tessellate(s);
-                    let color = match s.part {
-                        Part::Setup => SETUP_COLOR,
-                        Part::Jaw => JAW_COLOR,
-                        // The tool shaft a darker shade of its arm's colour.
-                        Part::Tool => base.map(|c| 0.75 * c),
-                        Part::Link | Part::Mesh => base,
-                    };
+                    let color = s.part.color(base);
                     let off = mesh.vertices.len() as u32;
                     mesh.vertices.extend(v);
                     mesh.colors.extend(std::iter::repeat_n(color, t.len()));

@@ -7,7 +7,7 @@
 //! The kinematic URDF of a model (links per frame, mimic joints; `dvrk export urdf`) is the
 //! other description: it answers joint values, this one answers poses.
 
-use crate::geometry::{ArmGeometry, Part, Solid, ARM_COLORS, JAW_COLOR, SETUP_COLOR};
+use crate::geometry::{ArmGeometry, Part, Solid};
 use dvrk_kin::Pose;
 use nalgebra::{Point3, UnitQuaternion, Vector3};
 use std::fmt::Write;
@@ -56,10 +56,9 @@ pub fn arm_urdf(arm: &str, geometry: &ArmGeometry, bodies: &[String], color: [f3
     let _ = writeln!(out, "<?xml version=\"1.0\"?>");
     let _ = writeln!(out, "<!-- dvrk-twin: the bodies of {} as their /tf frames (m, rad); floating joints: place them from /tf. -->", esc(arm));
     let _ = writeln!(out, "<robot name=\"{}\">", esc(arm));
-    let rgba = |c: [f32; 3]| format!("{} {} {} 1", c[0], c[1], c[2]);
-    let tool = color.map(|c| 0.75 * c);
-    for (name, c) in [("link", color), ("setup", SETUP_COLOR), ("tool", tool), ("jaw", JAW_COLOR)] {
-        let _ = writeln!(out, "  <material name=\"{name}\"><color rgba=\"{}\"/></material>", rgba(c));
+    for (name, part) in [("link", Part::Link), ("setup", Part::Setup), ("tool", Part::Tool), ("jaw", Part::Jaw)] {
+        let c = part.color(color);
+        let _ = writeln!(out, "  <material name=\"{name}\"><color rgba=\"{} {} {} 1\"/></material>", c[0], c[1], c[2]);
     }
     let _ = writeln!(out, "  <link name=\"world\"/>");
     for (b, solids) in geometry.bodies.iter().enumerate() {
@@ -81,18 +80,10 @@ pub fn arm_urdf(arm: &str, geometry: &ArmGeometry, bodies: &[String], color: [f3
     out
 }
 
-/// The colour of arm `a` of `arms` (whether each has an RCM), as the camera images give it.
-pub fn arm_color(has_rcm: &[bool], a: usize) -> [f32; 3] {
-    if !has_rcm[a] {
-        return SETUP_COLOR;
-    }
-    let k = has_rcm[..=a].iter().filter(|r| **r).count();
-    ARM_COLORS[(k - 1) % ARM_COLORS.len()]
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::geometry::ARM_COLORS;
 
     #[test]
     fn the_psm_description_has_a_link_per_body_with_its_visuals() {

@@ -3,8 +3,7 @@
 //! (`PSM1/yaw_link`), so a 3D panel draws the arms moving with the transforms, without a URDF.
 //! The colours are the camera images': each arm with an RCM its own, the setup joints grey.
 
-use crate::geometry::{tessellate, ArmGeometry, Part, JAW_COLOR, SETUP_COLOR};
-use crate::sim::Sim;
+use crate::geometry::{tessellate, ArmGeometry};
 use crate::Result;
 use foxglove::messages::{Color, Point3, SceneEntity, SceneUpdate, TriangleListPrimitive};
 use foxglove::{Encode, Schema};
@@ -14,23 +13,16 @@ pub fn schema() -> (Schema, String) {
     (SceneUpdate::get_schema().expect("the SDK's SceneUpdate has a schema"), SceneUpdate::get_message_encoding())
 }
 
-/// Every body of every arm of `sim` as one entity, with `body_names[arm][body]` as its frame.
-pub fn scene_update(sim: &Sim, body_names: &[Vec<String>]) -> Result<Vec<u8>> {
+/// Every body of every arm as one entity: arm `a`'s geometry `geometries[a]`, coloured
+/// `colors[a]` ([`crate::geometry::arm_color`]), with `body_names[a][body]` as its frame.
+pub fn scene_update(geometries: &[ArmGeometry], colors: &[[f32; 3]], body_names: &[Vec<String>]) -> Result<Vec<u8>> {
     let mut entities = Vec::new();
-    let has_rcm: Vec<bool> = sim.arms.iter().map(|a| a.model.rcm.is_some()).collect();
-    for (a, arm) in sim.arms.iter().enumerate() {
-        let geometry = ArmGeometry::new(&arm.model)?;
-        let base = super::description::arm_color(&has_rcm, a);
-        for (b, solids) in geometry.bodies.iter().enumerate() {
+    for ((geometry, &base), names) in geometries.iter().zip(colors).zip(body_names) {
+        for (solids, frame) in geometry.bodies.iter().zip(names) {
             let triangles: Vec<TriangleListPrimitive> = solids
                 .iter()
                 .map(|s| {
-                    let c = match s.part {
-                        Part::Setup => SETUP_COLOR,
-                        Part::Jaw => JAW_COLOR,
-                        Part::Tool => base.map(|c| 0.75 * c),
-                        Part::Link | Part::Mesh => base,
-                    };
+                    let c = s.part.color(base);
                     let (v, t) = tessellate(s);
                     TriangleListPrimitive {
                         pose: None,
@@ -45,8 +37,7 @@ pub fn scene_update(sim: &Sim, body_names: &[Vec<String>]) -> Result<Vec<u8>> {
             if triangles.is_empty() {
                 continue;
             }
-            let frame = body_names[a][b].clone();
-            entities.push(SceneEntity { frame_id: frame.clone(), id: frame, frame_locked: true, triangles, ..Default::default() });
+            entities.push(SceneEntity { frame_id: frame.clone(), id: frame.clone(), frame_locked: true, triangles, ..Default::default() });
         }
     }
     let mut buf = Vec::new();
@@ -63,11 +54,11 @@ mod tests {
     #[test]
     fn every_body_with_geometry_is_an_entity_on_its_tf_frame() {
         let scene = crate::Scene::load("psm").unwrap();
-        let sim = Sim::new(&scene, &crate::SimOptions::default()).unwrap();
+        let sim = crate::Sim::new(&scene, &crate::SimOptions::default()).unwrap();
         let names: Vec<Vec<String>> = sim.arms.iter().map(|a| a.model.bodies.iter().map(|b| format!("{}/{}", a.name, b.name)).collect()).collect();
-        let bytes = scene_update(&sim, &names).unwrap();
-        let update = SceneUpdate::decode(bytes.as_slice()).unwrap();
         let geometry = ArmGeometry::new(&sim.arms[0].model).unwrap();
+        let bytes = scene_update(std::slice::from_ref(&geometry), &[ARM_COLORS[0]], &names).unwrap();
+        let update = SceneUpdate::decode(bytes.as_slice()).unwrap();
         let drawn = geometry.bodies.iter().filter(|s| !s.is_empty()).count();
         assert_eq!(update.entities.len(), drawn);
         for e in &update.entities {

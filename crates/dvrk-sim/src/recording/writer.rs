@@ -28,6 +28,7 @@
 //! its destination and renamed over it by [`Recorder::finish`], so a reader never sees half a file.
 
 use crate::error::{Result, SimError};
+use crate::geometry::{arm_color, ArmGeometry};
 use crate::live::Live;
 use foxglove::Schema;
 use crate::camera::{Eye, StereoCamera};
@@ -109,6 +110,13 @@ impl Sinks {
         self.file.is_some() || self.live.as_ref().is_some_and(|l| l.subscribed(self.channels[channel as usize].1))
     }
 
+    /// Send `data` to the live view only (nothing without one, or without a subscriber).
+    fn log_live(&self, channel: u16, ns: u64, data: &[u8]) {
+        if let Some(l) = self.live.as_ref() {
+            l.log(self.channels[channel as usize].1, ns, data);
+        }
+    }
+
     fn add_schema(&mut self, name: &str, encoding: &str, data: &[u8]) -> std::result::Result<u16, mcap::McapError> {
         let id = match self.file.as_mut() {
             Some(w) => w.add_schema(name, encoding, data)?,
@@ -163,6 +171,11 @@ struct CameraChannels {
     /// Encoding buffers reused between frames.
     png: Vec<u8>,
     scratch: Vec<u8>,
+}
+
+/// A message stamp: simulated time `t` (s) in ns.
+fn stamp_ns(t: f64) -> u64 {
+    (t.max(0.0) * 1e9).round() as u64
 }
 
 fn mcap_error(path: &Path, e: mcap::McapError) -> SimError {
@@ -253,14 +266,16 @@ impl Recorder {
         }
         // What does not change: the link geometry for a 3D panel, a description per arm for the
         // panels that want a URDF.
+        let geometries = sim.arms.iter().map(|a| ArmGeometry::new(&a.model)).collect::<Result<Vec<_>>>()?;
+        let has_rcm: Vec<bool> = sim.arms.iter().map(|a| a.model.rcm.is_some()).collect();
+        let colors: Vec<[f32; 3]> = (0..sim.arms.len()).map(|a| arm_color(&has_rcm, a)).collect();
         let (scene_schema, scene_encoding) = scene_msgs::schema();
         let scene_schema = w.add_schema(&scene_schema.name, &scene_schema.encoding, &scene_schema.data).map_err(io)?;
-        let mut statics = vec![(w.add_channel(scene_schema, "/scene", &scene_encoding, &meta).map_err(io)?, scene_msgs::scene_update(sim, &body_names)?)];
+        let mut statics = vec![(w.add_channel(scene_schema, "/scene", &scene_encoding, &meta).map_err(io)?, scene_msgs::scene_update(&geometries, &colors, &body_names)?)];
         let (n, t) = ros_msgs::string_schema();
         let string_schema = w.add_schema(n, "ros2msg", t.as_bytes()).map_err(io)?;
-        let has_rcm: Vec<bool> = sim.arms.iter().map(|a| a.model.rcm.is_some()).collect();
         for (a, arm) in sim.arms.iter().enumerate() {
-            let urdf = description::arm_urdf(&arm.name, &crate::geometry::ArmGeometry::new(&arm.model)?, &body_names[a], description::arm_color(&has_rcm, a));
+            let urdf = description::arm_urdf(&arm.name, &geometries[a], &body_names[a], colors[a]);
             let topic = format!("/{}/robot_description", arm.name.replace('-', "/"));
             statics.push((w.add_channel(string_schema, &topic, "cdr", &meta).map_err(io)?, ros_msgs::encode_string(&urdf)));
         }
@@ -302,11 +317,9 @@ impl Recorder {
     fn write(&mut self, channel: u16, t: f64, data: &[u8]) -> Result<()> {
         let seq = self.sequence.entry(channel).or_default();
         *seq += 1;
-        let ns = (t.max(0.0) * 1e9).round() as u64;
-        let (file_channel, live_channel) = self.sinks.channels[channel as usize];
-        if let Some(l) = self.sinks.live.as_ref() {
-            l.log(live_channel, ns, data);
-        }
+        let ns = stamp_ns(t);
+        self.sinks.log_live(channel, ns, data);
+        let file_channel = self.sinks.channels[channel as usize].0;
         let header = mcap::records::MessageHeader { channel_id: file_channel, sequence: *seq, log_time: ns, publish_time: ns };
         let Some(w) = self.sinks.file.as_mut() else { return Ok(()) };
         w.write_to_known_channel(&header, data).map_err(|e| mcap_error(&self.tmp, e))
@@ -358,21 +371,20 @@ impl Recorder {
             self.statics = statics;
             self.statics_sent = Some(std::time::Instant::now());
         } else if self.statics_sent.is_none_or(|s| s.elapsed().as_secs_f64() >= 1.0) {
-            if let Some(l) = self.sinks.live.as_ref() {
-                for (channel, bytes) in self.statics.iter().filter(|(c, _)| self.sinks.wanted(*c)) {
-                    l.log(self.sinks.channels[*channel as usize].1, (t.max(0.0) * 1e9).round() as u64, bytes);
-                }
+            for (channel, bytes) in &self.statics {
+                self.sinks.log_live(*channel, stamp_ns(t), bytes);
             }
             self.statics_sent = Some(std::time::Instant::now());
         }
-        let arms_tf = if self.sinks.wanted(self.tf) { self.arms.len() } else { 0 };
-        for a in 0..arms_tf {
-            for b in 0..self.body_names[a].len() {
-                let p = sim.body_pose(a, b);
-                let q = UnitQuaternion::from_rotation_matrix(&p.rotation);
-                let o = p * Point3::origin();
-                let bytes = frame_transform::encode(t, "world", &self.body_names[a][b], [o.x, o.y, o.z], [q.i, q.j, q.k, q.w]);
-                self.write(self.tf, t, &bytes)?;
+        if self.sinks.wanted(self.tf) {
+            for a in 0..self.arms.len() {
+                for b in 0..self.body_names[a].len() {
+                    let p = sim.body_pose(a, b);
+                    let q = UnitQuaternion::from_rotation_matrix(&p.rotation);
+                    let o = p * Point3::origin();
+                    let bytes = frame_transform::encode(t, "world", &self.body_names[a][b], [o.x, o.y, o.z], [q.i, q.j, q.k, q.w]);
+                    self.write(self.tf, t, &bytes)?;
+                }
             }
         }
         self.samples += 1;
