@@ -9,7 +9,7 @@ venv="${DVRK_VENV:-.venv}"
 [ -x "$venv/bin/python" ] || python3 -m venv "$venv"
 venv="$(cd "$venv" && pwd)"
 py="$venv/bin/python"
-"$py" -m pip install --quiet --disable-pip-version-check "maturin>=1.5,<2" "pytest>=7" "numpy>=1.21" mcap mcap-ros2-support rosbags websockets
+"$py" -m pip install --quiet --disable-pip-version-check "maturin>=1.5,<2" "pytest>=7" "numpy>=1.21" mcap mcap-ros2-support mcap-protobuf-support foxglove-schemas-protobuf rosbags websockets
 # MuJoCo for the second-engine cross-check (tests/python/test_mujoco.py); optional: where it cannot
 # be installed the test says so and skips.
 "$py" -m pip install --quiet --disable-pip-version-check mujoco \

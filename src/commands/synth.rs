@@ -92,7 +92,8 @@ pub struct MocapArgs {
     /// Seed of the noise, occlusions and outliers.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// MCAP layout: pose-stamped (/mocap/NAME/pose), tf (/tf) or foxglove-json.
+    /// MCAP layout: pose-stamped (/mocap/NAME/pose), tf (/tf), foxglove (foxglove.PoseInFrame in
+    /// protobuf on /mocap/NAME/pose) or foxglove-json (the same in JSON).
     #[arg(long, default_value = "pose-stamped")]
     pub layout: String,
     /// Topic of the joint states (sensor_msgs/msg/JointState).
@@ -160,7 +161,8 @@ fn mocap(a: &MocapArgs) -> Result<()> {
         "pose-stamped" => McapLayout::PoseStamped,
         "tf" => McapLayout::Tf,
         "foxglove-json" => McapLayout::FoxgloveJson,
-        other => bail!("--layout: `{other}` is not a layout; valid: pose-stamped, tf, foxglove-json"),
+        "foxglove" => McapLayout::Foxglove,
+        other => bail!("--layout: `{other}` is not a layout; valid: pose-stamped, tf, foxglove, foxglove-json"),
     };
     let options = SynthOptions {
         motion,

@@ -121,6 +121,17 @@ async def first_message(port, topic):
                 return channels[topic], frame[13:]
 
 
+def protobuf_message(channel, data):
+    """`data` decoded with the schema the channel advertised: for protobuf, a base64
+    FileDescriptorSet, as the protocol's specification says (read with Google's `protobuf`)."""
+    import base64
+
+    from google.protobuf import descriptor_pb2, message_factory
+
+    files = descriptor_pb2.FileDescriptorSet.FromString(base64.b64decode(channel["schema"])).file
+    return message_factory.GetMessages(files)[channel["schemaName"]].FromString(data)
+
+
 def first_messages_of_a_running_sim(*topics):
     """Each topic's channel and first message, from a client that connects half a second into
     a served run (what does not change must reach a late client too)."""
@@ -137,13 +148,16 @@ def test_a_late_client_gets_the_link_geometry_as_a_scene_update():
     [(channel, data)] = first_messages_of_a_running_sim("/scene")
     assert (channel["schemaName"], channel["encoding"], channel["schemaEncoding"]) == ("foxglove.SceneUpdate", "protobuf", "protobuf")
     # Each PSM body's triangles: tens of kB; frame ids are the /tf children.
-    assert len(data) > 10_000 and b"PSM1/yaw_link" in data
+    assert len(data) > 10_000
+    scene = protobuf_message(channel, data)
+    frames = {e.frame_id for e in scene.entities}
+    assert "PSM1/yaw_link" in frames and all(e.frame_locked and e.triangles for e in scene.entities), frames
 
 
 def test_the_robot_description_names_the_tf_frames():
     import xml.etree.ElementTree as ET
 
-    (channel, data), (_, tf) = first_messages_of_a_running_sim("/PSM1/robot_description", "/tf")
+    (channel, data), (tf_channel, tf) = first_messages_of_a_running_sim("/PSM1/robot_description", "/tf")
     assert (channel["schemaName"], channel["encoding"]) == ("std_msgs/msg/String", "cdr")
     urdf = get_typestore(Stores.ROS2_HUMBLE).deserialize_cdr(data, "std_msgs/msg/String").data
     robot = ET.fromstring(urdf)
@@ -152,8 +166,9 @@ def test_the_robot_description_names_the_tf_frames():
     assert "world" in links and all(l.startswith("PSM1/") for l in links - {"world"}) and len(links) > 10, links
     assert all(j.get("type") == "floating" and j.find("parent").get("link") == "world" for j in robot.findall("joint"))
     assert sum(len(l.findall("visual")) for l in robot.findall("link")) > 10
-    child = json.loads(tf)["child_frame_id"]
-    assert child in links, (child, sorted(links))
+    assert tf_channel["schemaName"] == "foxglove.FrameTransforms"
+    children = {t.child_frame_id for t in protobuf_message(tf_channel, tf).transforms}
+    assert children == links - {"world"}, (sorted(children), sorted(links))
 
 
 def test_a_stopped_live_run_leaves_its_recording_valid(tmp_path):

@@ -1,5 +1,5 @@
 //! MCAP recordings and ROS 1 bags: PoseStamped, TFMessage and JointState (ROS 2 `cdr` or ROS 1
-//! serialization), and Foxglove PoseInFrame / FrameTransform(s) in JSON; read into a
+//! serialization), and Foxglove PoseInFrame / FrameTransform(s) in JSON or protobuf; read into a
 //! [`Recording`] (through [`crate::message_file`]), and written by the synthetic tracker.
 
 use crate::error::{CalibError, Result};
@@ -7,6 +7,7 @@ use crate::foxglove::{self, FoxglovePose};
 use crate::message_file::{self, Encoding, Message};
 use crate::recording::{BodyTrack, JointTrack, Recording};
 use crate::ros_msgs::{self, Header, JointState, PoseStamped, TransformStamped};
+use dvrk_sim::recording::mcap_out::{ros2_schema, sdk_schema, McapOut};
 use dvrk_kin::Pose;
 use nalgebra::{Translation3, UnitQuaternion};
 use std::collections::BTreeMap;
@@ -30,6 +31,10 @@ enum Kind {
     JointState,
     FoxPose,
     FoxTransforms,
+    /// The same three in protobuf: PoseInFrame, FrameTransform, FrameTransforms.
+    ProtoPose,
+    ProtoTransform,
+    ProtoTransforms,
 }
 
 fn kind(schema: &str, encoding: Encoding) -> Option<Kind> {
@@ -40,6 +45,9 @@ fn kind(schema: &str, encoding: Encoding) -> Option<Kind> {
         ("sensor_msgs/msg/JointState", Cdr | Ros1) => Some(Kind::JointState),
         ("foxglove.PoseInFrame", Json) => Some(Kind::FoxPose),
         ("foxglove.FrameTransform" | "foxglove.FrameTransforms", Json) => Some(Kind::FoxTransforms),
+        ("foxglove.PoseInFrame", Protobuf) => Some(Kind::ProtoPose),
+        ("foxglove.FrameTransform", Protobuf) => Some(Kind::ProtoTransform),
+        ("foxglove.FrameTransforms", Protobuf) => Some(Kind::ProtoTransforms),
         _ => None,
     }
 }
@@ -49,6 +57,7 @@ fn encoding_name(e: Encoding) -> &'static str {
         Encoding::Cdr => "cdr",
         Encoding::Ros1 => "ros1",
         Encoding::Json => "json",
+        Encoding::Protobuf => "protobuf",
         Encoding::Other => "other",
     }
 }
@@ -142,24 +151,25 @@ impl<'a> Reader<'a> {
                 jt.t.push(stamp(js.header.time()));
                 jt.q.push(js.position);
             }
-            _ if !wanted(ch_topic) && k != Kind::Tf && k != Kind::FoxTransforms => {}
+            _ if !wanted(ch_topic) && !matches!(k, Kind::Tf | Kind::FoxTransforms | Kind::ProtoTransform | Kind::ProtoTransforms) => {}
             Kind::PoseStamped => {
                 let p = if ros1 { PoseStamped::decode_ros1(m.data) } else { PoseStamped::decode(m.data) }.map_err(|e| CalibError::file(path, what(e)))?;
                 add(ch_topic, &p.header.frame_id, stamp(p.header.time()), pose(p.position, p.orientation))?;
             }
-            Kind::FoxPose => {
-                let p = foxglove::decode_pose_in_frame(m.data).map_err(|e| CalibError::file(path, what(e)))?;
+            Kind::FoxPose | Kind::ProtoPose => {
+                let p = if k == Kind::FoxPose { foxglove::decode_pose_in_frame(m.data) } else { foxglove::decode_pose_in_frame_protobuf(m.data) };
+                let p = p.map_err(|e| CalibError::file(path, what(e)))?;
                 add(ch_topic, &p.frame_id, stamp(p.time), pose(p.position, p.orientation))?;
             }
-            Kind::Tf | Kind::FoxTransforms => {
-                let list: Vec<FoxglovePose> = if k == Kind::Tf {
-                    (if ros1 { ros_msgs::decode_tf_ros1(m.data) } else { ros_msgs::decode_tf(m.data) })
+            Kind::Tf | Kind::FoxTransforms | Kind::ProtoTransform | Kind::ProtoTransforms => {
+                let list: Vec<FoxglovePose> = match k {
+                    Kind::Tf => (if ros1 { ros_msgs::decode_tf_ros1(m.data) } else { ros_msgs::decode_tf(m.data) })
                         .map_err(|e| CalibError::file(path, what(e)))?
                         .into_iter()
                         .map(|t| FoxglovePose { time: t.header.time(), frame_id: t.header.frame_id, child_frame_id: t.child_frame_id, position: t.translation, orientation: t.rotation })
-                        .collect()
-                } else {
-                    foxglove::decode_frame_transforms(m.data).map_err(|e| CalibError::file(path, what(e)))?
+                        .collect(),
+                    Kind::FoxTransforms => foxglove::decode_frame_transforms(m.data).map_err(|e| CalibError::file(path, what(e)))?,
+                    _ => foxglove::decode_frame_transforms_protobuf(m.data, k == Kind::ProtoTransforms).map_err(|e| CalibError::file(path, what(e)))?,
                 };
                 for t in list {
                     // A TF child frame is a body; `--topic` may name it or the topic.
@@ -185,7 +195,7 @@ impl<'a> Reader<'a> {
             }
             if topics.get(t).is_some_and(|(s, e)| kind(s, *e).is_none()) {
                 let (s, e) = &topics[t];
-                return Err(CalibError::file(path, format!("topic `{t}` carries {s} ({}); supported: geometry_msgs/msg/PoseStamped, tf2_msgs/msg/TFMessage, sensor_msgs/msg/JointState (cdr or ros1), foxglove.PoseInFrame, foxglove.FrameTransform(s) (json)", encoding_name(*e))));
+                return Err(CalibError::file(path, format!("topic `{t}` carries {s} ({}); supported: geometry_msgs/msg/PoseStamped, tf2_msgs/msg/TFMessage, sensor_msgs/msg/JointState (cdr or ros1), foxglove.PoseInFrame, foxglove.FrameTransform(s) (json or protobuf)", encoding_name(*e))));
             }
         }
         if let Some(jt) = &options.joint_topic {
@@ -225,9 +235,11 @@ pub enum McapLayout {
     Tf,
     /// foxglove.PoseInFrame in JSON on `/mocap/NAME/pose`.
     FoxgloveJson,
+    /// foxglove.PoseInFrame in protobuf (the Foxglove SDK's schema) on `/mocap/NAME/pose`.
+    Foxglove,
 }
 
-/// The topic of a rigid body in [`McapLayout::PoseStamped`] and [`McapLayout::FoxgloveJson`].
+/// The topic of a rigid body in [`McapLayout::PoseStamped`] and the Foxglove layouts.
 pub fn pose_topic(body: &str) -> String {
     format!("/mocap/{body}/pose")
 }
@@ -235,30 +247,30 @@ pub fn pose_topic(body: &str) -> String {
 /// Write a recording (poses and joint states; raw markers have no message here) as MCAP.
 /// `joint_topic` names the JointState topic (`/PSM1/measured_js`).
 pub fn write(rec: &Recording, layout: McapLayout, joint_topic: &str) -> Result<Vec<u8>> {
-    let io = |e: mcap::McapError| CalibError::data("MCAP writer", e.to_string());
-    let mut w = mcap::Writer::with_options(Cursor::new(Vec::new()), mcap::WriteOptions::new().profile("ros2")).map_err(io)?;
-    let meta = BTreeMap::new();
+    let io = |e: std::io::Error| CalibError::data("MCAP writer", e.to_string());
+    let mut w = McapOut::new(Cursor::new(Vec::new())).map_err(io)?;
     // Messages are written in time order across topics, as a recorder would.
-    let mut events: Vec<(f64, u16, Vec<u8>)> = Vec::new();
+    let mut events: Vec<(f64, usize, Vec<u8>)> = Vec::new();
     match layout {
-        McapLayout::PoseStamped | McapLayout::FoxgloveJson => {
-            let (schema, enc, data) = match layout {
+        McapLayout::PoseStamped | McapLayout::FoxgloveJson | McapLayout::Foxglove => {
+            let (schema, enc) = match layout {
                 McapLayout::PoseStamped => {
                     let (n, t) = ros_msgs::pose_stamped_schema();
-                    (n, "cdr", t.into_bytes())
+                    (ros2_schema(n, &t), "cdr".to_string())
                 }
-                _ => ("foxglove.PoseInFrame", "json", foxglove::POSE_IN_FRAME_SCHEMA.as_bytes().to_vec()),
+                McapLayout::Foxglove => sdk_schema::<::foxglove::messages::PoseInFrame>(),
+                _ => (::foxglove::Schema::new("foxglove.PoseInFrame", "jsonschema", foxglove::POSE_IN_FRAME_SCHEMA.as_bytes().to_vec()), "json".to_string()),
             };
-            let sid = w.add_schema(schema, if enc == "cdr" { "ros2msg" } else { "jsonschema" }, &data).map_err(io)?;
             for b in &rec.bodies {
-                let ch = w.add_channel(sid, &pose_topic(&b.name), enc, &meta).map_err(io)?;
+                let ch = w.add_channel(&pose_topic(&b.name), schema.clone(), &enc).map_err(io)?;
                 let frame = if b.frame_id.is_empty() { "tracker" } else { &b.frame_id };
                 for (t, p) in b.t.iter().zip(&b.poses) {
                     let ps = PoseStamped::from_pose(*t, frame, p);
-                    let bytes = if layout == McapLayout::PoseStamped {
-                        ps.encode()
-                    } else {
-                        foxglove::encode_pose_in_frame(&FoxglovePose { time: *t, frame_id: frame.into(), child_frame_id: String::new(), position: ps.position, orientation: ps.orientation })
+                    let fp = || FoxglovePose { time: *t, frame_id: frame.into(), child_frame_id: String::new(), position: ps.position, orientation: ps.orientation };
+                    let bytes = match layout {
+                        McapLayout::PoseStamped => ps.encode(),
+                        McapLayout::Foxglove => foxglove::encode_pose_in_frame_protobuf(&fp()),
+                        _ => foxglove::encode_pose_in_frame(&fp()),
                     };
                     events.push((*t, ch, bytes));
                 }
@@ -266,8 +278,7 @@ pub fn write(rec: &Recording, layout: McapLayout, joint_topic: &str) -> Result<V
         }
         McapLayout::Tf => {
             let (n, t) = ros_msgs::tf_schema();
-            let sid = w.add_schema(n, "ros2msg", t.as_bytes()).map_err(io)?;
-            let ch = w.add_channel(sid, "/tf", "cdr", &meta).map_err(io)?;
+            let ch = w.add_channel("/tf", ros2_schema(n, &t), "cdr").map_err(io)?;
             let mut by_time: BTreeMap<u64, Vec<TransformStamped>> = BTreeMap::new();
             for b in &rec.bodies {
                 let frame = if b.frame_id.is_empty() { "tracker" } else { &b.frame_id };
@@ -289,21 +300,15 @@ pub fn write(rec: &Recording, layout: McapLayout, joint_topic: &str) -> Result<V
     }
     if let Some(j) = &rec.joints {
         let (n, t) = ros_msgs::joint_state_schema();
-        let sid = w.add_schema(n, "ros2msg", t.as_bytes()).map_err(io)?;
-        let ch = w.add_channel(sid, joint_topic, "cdr", &meta).map_err(io)?;
+        let ch = w.add_channel(joint_topic, ros2_schema(n, &t), "cdr").map_err(io)?;
         for (t, q) in j.t.iter().zip(&j.q) {
             let js = JointState { header: Header::at(*t, ""), name: j.names.clone(), position: q.clone(), ..Default::default() };
             events.push((*t, ch, js.encode()));
         }
     }
     events.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let mut seq: BTreeMap<u16, u32> = BTreeMap::new();
     for (t, ch, data) in events {
-        let s = seq.entry(ch).or_default();
-        *s += 1;
-        let ns = (t.max(0.0) * 1e9).round() as u64;
-        w.write_to_known_channel(&mcap::records::MessageHeader { channel_id: ch, sequence: *s, log_time: ns, publish_time: ns }, &data).map_err(io)?;
+        w.log(ch, (t.max(0.0) * 1e9).round() as u64, &data);
     }
-    w.finish().map_err(io)?;
-    Ok(w.into_inner().into_inner())
+    Ok(w.finish().map_err(io)?.into_inner())
 }

@@ -34,6 +34,8 @@ pub enum Encoding {
     Ros1,
     /// JSON (Foxglove schemas).
     Json,
+    /// Protobuf (Foxglove's SDK schemas).
+    Protobuf,
     /// Anything else (skipped by every reader).
     Other,
 }
@@ -99,6 +101,7 @@ fn encoding(name: &str) -> Encoding {
         "cdr" => Encoding::Cdr,
         "ros1" => Encoding::Ros1,
         "json" => Encoding::Json,
+        "protobuf" => Encoding::Protobuf,
         _ => Encoding::Other,
     }
 }

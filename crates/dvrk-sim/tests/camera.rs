@@ -197,7 +197,10 @@ fn a_recorded_camera_image_decodes_to_the_frame_file_and_the_calibration_matches
                 images.push((m.log_time, dvrk_sim::recording::camera_msgs::decode_compressed_image(&m.data).unwrap()));
             }
             "/camera/left/depth" => depth.push(dvrk_sim::recording::camera_msgs::decode_compressed_image(&m.data).unwrap()),
-            "/camera/right/calibration" => calibration = Some(serde_json::from_slice::<serde_json::Value>(&m.data).unwrap()),
+            "/camera/right/calibration" => {
+                assert_eq!(m.channel.schema.as_ref().unwrap().encoding, "protobuf");
+                calibration = Some(<foxglove::messages::CameraCalibration as foxglove::Decode>::decode(&m.data[..]).unwrap());
+            }
             _ => {}
         }
     }
@@ -222,8 +225,9 @@ fn a_recorded_camera_image_decodes_to_the_frame_file_and_the_calibration_matches
     assert_eq!(depth_mm(0.1234), 123);
     let c = calibration.unwrap();
     let fx = 400.0 / (1.396f64 / 2.0).tan();
-    assert!((c["K"][0].as_f64().unwrap() - fx).abs() < 1e-9);
-    assert!((c["P"][3].as_f64().unwrap() + fx * 0.02).abs() < 1e-9, "right eye P[3] = -fx B");
+    assert!((c.k[0] - fx).abs() < 1e-9);
+    assert!((c.p[3] + fx * 0.02).abs() < 1e-9, "right eye P[3] = -fx B");
+    assert_eq!((c.width, c.height, c.frame_id.as_str()), (800, 800, "camera_right"));
     for name in ["left_000002.png", "right_000002.png", "left_depth_000002.png", "right_depth_000002.png"] {
         assert!(frames.join(name).is_file(), "{name}");
     }

@@ -83,7 +83,15 @@ fn psm_recording_holds_the_simulated_values() {
     // What does not change, once: the link geometry and the robot description.
     assert_eq!((m["/scene"].len(), m["/PSM1/robot_description"].len()), (1, 1));
     let model = &sim.arms[0].model;
-    assert_eq!(m["/tf"].len(), 100 * model.bodies.len());
+    // One foxglove.FrameTransforms per sample, every body in it, at the sample's time.
+    assert_eq!(m["/tf"].len(), 100);
+    for (k, (ns, bytes)) in m["/tf"].iter().enumerate() {
+        let tf = <foxglove::messages::FrameTransforms as foxglove::Decode>::decode(bytes.as_slice()).unwrap();
+        assert_eq!(*ns, (e.t[k] * 1e9).round() as u64);
+        let children: Vec<String> = tf.transforms.iter().map(|t| t.child_frame_id.clone()).collect();
+        assert_eq!(children, model.bodies.iter().map(|b| format!("PSM1/{}", b.name)).collect::<Vec<_>>());
+        assert!(tf.transforms.iter().all(|t| t.parent_frame_id == "world" && t.timestamp.unwrap().total_nanos() == *ns));
+    }
     let mut unplaced = model.clone();
     unplaced.base = dvrk_kin::Pose::identity();
     let serial = dvrk_kin::compose::serial_base_transform(&unplaced).unwrap();
@@ -138,15 +146,17 @@ const PY: &str = r#"
 import json, sys
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
-out = {"js": [], "jaw": [], "cp": [], "tf": 0, "frame_id": None, "topics": [], "names": None, "jaw_names": None, "state": None, "description": None}
+from mcap_protobuf.decoder import DecoderFactory as ProtobufDecoders
+out = {"js": [], "jaw": [], "cp": [], "tf": 0, "tf_messages": 0, "frame_id": None, "topics": [], "names": None, "jaw_names": None, "state": None, "description": None}
 with open(sys.argv[1], "rb") as f:
-    reader = make_reader(f, decoder_factories=[DecoderFactory()])
+    reader = make_reader(f, decoder_factories=[ProtobufDecoders()])
     out["topics"] = sorted((c.topic, reader.get_summary().schemas[c.schema_id].name) for c in reader.get_summary().channels.values())
-    for schema, channel, message in reader.iter_messages():
-        if channel.topic == "/tf":
-            d = json.loads(message.data)
+    for schema, channel, message, tf in reader.iter_decoded_messages(topics=["/tf"]):
+        out["tf_messages"] += 1
+        for t in tf.transforms:
             out["tf"] += 1
-            assert d["parent_frame_id"] == "world"
+            assert t.parent_frame_id == "world" and t.child_frame_id.startswith("PSM1/")
+            assert t.timestamp.seconds * 10**9 + t.timestamp.nanos == message.log_time
     f.seek(0)
     reader = make_reader(f, decoder_factories=[DecoderFactory()])
     for schema, channel, message, msg in reader.iter_decoded_messages(topics=["/PSM1/measured_js", "/PSM1/jaw/measured_js", "/PSM1/measured_cp", "/PSM1/operating_state", "/PSM1/robot_description"]):
@@ -170,9 +180,9 @@ print(json.dumps(out))
 /// Python's mcap + mcap-ros2-support decode the recording to the same numbers.
 #[test]
 fn python_mcap_ros2_reads_the_recording() {
-    let ok = std::process::Command::new("python3").args(["-c", "import mcap_ros2, mcap"]).output().map(|o| o.status.success()).unwrap_or(false);
+    let ok = std::process::Command::new("python3").args(["-c", "import mcap_ros2, mcap_protobuf, mcap"]).output().map(|o| o.status.success()).unwrap_or(false);
     if !ok {
-        println!("SKIPPED: python3 cannot import mcap_ros2 (scripts/test.sh puts a venv with mcap and mcap-ros2-support on PATH)");
+        println!("SKIPPED: python3 cannot import mcap_ros2 or mcap_protobuf (scripts/test.sh puts a venv with mcap, mcap-ros2-support and mcap-protobuf-support on PATH)");
         return;
     }
     let dir = tempfile::tempdir().unwrap();
@@ -182,7 +192,7 @@ fn python_mcap_ros2_reads_the_recording() {
     assert!(out.status.success(), "python: {}", String::from_utf8_lossy(&out.stderr));
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     let nb = sim.arms[0].model.bodies.len();
-    assert_eq!(v["tf"].as_u64().unwrap() as usize, 100 * nb);
+    assert_eq!((v["tf_messages"].as_u64().unwrap(), v["tf"].as_u64().unwrap() as usize), (100, 100 * nb));
     // Topic names, types, joint names and frames as the dVRK publishes them.
     assert_eq!(v["frame_id"], "PSM1_base");
     assert_eq!(v["names"], serde_json::json!(DVRK_PSM_JOINTS));
@@ -197,7 +207,7 @@ fn python_mcap_ros2_reads_the_recording() {
         ["/PSM1/robot_description", "std_msgs/msg/String"],
         ["/PSM1/setpoint_js", js_type],
         ["/scene", "foxglove.SceneUpdate"],
-        ["/tf", "foxglove.FrameTransform"]
+        ["/tf", "foxglove.FrameTransforms"]
     ]);
     // mcap-ros2-support decodes the description: a URDF.
     assert!(v["description"].as_str().unwrap().contains("<robot name=\"PSM1\">"), "{}", v["description"]);

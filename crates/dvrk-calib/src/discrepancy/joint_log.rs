@@ -4,7 +4,7 @@
 
 use crate::error::{CalibError, Result};
 use crate::ros_msgs::{self, Header, JointState};
-use std::collections::BTreeMap;
+use dvrk_sim::recording::mcap_out::{ros2_schema, McapOut};
 use std::io::Cursor;
 use std::path::Path;
 
@@ -79,41 +79,34 @@ pub fn read_wpi_csv(path: &Path, model: &dvrk_kin::Model) -> Result<JointLog> {
 /// effort), sensor_msgs/msg/JointState in CDR; and the tracker's poses, if any, as
 /// geometry_msgs/msg/PoseStamped on their topic.
 pub fn write_mcap(log: &JointLog, arm: &str) -> Result<Vec<u8>> {
-    let io = |e: mcap::McapError| CalibError::data("MCAP writer", e.to_string());
-    let mut w = mcap::Writer::with_options(Cursor::new(Vec::new()), mcap::WriteOptions::new().profile("ros2")).map_err(io)?;
-    let meta = BTreeMap::new();
+    let io = |e: std::io::Error| CalibError::data("MCAP writer", e.to_string());
+    let mut w = McapOut::new(Cursor::new(Vec::new())).map_err(io)?;
     let (n, s) = ros_msgs::joint_state_schema();
-    let sid = w.add_schema(n, "ros2msg", s.as_bytes()).map_err(io)?;
-    let sp = w.add_channel(sid, &format!("/{arm}/setpoint_js"), "cdr", &meta).map_err(io)?;
-    let me = w.add_channel(sid, &format!("/{arm}/measured_js"), "cdr", &meta).map_err(io)?;
+    let sp = w.add_channel(&format!("/{arm}/setpoint_js"), ros2_schema(n, &s), "cdr").map_err(io)?;
+    let me = w.add_channel(&format!("/{arm}/measured_js"), ros2_schema(n, &s), "cdr").map_err(io)?;
     // The tracker's poses, interleaved in time order.
     let marker = match &log.markers {
         Some(m) => {
             let (n, s) = ros_msgs::pose_stamped_schema();
-            let pid = w.add_schema(n, "ros2msg", s.as_bytes()).map_err(io)?;
-            Some((m, w.add_channel(pid, &m.topic, "cdr", &meta).map_err(io)?))
+            Some((m, w.add_channel(&m.topic, ros2_schema(n, &s), "cdr").map_err(io)?))
         }
         None => None,
     };
+    let ns = |t: f64| (t.max(0.0) * 1e9).round() as u64;
     let mut next_pose = 0;
     for (i, t) in log.t.iter().enumerate() {
         while let Some((m, ch)) = marker.filter(|(m, _)| next_pose < m.t.len() && m.t[next_pose] <= *t) {
             let tp = m.t[next_pose];
-            let msg = ros_msgs::PoseStamped::from_pose(tp, "tracker", &m.poses[next_pose]);
-            let ns = (tp.max(0.0) * 1e9).round() as u64;
-            w.write_to_known_channel(&mcap::records::MessageHeader { channel_id: ch, sequence: next_pose as u32 + 1, log_time: ns, publish_time: ns }, &msg.encode()).map_err(io)?;
+            w.log(ch, ns(tp), &ros_msgs::PoseStamped::from_pose(tp, "tracker", &m.poses[next_pose]).encode());
             next_pose += 1;
         }
-        let ns = (t.max(0.0) * 1e9).round() as u64;
-        let seq = i as u32 + 1;
         let set = JointState { header: Header::at(*t, ""), name: log.names.clone(), position: log.setpoint[i].clone(), ..Default::default() };
         let meas = JointState { header: Header::at(*t, ""), name: log.names.clone(), position: log.position[i].clone(), effort: log.effort[i].clone(), ..Default::default() };
         for (ch, js) in [(sp, set), (me, meas)] {
-            w.write_to_known_channel(&mcap::records::MessageHeader { channel_id: ch, sequence: seq, log_time: ns, publish_time: ns }, &js.encode()).map_err(io)?;
+            w.log(ch, ns(*t), &js.encode());
         }
     }
-    w.finish().map_err(io)?;
-    Ok(w.into_inner().into_inner())
+    Ok(w.finish().map_err(io)?.into_inner())
 }
 
 /// Read an arm's setpoints and measurements (with efforts, or without any: then every sample's

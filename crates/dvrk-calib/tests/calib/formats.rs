@@ -15,7 +15,7 @@ fn max_pose_difference(a: &[dvrk_kin::Pose], b: &[dvrk_kin::Pose]) -> f64 {
 fn every_mcap_layout_round_trips() {
     let s = scenario(&psm(), SynthMotion::Q1Q2Sweep, 1e-4, 2.0, 0.05);
     let rec = s.record(9);
-    for layout in [McapLayout::PoseStamped, McapLayout::Tf, McapLayout::FoxgloveJson] {
+    for layout in [McapLayout::PoseStamped, McapLayout::Tf, McapLayout::FoxgloveJson, McapLayout::Foxglove] {
         let bytes = dvrk_calib::mcap_io::write(&rec, layout, "/PSM1/measured_js").unwrap();
         let back = dvrk_calib::mcap_io::parse(&bytes, Path::new("r.mcap"), &McapOptions::default()).unwrap();
         assert!(back.warnings.is_empty(), "{layout:?}: {:?}", back.warnings);

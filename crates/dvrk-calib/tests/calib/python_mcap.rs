@@ -1,10 +1,10 @@
 //! MCAP files written by other tools: the Python `mcap` and `mcap-ros2-support` packages write
 //! ROS 2 PoseStamped, TFMessage and JointState (zstd chunks, their own CDR encoder and message
-//! definitions) and Foxglove JSON; our reader must give back their numbers. And the reverse:
+//! definitions), Foxglove JSON, and Foxglove protobuf (`foxglove-schemas-protobuf`'s classes,
+//! `mcap-protobuf-support`'s writer); our reader must give back their numbers. And the reverse:
 //! Python decodes the MCAP our synthetic tracker writes.
 //!
-//! Skipped, with a message, where `python3 -c "import mcap_ros2"` fails
-//! (`pip install mcap mcap-ros2-support` enables it).
+//! Skipped, with a message, where Python lacks those packages (`scripts/test.sh` installs them).
 
 use dvrk_calib::mcap_io::{McapLayout, McapOptions};
 use dvrk_calib::{pivot_calibration, read_recording, PivotOptions};
@@ -13,9 +13,9 @@ use std::path::Path;
 use std::process::Command;
 
 fn python_ready() -> bool {
-    let ok = Command::new("python3").args(["-c", "import mcap, mcap_ros2"]).output().map(|o| o.status.success()).unwrap_or(false);
+    let ok = Command::new("python3").args(["-c", "import mcap, mcap_ros2, mcap_protobuf, foxglove_schemas_protobuf"]).output().map(|o| o.status.success()).unwrap_or(false);
     if !ok {
-        eprintln!("skipped: python3 with the mcap and mcap-ros2-support packages is not available (pip install mcap mcap-ros2-support)");
+        eprintln!("skipped: python3 with mcap, mcap-ros2-support, mcap-protobuf-support and foxglove-schemas-protobuf is not available (scripts/test.sh installs them)");
     }
     ok
 }
@@ -27,8 +27,9 @@ fn run_python(script: &str, args: &[&Path]) -> String {
 }
 
 /// Writes ros2.mcap (PoseStamped on /vrpn/end/pose, TFMessage on /tf with two bodies, JointState
-/// on /PSM1/measured_js) and foxglove.mcap (foxglove.PoseInFrame in JSON): a marker frame that
-/// turns about two axes while its point TIP stays at PIVOT.
+/// on /PSM1/measured_js), foxglove.mcap (foxglove.PoseInFrame in JSON) and protobuf.mcap
+/// (foxglove.PoseInFrame on /end and foxglove.FrameTransforms on /tf, two children, protobuf): a
+/// marker frame that turns about two axes while its point TIP stays at PIVOT.
 const WRITER: &str = r#"
 import json, math, sys
 from mcap.writer import Writer as McapWriter
@@ -94,6 +95,29 @@ with open(sys.argv[2], "wb") as f:
         msg = {"timestamp": {"sec": s["sec"], "nsec": s["nanosec"]}, "frame_id": "optitrack", "pose": {"position": dict(zip("xyz", p)), "orientation": dict(zip("xyzw", q))}}
         w.add_message(channel_id=cid, log_time=ns, data=json.dumps(msg).encode(), publish_time=ns)
     w.finish()
+
+from mcap_protobuf.writer import Writer as ProtobufWriter
+from foxglove_schemas_protobuf.PoseInFrame_pb2 import PoseInFrame
+from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
+from foxglove_schemas_protobuf.FrameTransform_pb2 import FrameTransform
+with open(sys.argv[3], "wb") as f:
+    w = ProtobufWriter(f)
+    for i in range(200):
+        s, ns = stamp(i)
+        p, q = pose(i)
+        m = PoseInFrame(frame_id="optitrack")
+        m.timestamp.FromNanoseconds(ns)
+        m.pose.position.x, m.pose.position.y, m.pose.position.z = p
+        m.pose.orientation.x, m.pose.orientation.y, m.pose.orientation.z, m.pose.orientation.w = q
+        w.write_message(topic="/end", message=m, log_time=ns, publish_time=ns)
+        tfs = FrameTransforms()
+        for c, d in (("end_tf", 0.0), ("shifted", 0.25)):
+            t = tfs.transforms.add(parent_frame_id="optitrack", child_frame_id=c)
+            t.timestamp.FromNanoseconds(ns)
+            t.translation.x, t.translation.y, t.translation.z = p[0] + d, p[1], p[2]
+            t.rotation.x, t.rotation.y, t.rotation.z, t.rotation.w = q
+        w.write_message(topic="/tf", message=tfs, log_time=ns, publish_time=ns)
+    w.finish()
 "#;
 
 #[test]
@@ -102,8 +126,8 @@ fn python_written_ros2_and_foxglove_mcap_read_back() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
-    let (ros2, fox) = (dir.path().join("ros2.mcap"), dir.path().join("foxglove.mcap"));
-    run_python(WRITER, &[&ros2, &fox]);
+    let (ros2, fox, proto) = (dir.path().join("ros2.mcap"), dir.path().join("foxglove.mcap"), dir.path().join("protobuf.mcap"));
+    run_python(WRITER, &[&ros2, &fox, &proto]);
     let pivot = Vector3::new(0.3, -0.2, 1.1);
     let tip = Vector3::new(0.02, -0.1, 0.05);
     let rec = read_recording(&ros2, &McapOptions::default()).unwrap();
@@ -125,6 +149,18 @@ fn python_written_ros2_and_foxglove_mcap_read_back() {
     let rec = read_recording(&fox, &McapOptions::default()).unwrap();
     let f = pivot_calibration(&rec.body("/end").unwrap().poses, &PivotOptions::default()).unwrap();
     assert!((f.pivot - pivot).norm() < 1e-9);
+    // Foxglove's protobuf schemas, as Foxglove's own Python classes write them.
+    let rec = read_recording(&proto, &McapOptions::default()).unwrap();
+    assert!(rec.warnings.is_empty(), "{:?}", rec.warnings);
+    for name in ["/end", "end_tf"] {
+        let b = rec.body(name).unwrap();
+        assert_eq!((b.len(), b.frame_id.as_str()), (200, "optitrack"), "{name}");
+        assert!((b.t[1] - b.t[0] - 0.005).abs() < 1e-6, "{name}");
+        let f = pivot_calibration(&b.poses, &PivotOptions::default()).unwrap();
+        assert!((f.pivot - pivot).norm() < 1e-9 && (f.tip - tip).norm() < 1e-9, "{name}");
+    }
+    let (a, b) = (rec.body("end_tf").unwrap(), rec.body("shifted").unwrap());
+    assert!(a.poses.iter().zip(&b.poses).all(|(p, q)| ((q.translation.vector - p.translation.vector) - Vector3::new(0.25, 0.0, 0.0)).norm() < 1e-15));
 }
 
 /// Decodes our PoseStamped and JointState with mcap_ros2 and prints count, first position, names.

@@ -14,9 +14,10 @@
 //!   in the arm's base frame `PSM1_base`, which is the base of the arm's serial dVRK kinematics
 //!   (the RCM frame of a PSM or ECM, as the dVRK reports it) or frame 0 for other models;
 //!
-//! and on `/tf` one foxglove.FrameTransform (JSON) per body: `PSM1/yaw_link` in `world`; once,
-//! the link geometry on `/scene` (foxglove.SceneUpdate, [`super::scene_msgs`]) and per arm
-//! `/PSM1/robot_description` (std_msgs/msg/String, [`super::description`]).
+//! and on `/tf` one foxglove.FrameTransforms (the SDK's protobuf) per sample, a transform per
+//! body: `PSM1/yaw_link` in `world`; once, the link geometry on `/scene` (foxglove.SceneUpdate,
+//! [`super::scene_msgs`]) and per arm `/PSM1/robot_description` (std_msgs/msg/String,
+//! [`super::description`]).
 //!
 //! The same channels go to a live view when one is given ([`Recorder::open`], `crate::live`).
 //!
@@ -30,6 +31,8 @@
 use crate::error::{Result, SimError};
 use crate::geometry::{arm_color, ArmGeometry};
 use crate::live::Live;
+use crate::recording::mcap_out::{ros2_schema, sdk_schema, McapOut};
+use foxglove::messages::{CameraCalibration, CompressedImage, FrameTransforms};
 use foxglove::Schema;
 use crate::camera::{Eye, StereoCamera};
 use crate::recording::{camera_msgs, description, frame_transform, scene_msgs};
@@ -38,7 +41,6 @@ use crate::sim::Sim;
 use dvrk_kin::atomic::Staged;
 use dvrk_kin::Pose;
 use nalgebra::{Point3, UnitQuaternion};
-use std::collections::BTreeMap;
 use std::fs::File;
 use std::io::BufWriter;
 use std::path::{Path, PathBuf};
@@ -71,8 +73,8 @@ pub const TOOL_JOINTS: [&str; 2] = ["jaw", "gripper"];
 /// One JointState topic pair (measured, setpoint) and the model joints it carries.
 #[derive(Debug, Clone)]
 struct JointChannels {
-    measured_js: u16,
-    setpoint_js: u16,
+    measured_js: usize,
+    setpoint_js: usize,
     /// Model joint indices, in the message's order.
     joints: Vec<usize>,
     names: Vec<String>,
@@ -83,8 +85,8 @@ struct JointChannels {
 struct ArmChannels {
     /// The arm's own joints first, then each tool joint's topics.
     topics: Vec<JointChannels>,
-    measured_cp: u16,
-    operating_state: u16,
+    measured_cp: usize,
+    operating_state: usize,
     base_frame_id: String,
     base: BaseRef,
     /// The tip frame's body and its placement in that body.
@@ -92,52 +94,48 @@ struct ArmChannels {
     tip_rel: Pose,
 }
 
-/// Where the recorder's messages go: an MCAP file, a live view ([`Live`]), or both. Every
-/// schema and channel is added to each, under one id of the recorder's own.
+/// Where the recorder's messages go: an MCAP file ([`McapOut`]), a live view ([`Live`]), or
+/// both. Every channel is added to each, under one index of the recorder's own.
 struct Sinks {
-    file: Option<mcap::Writer<BufWriter<File>>>,
+    file: Option<McapOut<BufWriter<File>>>,
     live: Option<Live>,
-    /// Per recorder schema: its MCAP id, and the schema for the live channels.
-    schemas: Vec<(u16, Schema)>,
-    /// Per recorder channel: its MCAP id and its live index.
-    channels: Vec<(u16, usize)>,
+    /// Per recorder channel: its file index and its live index.
+    channels: Vec<(usize, usize)>,
 }
 
 impl Sinks {
     /// Whether a message on recorder channel `channel` goes anywhere: always into a file, live
     /// only while a client subscribes (a run that is only served encodes nothing unwatched).
-    fn wanted(&self, channel: u16) -> bool {
-        self.file.is_some() || self.live.as_ref().is_some_and(|l| l.subscribed(self.channels[channel as usize].1))
+    fn wanted(&self, channel: usize) -> bool {
+        self.file.is_some() || self.live.as_ref().is_some_and(|l| l.subscribed(self.channels[channel].1))
     }
 
     /// Send `data` to the live view only (nothing without one, or without a subscriber).
-    fn log_live(&self, channel: u16, ns: u64, data: &[u8]) {
+    fn log_live(&self, channel: usize, ns: u64, data: &[u8]) {
         if let Some(l) = self.live.as_ref() {
-            l.log(self.channels[channel as usize].1, ns, data);
+            l.log(self.channels[channel].1, ns, data);
         }
     }
 
-    fn add_schema(&mut self, name: &str, encoding: &str, data: &[u8]) -> std::result::Result<u16, mcap::McapError> {
-        let id = match self.file.as_mut() {
-            Some(w) => w.add_schema(name, encoding, data)?,
-            None => 0,
-        };
-        self.schemas.push((id, Schema::new(name, encoding, data.to_vec())));
-        Ok((self.schemas.len() - 1) as u16)
+    /// Send `data` to the file and the live view.
+    fn log(&self, channel: usize, ns: u64, data: &[u8]) {
+        self.log_live(channel, ns, data);
+        if let Some(f) = self.file.as_ref() {
+            f.log(self.channels[channel].0, ns, data);
+        }
     }
 
-    fn add_channel(&mut self, schema: u16, topic: &str, encoding: &str, meta: &BTreeMap<String, String>) -> std::result::Result<u16, mcap::McapError> {
-        let (file_schema, live_schema) = self.schemas[schema as usize].clone();
-        let id = match self.file.as_mut() {
-            Some(w) => w.add_channel(file_schema, topic, encoding, meta)?,
+    fn add_channel(&mut self, topic: &str, schema: &Schema, encoding: &str) -> Result<usize> {
+        let file = match self.file.as_mut() {
+            Some(f) => f.add_channel(topic, schema.clone(), encoding).map_err(|e| SimError::Build(format!("recording channel {topic}: {e}")))?,
             None => 0,
         };
         let live = match self.live.as_mut() {
-            Some(l) => l.add_channel(topic, live_schema, encoding).map_err(|e| mcap::McapError::Io(std::io::Error::other(e.to_string())))?,
+            Some(l) => l.add_channel(topic, schema.clone(), encoding)?,
             None => 0,
         };
-        self.channels.push((id, live));
-        Ok((self.channels.len() - 1) as u16)
+        self.channels.push((file, live));
+        Ok(self.channels.len() - 1)
     }
 }
 
@@ -151,26 +149,28 @@ pub struct Recorder {
     /// Steps between samples.
     stride: u64,
     arms: Vec<ArmChannels>,
-    tf: u16,
+    tf: usize,
     /// Child frame name of every body, per arm.
     body_names: Vec<Vec<String>>,
-    sequence: BTreeMap<u16, u32>,
     samples: u64,
     camera: Option<CameraChannels>,
     /// Messages that do not change (`/scene`, the robot descriptions) with their channels, and
     /// when they last went to the live view.
-    statics: Vec<(u16, Vec<u8>)>,
+    statics: Vec<(usize, Vec<u8>)>,
     statics_sent: Option<std::time::Instant>,
+    /// The `/tf` message's buffer, reused between samples.
+    tf_buf: Vec<u8>,
 }
 
 /// Channels of the camera: per eye (left, right) image, depth and calibration.
 struct CameraChannels {
-    image: [u16; 2],
-    depth: [u16; 2],
-    calibration: [u16; 2],
+    image: [usize; 2],
+    depth: [usize; 2],
+    calibration: [usize; 2],
     /// Encoding buffers reused between frames.
     png: Vec<u8>,
     scratch: Vec<u8>,
+    message: Vec<u8>,
 }
 
 /// A message stamp: simulated time `t` (s) in ns.
@@ -178,8 +178,8 @@ fn stamp_ns(t: f64) -> u64 {
     (t.max(0.0) * 1e9).round() as u64
 }
 
-fn mcap_error(path: &Path, e: mcap::McapError) -> SimError {
-    SimError::Io { path: path.display().to_string(), source: std::io::Error::other(e.to_string()) }
+fn io_error(path: &Path, e: std::io::Error) -> SimError {
+    SimError::Io { path: path.display().to_string(), source: e }
 }
 
 impl Recorder {
@@ -202,7 +202,7 @@ impl Recorder {
                 dvrk_kin::atomic::check_outputs(&[], &[("recording", &path)]).map_err(|e| SimError::Io { path: path.display().to_string(), source: std::io::Error::other(e.to_string()) })?;
                 let (staged, file) = Staged::create(&path).map_err(|e| SimError::Io { path: path.display().to_string(), source: std::io::Error::other(e.to_string()) })?;
                 let tmp = staged.temp().to_path_buf();
-                let w = mcap::Writer::with_options(BufWriter::new(file), mcap::WriteOptions::new().profile("ros2")).map_err(|e| mcap_error(&tmp, e))?;
+                let w = McapOut::new(BufWriter::new(file)).map_err(|e| io_error(&tmp, e))?;
                 (Some(staged), path, tmp, Some(w))
             }
             None => {
@@ -210,17 +210,13 @@ impl Recorder {
                 (None, url.clone(), url, None)
             }
         };
-        let mut w = Sinks { file: writer, live, schemas: Vec::new(), channels: Vec::new() };
-        let meta = BTreeMap::new();
-        let io = |e| mcap_error(&tmp, e);
-        let (n, t) = ros_msgs::joint_state_schema();
-        let js_schema = w.add_schema(n, "ros2msg", t.as_bytes()).map_err(io)?;
-        let (n, t) = ros_msgs::pose_stamped_schema();
-        let cp_schema = w.add_schema(n, "ros2msg", t.as_bytes()).map_err(io)?;
-        let (n, t) = ros_msgs::operating_state_schema();
-        let state_schema = w.add_schema(n, "ros2msg", t.as_bytes()).map_err(io)?;
-        let tf_schema = w.add_schema("foxglove.FrameTransform", "jsonschema", frame_transform::SCHEMA.as_bytes()).map_err(io)?;
-        let tf = w.add_channel(tf_schema, "/tf", "json", &meta).map_err(io)?;
+        let mut w = Sinks { file: writer, live, channels: Vec::new() };
+        let ros2 = |(name, text): (&str, String)| ros2_schema(name, &text);
+        let js_schema = ros2(ros_msgs::joint_state_schema());
+        let cp_schema = ros2(ros_msgs::pose_stamped_schema());
+        let state_schema = ros2(ros_msgs::operating_state_schema());
+        let (tf_schema, tf_encoding) = sdk_schema::<FrameTransforms>();
+        let tf = w.add_channel("/tf", &tf_schema, &tf_encoding)?;
         let mut arms = Vec::with_capacity(sim.arms.len());
         let mut body_names = Vec::with_capacity(sim.arms.len());
         for arm in &sim.arms {
@@ -247,16 +243,16 @@ impl Recorder {
             let mut topics = Vec::with_capacity(groups.len());
             for (prefix, joints) in groups {
                 topics.push(JointChannels {
-                    measured_js: w.add_channel(js_schema, &format!("/{prefix}/measured_js"), "cdr", &meta).map_err(io)?,
-                    setpoint_js: w.add_channel(js_schema, &format!("/{prefix}/setpoint_js"), "cdr", &meta).map_err(io)?,
+                    measured_js: w.add_channel(&format!("/{prefix}/measured_js"), &js_schema, "cdr")?,
+                    setpoint_js: w.add_channel(&format!("/{prefix}/setpoint_js"), &js_schema, "cdr")?,
                     names: joints.iter().map(|k| m.joints[*k].name.clone()).collect(),
                     joints,
                 });
             }
             arms.push(ArmChannels {
                 topics,
-                measured_cp: w.add_channel(cp_schema, &format!("/{ns}/measured_cp"), "cdr", &meta).map_err(io)?,
-                operating_state: w.add_channel(state_schema, &format!("/{ns}/operating_state"), "cdr", &meta).map_err(io)?,
+                measured_cp: w.add_channel(&format!("/{ns}/measured_cp"), &cp_schema, "cdr")?,
+                operating_state: w.add_channel(&format!("/{ns}/operating_state"), &state_schema, "cdr")?,
                 base_frame_id: format!("{}_base", arm.name.replace('-', "_")),
                 base,
                 tip_body,
@@ -270,16 +266,14 @@ impl Recorder {
         let has_rcm: Vec<bool> = sim.arms.iter().map(|a| a.model.rcm.is_some()).collect();
         let colors: Vec<[f32; 3]> = (0..sim.arms.len()).map(|a| arm_color(&has_rcm, a)).collect();
         let (scene_schema, scene_encoding) = scene_msgs::schema();
-        let scene_schema = w.add_schema(&scene_schema.name, &scene_schema.encoding, &scene_schema.data).map_err(io)?;
-        let mut statics = vec![(w.add_channel(scene_schema, "/scene", &scene_encoding, &meta).map_err(io)?, scene_msgs::scene_update(&geometries, &colors, &body_names)?)];
-        let (n, t) = ros_msgs::string_schema();
-        let string_schema = w.add_schema(n, "ros2msg", t.as_bytes()).map_err(io)?;
+        let mut statics = vec![(w.add_channel("/scene", &scene_schema, &scene_encoding)?, scene_msgs::scene_update(&geometries, &colors, &body_names)?)];
+        let string_schema = ros2(ros_msgs::string_schema());
         for (a, arm) in sim.arms.iter().enumerate() {
             let urdf = description::arm_urdf(&arm.name, &geometries[a], &body_names[a], colors[a]);
             let topic = format!("/{}/robot_description", arm.name.replace('-', "/"));
-            statics.push((w.add_channel(string_schema, &topic, "cdr", &meta).map_err(io)?, ros_msgs::encode_string(&urdf)));
+            statics.push((w.add_channel(&topic, &string_schema, "cdr")?, ros_msgs::encode_string(&urdf)));
         }
-        Ok(Recorder { sinks: w, staged, tmp, path, stride, arms, tf, body_names, sequence: BTreeMap::new(), samples: 0, camera: None, statics, statics_sent: None })
+        Ok(Recorder { sinks: w, staged, tmp, path, stride, arms, tf, body_names, samples: 0, camera: None, statics, statics_sent: None, tf_buf: Vec::new() })
     }
 
     /// Simulated time between samples (s) for a sim of time step `dt`.
@@ -314,15 +308,14 @@ impl Recorder {
         self.base_pose(sim, a).inverse() * sim.body_pose(a, c.tip_body) * c.tip_rel
     }
 
-    fn write(&mut self, channel: u16, t: f64, data: &[u8]) -> Result<()> {
-        let seq = self.sequence.entry(channel).or_default();
-        *seq += 1;
-        let ns = stamp_ns(t);
-        self.sinks.log_live(channel, ns, data);
-        let file_channel = self.sinks.channels[channel as usize].0;
-        let header = mcap::records::MessageHeader { channel_id: file_channel, sequence: *seq, log_time: ns, publish_time: ns };
-        let Some(w) = self.sinks.file.as_mut() else { return Ok(()) };
-        w.write_to_known_channel(&header, data).map_err(|e| mcap_error(&self.tmp, e))
+    /// Send one message to the file and the live view; fails with the file's first write error
+    /// (a full disk stops the run rather than leaving a hole in the recording).
+    fn write(&self, channel: usize, t: f64, data: &[u8]) -> Result<()> {
+        self.sinks.log(channel, stamp_ns(t), data);
+        match self.sinks.file.as_ref() {
+            Some(f) => f.check().map_err(|e| io_error(&self.tmp, e)),
+            None => Ok(()),
+        }
     }
 
     /// Record the state of `sim` now.
@@ -364,11 +357,9 @@ impl Recorder {
         // What does not change: once in the file, and to the live view every wall-clock second
         // (not latched: a client that subscribes later gets it within a second).
         if self.samples == 0 {
-            let statics = std::mem::take(&mut self.statics);
-            for (channel, bytes) in &statics {
+            for (channel, bytes) in &self.statics {
                 self.write(*channel, t, bytes)?;
             }
-            self.statics = statics;
             self.statics_sent = Some(std::time::Instant::now());
         } else if self.statics_sent.is_none_or(|s| s.elapsed().as_secs_f64() >= 1.0) {
             for (channel, bytes) in &self.statics {
@@ -377,15 +368,20 @@ impl Recorder {
             self.statics_sent = Some(std::time::Instant::now());
         }
         if self.sinks.wanted(self.tf) {
+            let mut transforms = Vec::with_capacity(self.body_names.iter().map(Vec::len).sum());
             for a in 0..self.arms.len() {
                 for b in 0..self.body_names[a].len() {
                     let p = sim.body_pose(a, b);
                     let q = UnitQuaternion::from_rotation_matrix(&p.rotation);
                     let o = p * Point3::origin();
-                    let bytes = frame_transform::encode(t, "world", &self.body_names[a][b], [o.x, o.y, o.z], [q.i, q.j, q.k, q.w]);
-                    self.write(self.tf, t, &bytes)?;
+                    transforms.push(frame_transform::transform(t, "world", &self.body_names[a][b], [o.x, o.y, o.z], [q.i, q.j, q.k, q.w]));
                 }
             }
+            let mut buf = std::mem::take(&mut self.tf_buf);
+            frame_transform::encode(transforms, &mut buf);
+            let sent = self.write(self.tf, t, &buf);
+            self.tf_buf = buf;
+            sent?;
         }
         self.samples += 1;
         Ok(())
@@ -393,18 +389,15 @@ impl Recorder {
 
     /// Add the camera's channels (see the module documentation).
     pub fn add_camera(&mut self) -> Result<()> {
-        let tmp = self.tmp.clone();
-        let io = |e| mcap_error(&tmp, e);
         let w = &mut self.sinks;
-        let meta = BTreeMap::new();
-        let img = w.add_schema("foxglove.CompressedImage", "jsonschema", camera_msgs::IMAGE_SCHEMA.as_bytes()).map_err(io)?;
-        let cal = w.add_schema("foxglove.CameraCalibration", "jsonschema", camera_msgs::CALIBRATION_SCHEMA.as_bytes()).map_err(io)?;
-        let mut ch = CameraChannels { image: [0; 2], depth: [0; 2], calibration: [0; 2], png: Vec::new(), scratch: Vec::new() };
+        let (img, img_encoding) = sdk_schema::<CompressedImage>();
+        let (cal, cal_encoding) = sdk_schema::<CameraCalibration>();
+        let mut ch = CameraChannels { image: [0; 2], depth: [0; 2], calibration: [0; 2], png: Vec::new(), scratch: Vec::new(), message: Vec::new() };
         for (i, eye) in [Eye::Left, Eye::Right].into_iter().enumerate() {
             let e = eye.name();
-            ch.image[i] = w.add_channel(img, &format!("/camera/{e}/image"), "json", &meta).map_err(io)?;
-            ch.depth[i] = w.add_channel(img, &format!("/camera/{e}/depth"), "json", &meta).map_err(io)?;
-            ch.calibration[i] = w.add_channel(cal, &format!("/camera/{e}/calibration"), "json", &meta).map_err(io)?;
+            ch.image[i] = w.add_channel(&format!("/camera/{e}/image"), &img, &img_encoding)?;
+            ch.depth[i] = w.add_channel(&format!("/camera/{e}/depth"), &img, &img_encoding)?;
+            ch.calibration[i] = w.add_channel(&format!("/camera/{e}/calibration"), &cal, &cal_encoding)?;
         }
         self.camera = Some(ch);
         Ok(())
@@ -425,20 +418,20 @@ impl Recorder {
                 let img = camera.image(eye);
                 ch.png.clear();
                 img.encode_rgb_png(&mut ch.png).map_err(png_err)?;
-                let m = camera_msgs::compressed_image(t, &frame, "png", &ch.png);
-                self.write(ch.image[i], t, &m)?;
+                camera_msgs::compressed_image(t, &frame, "png", &ch.png, &mut ch.message);
+                self.write(ch.image[i], t, &ch.message)?;
                 ch.png.clear();
                 img.encode_depth_png(&mut ch.png, &mut ch.scratch).map_err(png_err)?;
-                let m = camera_msgs::compressed_image(t, &frame, "png", &ch.png);
-                self.write(ch.depth[i], t, &m)?;
+                camera_msgs::compressed_image(t, &frame, "png", &ch.png, &mut ch.message);
+                self.write(ch.depth[i], t, &ch.message)?;
                 // ROS stereo: the right eye's P[3] = -fx * (baseline between the eyes).
                 let tx = if eye == Eye::Right { -k.fx * 2.0 * camera.params.baseline_m } else { 0.0 };
                 self.write(ch.calibration[i], t, &camera_msgs::camera_calibration(t, &frame, &k, tx))?;
                 let p = camera.eye_pose(sim, eye);
                 let q = UnitQuaternion::from_rotation_matrix(&p.rotation);
                 let o = p.translation.vector;
-                let tf = frame_transform::encode(t, "world", &frame, [o.x, o.y, o.z], [q.i, q.j, q.k, q.w]);
-                self.write(self.tf, t, &tf)?;
+                frame_transform::encode(vec![frame_transform::transform(t, "world", &frame, [o.x, o.y, o.z], [q.i, q.j, q.k, q.w])], &mut ch.message);
+                self.write(self.tf, t, &ch.message)?;
             }
             Ok(())
         })();
@@ -467,9 +460,8 @@ impl Recorder {
         if let Some(l) = self.sinks.live.take() {
             l.stop();
         }
-        if let Some(mut w) = self.sinks.file.take() {
-            w.finish().map_err(|e| mcap_error(&self.tmp, e))?;
-            let buf = w.into_inner();
+        if let Some(w) = self.sinks.file.take() {
+            let buf = w.finish().map_err(|e| io_error(&self.tmp, e))?;
             let file = buf.into_inner().map_err(|e| SimError::Io { path: self.tmp.display().to_string(), source: e.into_error() })?;
             file.sync_all().map_err(|e| SimError::Io { path: self.tmp.display().to_string(), source: e })?;
         }
