@@ -10,6 +10,10 @@ venv="${DVRK_VENV:-.venv}"
 venv="$(cd "$venv" && pwd)"
 py="$venv/bin/python"
 "$py" -m pip install --quiet --disable-pip-version-check "maturin>=1.5,<2" "pytest>=7" "numpy>=1.21" mcap mcap-ros2-support mcap-protobuf-support foxglove-schemas-protobuf rosbags websockets
+# Eclipse Cyclone DDS, the independent ROS 2 peer of `dvrk serve`'s tests (tests/python/test_serve.py);
+# optional like MuJoCo: where no wheel installs, those tests say so and skip.
+"$py" -m pip install --quiet --disable-pip-version-check cyclonedds \
+    || echo "note: could not install cyclonedds from PyPI: the ROS 2 twin's tests will skip"
 # MuJoCo for the second-engine cross-check (tests/python/test_mujoco.py); optional: where it cannot
 # be installed the test says so and skips.
 "$py" -m pip install --quiet --disable-pip-version-check mujoco \

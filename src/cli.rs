@@ -31,6 +31,9 @@ pub enum Command {
     Export(ExportArgs),
     /// Headless dynamic simulation of a scene (rapier): the project's main job.
     Sim(crate::commands::sim::SimArgs),
+    /// A scene as a live twin on ROS 2 in real time: the dVRK's CRTK topics published, its
+    /// commands (servo_jp, servo_jf) taken.
+    Serve(crate::commands::serve::ServeArgs),
     /// Motion-capture calibration: pivot (RCM), joint axes, model update.
     Calib {
         #[command(subcommand)]

@@ -7,6 +7,7 @@ mod fk;
 pub mod identify;
 mod ik;
 mod model;
+pub mod serve;
 pub mod sim;
 pub mod synth;
 
@@ -26,6 +27,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Ik(a) => ik::run(&a),
         Command::Export(a) => export::run(&a),
         Command::Sim(a) => sim::run(&a),
+        Command::Serve(a) => serve::run(&a),
         Command::Calib { command } => calib::run(&command),
         Command::Synth { command } => synth::run(&command),
         Command::Identify(a) => identify::run(&a),

@@ -29,8 +29,10 @@ pub mod plot;
 pub mod recipe;
 pub mod recording;
 pub mod reduced;
+pub mod ros2;
 pub mod run;
 pub mod scene;
+pub mod serve;
 pub mod sim;
 pub mod trajectory;
 

@@ -56,6 +56,10 @@ impl CdrWriter {
     pub fn bool(&mut self, v: bool) {
         self.buf.push(v as u8);
     }
+    /// A u8 (one byte, no alignment).
+    pub fn u8(&mut self, v: u8) {
+        self.buf.push(v);
+    }
     /// A string: length with the NUL, bytes, NUL.
     pub fn string(&mut self, s: &str) {
         self.u32(s.len() as u32 + 1);

@@ -204,6 +204,22 @@ fn header_defs() -> String {
     format!("{SEP}MSG: std_msgs/Header\nbuiltin_interfaces/Time stamp\nstring frame_id\n{SEP}MSG: builtin_interfaces/Time\nint32 sec\nuint32 nanosec\n")
 }
 
+/// rcl_interfaces/msg/Log, what a ROS 2 node publishes on `/rosout`: at time `t` (s), `level`
+/// (10 debug, 20 info, 30 warn, 40 error, 50 fatal) from logger `name`.
+pub fn encode_log(t: f64, level: u8, name: &str, msg: &str) -> Vec<u8> {
+    let mut w = CdrWriter::new();
+    let h = Header::at(t, "");
+    w.i32(h.sec);
+    w.u32(h.nanosec);
+    w.u8(level);
+    w.string(name);
+    w.string(msg);
+    w.string("");
+    w.string("");
+    w.u32(0);
+    w.finish()
+}
+
 /// Schema name and `ros2msg` text of std_msgs/msg/String.
 pub fn string_schema() -> (&'static str, String) {
     ("std_msgs/msg/String", "string data\n".into())

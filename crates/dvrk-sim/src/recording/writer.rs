@@ -36,7 +36,8 @@ use foxglove::messages::{CameraCalibration, CompressedImage, FrameTransforms};
 use foxglove::Schema;
 use crate::camera::{Eye, StereoCamera};
 use crate::recording::{camera_msgs, description, frame_transform, scene_msgs};
-use crate::recording::ros_msgs::{self, Header, JointState, PoseStamped};
+use crate::recording::ros_msgs::{self, Header, JointState, PoseStamped, TransformStamped};
+use crate::ros2::Ros2;
 use crate::sim::Sim;
 use dvrk_kin::atomic::Staged;
 use dvrk_kin::Pose;
@@ -94,48 +95,69 @@ struct ArmChannels {
     tip_rel: Pose,
 }
 
-/// Where the recorder's messages go: an MCAP file ([`McapOut`]), a live view ([`Live`]), or
-/// both. Every channel is added to each, under one index of the recorder's own.
+/// Where the recorder's messages go: an MCAP file ([`McapOut`]), a live view ([`Live`]), a
+/// ROS 2 domain ([`Ros2`]), any of them. Every channel is added to each, under one index of the
+/// recorder's own.
 struct Sinks {
     file: Option<McapOut<BufWriter<File>>>,
     live: Option<Live>,
-    /// Per recorder channel: its file index and its live index.
-    channels: Vec<(usize, usize)>,
+    ros2: Option<Ros2>,
+    /// Per recorder channel: its index in the file, the live view and ROS 2 (`None`: not there).
+    channels: Vec<[Option<usize>; 3]>,
 }
 
 impl Sinks {
-    /// Whether a message on recorder channel `channel` goes anywhere: always into a file, live
-    /// only while a client subscribes (a run that is only served encodes nothing unwatched).
+    /// Whether a message on recorder channel `channel` goes anywhere: always into a file and
+    /// onto ROS 2 (when it carries the channel), live only while a client subscribes (a run
+    /// that is only served encodes nothing unwatched).
     fn wanted(&self, channel: usize) -> bool {
-        self.file.is_some() || self.live.as_ref().is_some_and(|l| l.subscribed(self.channels[channel].1))
+        let [file, live, ros2] = self.channels[channel];
+        (self.file.is_some() && file.is_some())
+            || self.ros2.as_ref().zip(ros2).is_some_and(|(r, c)| r.carries(c))
+            || self.live.as_ref().zip(live).is_some_and(|(l, c)| l.subscribed(c))
     }
 
-    /// Send `data` to the live view only (nothing without one, or without a subscriber).
+    /// Send `data` to the live sinks only: the Foxglove view and ROS 2 (what a file holds once
+    /// and a late subscriber needs again).
     fn log_live(&self, channel: usize, ns: u64, data: &[u8]) {
-        if let Some(l) = self.live.as_ref() {
-            l.log(self.channels[channel].1, ns, data);
+        let [_, live, ros2] = self.channels[channel];
+        if let Some((l, c)) = self.live.as_ref().zip(live) {
+            l.log(c, ns, data);
+        }
+        if let Some((r, c)) = self.ros2.as_ref().zip(ros2) {
+            r.log(c, data);
         }
     }
 
-    /// Send `data` to the file and the live view.
+    /// Send `data` to every sink.
     fn log(&self, channel: usize, ns: u64, data: &[u8]) {
         self.log_live(channel, ns, data);
-        if let Some(f) = self.file.as_ref() {
-            f.log(self.channels[channel].0, ns, data);
+        if let Some((f, c)) = self.file.as_ref().zip(self.channels[channel][0]) {
+            f.log(c, ns, data);
         }
+    }
+
+    /// Add a channel to every sink (`ros2_only`: to ROS 2 alone, for what the file and the
+    /// Foxglove view carry in Foxglove's own schema).
+    fn add(&mut self, topic: &str, schema: &Schema, encoding: &str, ros2_only: bool) -> Result<usize> {
+        let file = match self.file.as_mut().filter(|_| !ros2_only) {
+            Some(f) => Some(f.add_channel(topic, schema.clone(), encoding).map_err(|e| SimError::Build(format!("recording channel {topic}: {e}")))?),
+            None => None,
+        };
+        let live = match self.live.as_mut().filter(|_| !ros2_only) {
+            Some(l) => Some(l.add_channel(topic, schema.clone(), encoding)?),
+            None => None,
+        };
+        let ros2 = match self.ros2.as_mut() {
+            Some(r) => Some(r.add_channel(topic, &schema.name, &schema.encoding, encoding)?),
+            None => None,
+        };
+        self.channels.push([file, live, ros2]);
+        Ok(self.channels.len() - 1)
     }
 
     fn add_channel(&mut self, topic: &str, schema: &Schema, encoding: &str) -> Result<usize> {
-        let file = match self.file.as_mut() {
-            Some(f) => f.add_channel(topic, schema.clone(), encoding).map_err(|e| SimError::Build(format!("recording channel {topic}: {e}")))?,
-            None => 0,
-        };
-        let live = match self.live.as_mut() {
-            Some(l) => l.add_channel(topic, schema.clone(), encoding)?,
-            None => 0,
-        };
-        self.channels.push((file, live));
-        Ok(self.channels.len() - 1)
+        self.add(topic, schema, encoding, false)
     }
 }
 
@@ -160,6 +182,11 @@ pub struct Recorder {
     statics_sent: Option<std::time::Instant>,
     /// The `/tf` message's buffer, reused between samples.
     tf_buf: Vec<u8>,
+    /// ROS 2's `/tf` (tf2_msgs/msg/TFMessage), when there is a ROS 2 sink.
+    tf_ros2: Option<usize>,
+    /// Added to simulated time in every stamp (s): 0 for a recording, the wall clock's start
+    /// for a served twin ([`Recorder::set_stamp_origin`]).
+    stamp_origin: f64,
 }
 
 /// Channels of the camera: per eye (left, right) image, depth and calibration.
@@ -192,6 +219,12 @@ impl Recorder {
     /// Record `sim` to the file `file` asks for, serve it on `live`, or both, sampled at `rate`
     /// (Hz of simulated time). Nothing appears at the file's path until [`Recorder::finish`].
     pub fn open(sim: &Sim, file: Option<&RecordOptions>, live: Option<Live>, rate: f64) -> Result<Recorder> {
+        Self::open_with(sim, file, live, None, rate)
+    }
+
+    /// [`Recorder::open`] with a ROS 2 domain too ([`Ros2`]): it gets the CRTK topics and, on
+    /// `/tf`, a tf2_msgs/msg/TFMessage of every body.
+    pub fn open_with(sim: &Sim, file: Option<&RecordOptions>, live: Option<Live>, ros2: Option<Ros2>, rate: f64) -> Result<Recorder> {
         if !(rate.is_finite() && rate > 0.0 && rate <= 1.0 / sim.dt + 1e-9) {
             return Err(SimError::value("recording rate (Hz)", rate, format!("must be in (0, {}] (one sample per step of {} s at most)", 1.0 / sim.dt, sim.dt)));
         }
@@ -206,17 +239,26 @@ impl Recorder {
                 (Some(staged), path, tmp, Some(w))
             }
             None => {
-                let url = PathBuf::from(live.as_ref().map_or_else(String::new, |l| l.url()));
+                let url = match (live.as_ref(), ros2.as_ref()) {
+                    (Some(l), _) => l.url(),
+                    (None, Some(r)) => format!("ROS 2 domain {}", r.domain()),
+                    (None, None) => String::new(),
+                };
+                let url = PathBuf::from(url);
                 (None, url.clone(), url, None)
             }
         };
-        let mut w = Sinks { file: writer, live, channels: Vec::new() };
+        let mut w = Sinks { file: writer, live, ros2, channels: Vec::new() };
         let ros2 = |(name, text): (&str, String)| ros2_schema(name, &text);
         let js_schema = ros2(ros_msgs::joint_state_schema());
         let cp_schema = ros2(ros_msgs::pose_stamped_schema());
         let state_schema = ros2(ros_msgs::operating_state_schema());
         let (tf_schema, tf_encoding) = sdk_schema::<FrameTransforms>();
         let tf = w.add_channel("/tf", &tf_schema, &tf_encoding)?;
+        let tf_ros2 = match w.ros2.is_some() {
+            true => Some(w.add("/tf", &ros2(ros_msgs::tf_schema()), "cdr", true)?),
+            false => None,
+        };
         let mut arms = Vec::with_capacity(sim.arms.len());
         let mut body_names = Vec::with_capacity(sim.arms.len());
         for arm in &sim.arms {
@@ -273,7 +315,7 @@ impl Recorder {
             let topic = format!("/{}/robot_description", arm.name.replace('-', "/"));
             statics.push((w.add_channel(&topic, &string_schema, "cdr")?, ros_msgs::encode_string(&urdf)));
         }
-        Ok(Recorder { sinks: w, staged, tmp, path, stride, arms, tf, body_names, samples: 0, camera: None, statics, statics_sent: None, tf_buf: Vec::new() })
+        Ok(Recorder { sinks: w, staged, tmp, path, stride, arms, tf, tf_ros2, body_names, samples: 0, camera: None, statics, statics_sent: None, tf_buf: Vec::new(), stamp_origin: 0.0 })
     }
 
     /// Simulated time between samples (s) for a sim of time step `dt`.
@@ -320,7 +362,7 @@ impl Recorder {
 
     /// Record the state of `sim` now.
     pub fn sample(&mut self, sim: &Sim) -> Result<()> {
-        let t = sim.time;
+        let t = sim.time + self.stamp_origin;
         for a in 0..self.arms.len() {
             let arm = &sim.arms[a];
             let (off, n) = (arm.q_offset, arm.model.nq());
@@ -365,23 +407,37 @@ impl Recorder {
             for (channel, bytes) in &self.statics {
                 self.sinks.log_live(*channel, stamp_ns(t), bytes);
             }
+            // The arm's state too: a ROS 2 client that joins later waits for it.
+            for c in &self.arms {
+                let state = ros_msgs::OperatingState { header: Header::at(t, ""), state: "ENABLED".into(), is_homed: true, is_busy: false };
+                self.sinks.log_live(c.operating_state, stamp_ns(t), &state.encode());
+            }
             self.statics_sent = Some(std::time::Instant::now());
         }
-        if self.sinks.wanted(self.tf) {
-            let mut transforms = Vec::with_capacity(self.body_names.iter().map(Vec::len).sum());
+        let ros2_tf = self.tf_ros2.filter(|c| self.sinks.wanted(*c));
+        if self.sinks.wanted(self.tf) || ros2_tf.is_some() {
+            let mut poses = Vec::with_capacity(self.body_names.iter().map(Vec::len).sum());
             for a in 0..self.arms.len() {
                 for b in 0..self.body_names[a].len() {
                     let p = sim.body_pose(a, b);
                     let q = UnitQuaternion::from_rotation_matrix(&p.rotation);
                     let o = p * Point3::origin();
-                    transforms.push(frame_transform::transform(t, "world", &self.body_names[a][b], [o.x, o.y, o.z], [q.i, q.j, q.k, q.w]));
+                    poses.push((&self.body_names[a][b], [o.x, o.y, o.z], [q.i, q.j, q.k, q.w]));
                 }
             }
-            let mut buf = std::mem::take(&mut self.tf_buf);
-            frame_transform::encode(transforms, &mut buf);
-            let sent = self.write(self.tf, t, &buf);
-            self.tf_buf = buf;
-            sent?;
+            if let Some(channel) = ros2_tf {
+                let list: Vec<TransformStamped> =
+                    poses.iter().map(|(name, o, q)| TransformStamped { header: Header::at(t, "world"), child_frame_id: (*name).clone(), translation: *o, rotation: *q }).collect();
+                self.write(channel, t, &ros_msgs::encode_tf(&list))?;
+            }
+            if self.sinks.wanted(self.tf) {
+                let transforms = poses.iter().map(|(name, o, q)| frame_transform::transform(t, "world", name, *o, *q)).collect();
+                let mut buf = std::mem::take(&mut self.tf_buf);
+                frame_transform::encode(transforms, &mut buf);
+                let sent = self.write(self.tf, t, &buf);
+                self.tf_buf = buf;
+                sent?;
+            }
         }
         self.samples += 1;
         Ok(())
@@ -408,7 +464,7 @@ impl Recorder {
         let Some(mut ch) = self.camera.take() else {
             return Err(SimError::Build("write_camera before add_camera".into()));
         };
-        let t = camera.time;
+        let t = camera.time + self.stamp_origin;
         let k = camera.intrinsics;
         let tmp = self.tmp.display().to_string();
         let png_err = |e: png::EncodingError| SimError::Io { path: tmp.clone(), source: std::io::Error::other(e.to_string()) };
@@ -451,6 +507,22 @@ impl Recorder {
     /// The live view, if the run is served.
     pub fn live(&self) -> Option<&Live> {
         self.sinks.live.as_ref()
+    }
+
+    /// The ROS 2 domain, if the run is served on one.
+    pub fn ros2(&self) -> Option<&Ros2> {
+        self.sinks.ros2.as_ref()
+    }
+
+    /// Mutable access to the ROS 2 domain (to subscribe to commands).
+    pub fn ros2_mut(&mut self) -> Option<&mut Ros2> {
+        self.sinks.ros2.as_mut()
+    }
+
+    /// Stamp every message at `origin + simulated time` (s): a served twin stamps with the wall
+    /// clock (seconds since the Unix epoch at its start), as the dVRK does.
+    pub fn set_stamp_origin(&mut self, origin: f64) {
+        self.stamp_origin = origin;
     }
 
     /// Stop serving, close the file, complete and synced, but leave it staged beside its

@@ -1,0 +1,257 @@
+//! A scene served as a live twin: simulated in real time, its arms published on ROS 2 as the
+//! dVRK console publishes them (through the recorder, [`crate::Recorder::open_with`]), and
+//! driven by the commands a dVRK client sends.
+//!
+//! Commands, per arm (`PSM1`; the jaw on its own topic, as the dVRK has it):
+//! - `/PSM1/servo_jp`, `/PSM1/jaw/servo_jp` (sensor_msgs/msg/JointState): a position setpoint
+//!   (rad, m) for the PID, with the velocity as feed-forward when the message has one;
+//! - `/PSM1/servo_jf`, `/PSM1/jaw/servo_jf`: efforts (N·m, N), applied as they are (the joint
+//!   leaves PID until its next position command).
+//!
+//! A message may name its joints (in any order: each must be one of the topic's) or leave the
+//! names empty (then it lists them in the arm's order). A command with an unknown name, the
+//! wrong number of values or a value that is not finite is refused with a `/rosout` warning and
+//! a line on stderr; the twin keeps running.
+
+use crate::control::Mode;
+use crate::error::{Result, SimError};
+use crate::live::Live;
+use crate::recording::ros_msgs::JointState;
+use crate::recording::writer::TOOL_JOINTS;
+use crate::ros2::{Ros2, Ros2Options};
+use crate::{RecordOptions, Recorder, Scene, Sim, SimOptions};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Instant, SystemTime, UNIX_EPOCH};
+
+/// What to serve and for how long.
+#[derive(Debug, Clone)]
+pub struct ServeOptions {
+    /// Simulated seconds to run; until stopped when absent.
+    pub duration: Option<f64>,
+    /// Messages per second on every topic (Hz): the dVRK console's 200 by default.
+    pub rate: f64,
+    /// The DDS domain and interfaces.
+    pub ros2: Ros2Options,
+    /// Also record the run to this MCAP file.
+    pub record: Option<RecordOptions>,
+}
+
+/// What a served run did.
+#[derive(Debug, Clone, Default, serde::Serialize)]
+pub struct ServeSummary {
+    /// Simulated time (s).
+    pub simulated: f64,
+    /// Wall-clock time (s).
+    pub wall: f64,
+    /// Time steps taken.
+    pub steps: u64,
+    /// Messages published per topic.
+    pub samples: u64,
+    /// Commands applied, and refused.
+    pub commands: u64,
+    pub refused: u64,
+    /// The furthest the simulation fell behind the wall clock (s), after its first second.
+    pub worst_lag: f64,
+    /// Whether every state stayed finite.
+    pub finite: bool,
+}
+
+/// The kind of a command topic.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Kind {
+    ServoJp,
+    ServoJf,
+}
+
+/// One command topic: the joints it moves (global indices) and their names.
+struct CommandTopic {
+    subscription: usize,
+    kind: Kind,
+    joints: Vec<usize>,
+    names: Vec<String>,
+}
+
+/// The joint groups of every arm, as the recorder publishes them: `(prefix, joints, names)`.
+fn groups(sim: &Sim) -> Vec<(String, Vec<usize>, Vec<String>)> {
+    let mut out = Vec::new();
+    for arm in &sim.arms {
+        let ns = arm.name.replace('-', "/");
+        let m = &arm.model;
+        let tool = |k: &usize| TOOL_JOINTS.contains(&m.joints[*k].name.as_str());
+        let arm_joints: Vec<usize> = (0..m.nq()).filter(|k| !tool(k)).collect();
+        out.push((ns.clone(), arm_joints.iter().map(|k| arm.q_offset + k).collect(), arm_joints.iter().map(|k| m.joints[*k].name.clone()).collect()));
+        for k in (0..m.nq()).filter(tool) {
+            out.push((format!("{ns}/{}", m.joints[k].name), vec![arm.q_offset + k], vec![m.joints[k].name.clone()]));
+        }
+    }
+    out
+}
+
+/// The values of a command in the topic's joint order, or why it is refused.
+fn command_values(topic: &CommandTopic, msg: &JointState, kind: Kind) -> std::result::Result<(Vec<f64>, Vec<f64>), String> {
+    let values = if kind == Kind::ServoJp { &msg.position } else { &msg.effort };
+    let field = if kind == Kind::ServoJp { "position" } else { "effort" };
+    let n = topic.joints.len();
+    if values.len() != n {
+        return Err(format!("{} {field} values for {n} joints ({})", values.len(), topic.names.join(", ")));
+    }
+    let velocity = match (kind, msg.velocity.len()) {
+        (Kind::ServoJp, len) if len == n => msg.velocity.clone(),
+        (Kind::ServoJp, 0) | (Kind::ServoJf, _) => vec![0.0; n],
+        (_, len) => return Err(format!("{len} velocity values for {n} joints")),
+    };
+    // Names, when given, say which value goes to which joint.
+    let order: Vec<usize> = if msg.name.is_empty() {
+        (0..n).collect()
+    } else {
+        if msg.name.len() != n {
+            return Err(format!("{} names for {n} {field} values", msg.name.len()));
+        }
+        let mut seen = vec![false; n];
+        let mut order = vec![0; n];
+        for (i, name) in msg.name.iter().enumerate() {
+            let Some(k) = topic.names.iter().position(|x| x == name) else {
+                return Err(format!("unknown joint `{name}` (this topic's: {})", topic.names.join(", ")));
+            };
+            if std::mem::replace(&mut seen[k], true) {
+                return Err(format!("joint `{name}` named twice"));
+            }
+            order[k] = i;
+        }
+        order
+    };
+    let (v, vd): (Vec<f64>, Vec<f64>) = order.iter().map(|&i| (values[i], velocity[i])).unzip();
+    if let Some((k, x)) = v.iter().chain(&vd).enumerate().find(|(_, x)| !x.is_finite()) {
+        let name = &topic.names[k % n];
+        return Err(format!("{x} for joint `{name}` is not a finite number"));
+    }
+    Ok((v, vd))
+}
+
+/// Serve `scene` on ROS 2 until `options.duration` of simulated time has run or `stop` is set.
+/// `ready` is called once the topics exist (before the first step), with the node.
+pub fn serve(scene: &Scene, sim_options: &SimOptions, options: &ServeOptions, stop: &AtomicBool, live: Option<Live>, ready: impl FnOnce(&Ros2)) -> Result<(ServeSummary, Option<dvrk_kin::atomic::Staged>)> {
+    if let Some(d) = options.duration {
+        if !(d.is_finite() && d > 0.0) {
+            return Err(SimError::value("duration (s)", d, "must be a positive finite number"));
+        }
+    }
+    let mut sim = Sim::new(scene, sim_options)?;
+    if !(options.rate.is_finite() && options.rate > 0.0 && options.rate <= 1.0 / sim.dt + 1e-9) {
+        return Err(SimError::value("publishing rate (Hz)", options.rate, format!("must be in (0, {}] (one message per step of {} s at most)", 1.0 / sim.dt, sim.dt)));
+    }
+    let node = Ros2::start(&options.ros2)?;
+    let mut recorder = Recorder::open_with(&sim, options.record.as_ref(), live, Some(node), options.rate)?;
+    let epoch = SystemTime::now().duration_since(UNIX_EPOCH).map(|d| d.as_secs_f64()).unwrap_or(0.0);
+    recorder.set_stamp_origin(epoch);
+    // Hold every joint where it starts until told otherwise.
+    for i in 0..sim.nq() {
+        let q = sim.q()[i];
+        sim.set_target(i, q, 0.0)?;
+    }
+    let mut topics = Vec::new();
+    {
+        let ros2 = recorder.ros2_mut().expect("opened with ROS 2");
+        for (prefix, joints, names) in groups(&sim) {
+            for (kind, verb) in [(Kind::ServoJp, "servo_jp"), (Kind::ServoJf, "servo_jf")] {
+                let subscription = ros2.subscribe(&format!("/{prefix}/{verb}"), "sensor_msgs/msg/JointState")?;
+                topics.push(CommandTopic { subscription, kind, joints: joints.clone(), names: names.clone() });
+            }
+        }
+    }
+    ready(recorder.ros2().expect("opened with ROS 2"));
+    let modes: Vec<Mode> = (0..sim.nq()).map(|i| sim.actuator(i).map(|a| a.mode)).collect::<Result<_>>()?;
+    let mut summary = ServeSummary { finite: true, ..Default::default() };
+    let steps = options.duration.map(|d| (d / sim.dt).round().max(1.0) as u64);
+    let start = Instant::now();
+    let mut step = 0u64;
+    while steps.is_none_or(|n| step < n) && !stop.load(Ordering::Relaxed) {
+        apply_commands(&mut sim, &recorder, &topics, &modes, &mut summary)?;
+        sim.step();
+        step += 1;
+        recorder.after_step(&sim, step)?;
+        if !sim.q().iter().all(|x| x.is_finite()) {
+            summary.finite = false;
+            break;
+        }
+        // Real time: sleep until the wall clock reaches the simulated time.
+        let behind = start.elapsed().as_secs_f64() - step as f64 * sim.dt;
+        if behind < -1e-4 {
+            std::thread::sleep(std::time::Duration::from_secs_f64(-behind));
+        } else if step as f64 * sim.dt > 1.0 {
+            summary.worst_lag = summary.worst_lag.max(behind);
+        }
+    }
+    summary.steps = step;
+    summary.simulated = step as f64 * sim.dt;
+    summary.wall = start.elapsed().as_secs_f64();
+    summary.samples = recorder.samples();
+    let staged = recorder.finish_staged()?;
+    if !summary.finite {
+        return Err(SimError::Build(format!("the simulation went non-finite at {:.3} s", summary.simulated)));
+    }
+    Ok((summary, staged))
+}
+
+/// Take every waiting command and apply the valid ones.
+fn apply_commands(sim: &mut Sim, recorder: &Recorder, topics: &[CommandTopic], modes: &[Mode], summary: &mut ServeSummary) -> Result<()> {
+    let ros2 = recorder.ros2().expect("opened with ROS 2");
+    for topic in topics {
+        while let Some(message) = ros2.take(topic.subscription) {
+            let topic_name = ros2.command_topic(topic.subscription);
+            let values = message.and_then(|bytes| JointState::decode(&bytes).map_err(|e| format!("not a sensor_msgs/JointState: {e}"))).and_then(|msg| command_values(topic, &msg, topic.kind));
+            match values {
+                Ok((v, vd)) => {
+                    for ((&i, x), xd) in topic.joints.iter().zip(v).zip(vd) {
+                        match topic.kind {
+                            Kind::ServoJp => {
+                                if sim.actuator(i)?.mode == Mode::Effort {
+                                    sim.set_mode(i, modes[i])?;
+                                }
+                                sim.set_target(i, x, xd)?;
+                            }
+                            Kind::ServoJf => {
+                                sim.set_mode(i, Mode::Effort)?;
+                                sim.set_effort(i, x)?;
+                            }
+                        }
+                    }
+                    summary.commands += 1;
+                }
+                Err(why) => {
+                    summary.refused += 1;
+                    let line = format!("{topic_name}: command refused: {why}");
+                    eprintln!("warning: {line}");
+                    ros2.log_line(sim.time, 30, &line);
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn topic() -> CommandTopic {
+        CommandTopic { subscription: 0, kind: Kind::ServoJp, joints: vec![0, 1, 2], names: vec!["outer_yaw".into(), "outer_pitch".into(), "outer_insertion".into()] }
+    }
+
+    #[test]
+    fn commands_are_read_by_name_or_position_and_bad_ones_say_why() {
+        let t = topic();
+        let js = |name: &[&str], position: &[f64]| JointState { name: name.iter().map(|s| s.to_string()).collect(), position: position.to_vec(), ..Default::default() };
+        assert_eq!(command_values(&t, &js(&[], &[0.1, 0.2, 0.05]), Kind::ServoJp).unwrap().0, vec![0.1, 0.2, 0.05]);
+        let named = js(&["outer_insertion", "outer_yaw", "outer_pitch"], &[0.05, 0.1, 0.2]);
+        assert_eq!(command_values(&t, &named, Kind::ServoJp).unwrap().0, vec![0.1, 0.2, 0.05]);
+        let e = command_values(&t, &js(&[], &[0.1, 0.2]), Kind::ServoJp).unwrap_err();
+        assert_eq!(e, "2 position values for 3 joints (outer_yaw, outer_pitch, outer_insertion)");
+        let e = command_values(&t, &js(&["outer_yaw", "wrist", "outer_pitch"], &[0.0; 3]), Kind::ServoJp).unwrap_err();
+        assert!(e.starts_with("unknown joint `wrist`"), "{e}");
+        let e = command_values(&t, &js(&[], &[0.0, f64::NAN, 0.0]), Kind::ServoJp).unwrap_err();
+        assert_eq!(e, "NaN for joint `outer_pitch` is not a finite number");
+        let e = command_values(&t, &js(&["outer_yaw", "outer_yaw", "outer_pitch"], &[0.0; 3]), Kind::ServoJp).unwrap_err();
+        assert_eq!(e, "joint `outer_yaw` named twice");
+    }
+}
