@@ -63,6 +63,66 @@ class Log_(IdlStruct, typename="rcl_interfaces::msg::dds_::Log_"):
     line: uint32
 
 
+@dataclass
+class StringStamped_(IdlStruct, typename="crtk_msgs::msg::dds_::StringStamped_"):
+    header: Header_
+    string: str
+
+
+@dataclass
+class OperatingState_(IdlStruct, typename="crtk_msgs::msg::dds_::OperatingState_"):
+    header: Header_
+    state: str
+    is_homed: bool
+    is_busy: bool
+
+
+@dataclass
+class Vector3_(IdlStruct, typename="geometry_msgs::msg::dds_::Vector3_"):
+    x: float64
+    y: float64
+    z: float64
+
+
+@dataclass
+class Point_(IdlStruct, typename="geometry_msgs::msg::dds_::Point_"):
+    x: float64
+    y: float64
+    z: float64
+
+
+@dataclass
+class Quaternion_(IdlStruct, typename="geometry_msgs::msg::dds_::Quaternion_"):
+    x: float64
+    y: float64
+    z: float64
+    w: float64
+
+
+@dataclass
+class Pose_(IdlStruct, typename="geometry_msgs::msg::dds_::Pose_"):
+    position: Point_
+    orientation: Quaternion_
+
+
+@dataclass
+class PoseStamped_(IdlStruct, typename="geometry_msgs::msg::dds_::PoseStamped_"):
+    header: Header_
+    pose: Pose_
+
+
+@dataclass
+class Twist_(IdlStruct, typename="geometry_msgs::msg::dds_::Twist_"):
+    linear: Vector3_
+    angular: Vector3_
+
+
+@dataclass
+class TwistStamped_(IdlStruct, typename="geometry_msgs::msg::dds_::TwistStamped_"):
+    header: Header_
+    twist: Twist_
+
+
 # The dVRK's QoS: reliable, volatile, keep last 10.
 QOS = Qos(Policy.Reliability.Reliable(duration(milliseconds=100)), Policy.Durability.Volatile, Policy.History.KeepLast(10))
 PSM_JOINTS = ["outer_yaw", "outer_pitch", "outer_insertion", "outer_roll", "outer_wrist_pitch", "outer_wrist_yaw"]
@@ -92,14 +152,14 @@ class Peer:
         self.readers[topic] = DataReader(self.dp, Topic(self.dp, "rt" + topic, cls), qos=qos)
         return self.readers[topic]
 
-    def writer(self, topic):
-        self.writers[topic] = DataWriter(self.dp, Topic(self.dp, "rt" + topic, JointState_), qos=QOS)
+    def writer(self, topic, cls=JointState_):
+        self.writers[topic] = DataWriter(self.dp, Topic(self.dp, "rt" + topic, cls), qos=QOS)
         return self.writers[topic]
 
-    def take(self, topic):
-        """Every JointState waiting on `topic`, with its arrival time."""
+    def take(self, topic, cls=JointState_):
+        """Every message waiting on `topic`, with its arrival time."""
         now = time.time()
-        return [(now, s) for s in self.readers[topic].take(N=1000) if isinstance(s, JointState_)]
+        return [(now, s) for s in self.readers[topic].take(N=1000) if isinstance(s, cls)]
 
 
 def command(names, position=(), effort=()):
@@ -237,3 +297,169 @@ def test_ctrl_c_stops_the_twin_and_leaves_no_process():
     out, err = proc.communicate(timeout=10)
     assert proc.returncode == 0, err
     assert "served" in out and proc.poll() is not None
+
+
+def test_a_servo_jp_step_responds_as_the_simulator_does_for_the_same_command(tmp_path):
+    """The twin's recorded step response against `dvrk_twin.Sim` (the simulator `dvrk sim`
+    runs) given the same command at the same step: the twin adds transport, not physics."""
+    import numpy as np
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+
+    dvrk_twin = pytest.importorskip("dvrk_twin")
+    domain = unique_domain(4)
+    peer = Peer(domain)
+    peer.reader("/PSM1/measured_js")
+    servo = peer.writer("/PSM1/servo_jp")
+    out = tmp_path / "twin.mcap"
+    proc = serve(domain, 3, "--rate", "1000", "--out", str(out))
+    step = 0.1
+    try:
+        first_sample(peer, "/PSM1/measured_js")
+        time.sleep(0.8)
+        _, now = first_sample(peer, "/PSM1/measured_js")
+        target = list(now.position)
+        target[0] += step
+        servo.write(command(PSM_JOINTS, target))
+    finally:
+        summary, _ = finish(proc)
+    assert summary["commands"] == 1
+    setpoint, measured = [], []
+    with open(out, "rb") as f:
+        for _, channel, _, msg in make_reader(f, decoder_factories=[DecoderFactory()]).iter_decoded_messages(topics=["/PSM1/setpoint_js", "/PSM1/measured_js"]):
+            (setpoint if channel.topic == "/PSM1/setpoint_js" else measured).append(list(msg.position))
+    setpoint, measured = np.array(setpoint), np.array(measured)
+    assert len(measured) == 3000  # one sample per 1 ms step
+    # Sample j follows step j + 1; the first with the new target says the command went in
+    # before step j + 1, after j steps holding the start.
+    j = int(np.argmax(np.abs(setpoint[:, 0] - target[0]) < 1e-12))
+    assert j > 100 and abs(setpoint[j - 1, 0] - target[0]) > 0.05
+    sim = dvrk_twin.Sim.from_scene("psm", engine="reduced")
+    q0 = sim.q.copy()
+    for i in range(len(q0)):
+        sim.set_target(i, q0[i], 0.0)
+    sim.step(j)
+    arm = [sim.joint_names.index(f"PSM1/{n}") for n in PSM_JOINTS]
+    for i, k in enumerate(arm):
+        sim.set_target(k, target[i], 0.0)
+    expected = []
+    for _ in range(len(measured) - j):
+        sim.step()
+        expected.append(sim.q[arm[0]])
+    twin = measured[j:, 0]
+    rms = float(np.sqrt(np.mean((twin - np.array(expected)) ** 2)))
+    print(f"step response: RMS difference {rms:.3e} rad over {len(twin)} ms ({rms / step:.2e} of the step); final {twin[-1]:.5f} vs {expected[-1]:.5f}")
+    assert rms < 0.01 * step
+
+
+def test_python_serves_the_twin_and_returns_its_summary():
+    import threading
+
+    dvrk_twin = pytest.importorskip("dvrk_twin")
+    domain = unique_domain(5)
+    peer = Peer(domain)
+    peer.reader("/PSM1/measured_js")
+    result = {}
+    worker = threading.Thread(target=lambda: result.update(dvrk_twin.serve("psm", domain=domain, duration=2.0)))
+    worker.start()
+    try:
+        _, first = first_sample(peer, "/PSM1/measured_js")
+        assert list(first.name) == PSM_JOINTS
+    finally:
+        worker.join(timeout=30)
+    assert not worker.is_alive()
+    assert result["steps"] == 2000 and result["finite"] and result["samples"] == 400, result
+    with pytest.raises(dvrk_twin.InputError, match="domain"):
+        dvrk_twin.serve("psm", domain=500, duration=0.1)
+
+
+def stamp(msg):
+    return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+
+
+def test_state_commands_servo_jr_and_measured_cv():
+    import numpy as np
+
+    domain = unique_domain(6)
+    peer = Peer(domain)
+    peer.reader("/PSM1/measured_js")
+    peer.reader("/PSM1/setpoint_js")
+    peer.reader("/PSM1/operating_state", OperatingState_)
+    peer.reader("/PSM1/measured_cp", PoseStamped_)
+    peer.reader("/PSM1/measured_cv", TwistStamped_)
+    state = peer.writer("/PSM1/state_command", StringStamped_)
+    servo = peer.writer("/PSM1/servo_jp")
+    relative = peer.writer("/PSM1/servo_jr")
+    proc = serve(domain, 7)
+
+    def say(text):
+        state.write(StringStamped_(Header_(Time_(0, 0), ""), text))
+
+    def wait_state(want, timeout=2.0):
+        deadline = time.time() + timeout
+        while time.time() < deadline:
+            for _, s in peer.take("/PSM1/operating_state", OperatingState_):
+                if (s.state, s.is_homed) == want:
+                    return
+            time.sleep(0.005)
+        raise AssertionError(f"operating_state never said {want}")
+
+    try:
+        wait_state(("ENABLED", True))  # repeated every second for late joiners
+        say("disable")
+        wait_state(("DISABLED", True))
+        time.sleep(0.1)
+        servo.write(command(PSM_JOINTS, [0.0] * 6))  # refused: disabled
+        say("home")  # refused: disabled
+        time.sleep(0.2)
+        say("enable")
+        wait_state(("ENABLED", True))
+        say("unhome")
+        wait_state(("ENABLED", False))
+        say("home")
+        wait_state(("ENABLED", True))
+        say("dance")  # refused: unknown
+        time.sleep(0.3)
+        # servo_jr: 0.05 rad more yaw than the setpoint holds now.
+        _, sp = first_sample(peer, "/PSM1/setpoint_js")
+        before = sp.position[0]
+        relative.write(command(PSM_JOINTS, [0.05, 0, 0, 0, 0, 0]))
+        deadline, after = time.time() + 1.0, None
+        while time.time() < deadline and after is None:
+            for _, s in peer.take("/PSM1/setpoint_js"):
+                if abs(s.position[0] - before - 0.05) < 1e-9:
+                    after = s.position[0]
+            time.sleep(0.002)
+        assert after is not None, "servo_jr did not move the setpoint by 0.05 rad"
+        # measured_cv against the derivative of measured_cp while the yaw swings.
+        time.sleep(0.3)
+        peer.take("/PSM1/measured_cp", PoseStamped_)
+        peer.take("/PSM1/measured_cv", TwistStamped_)
+        servo.write(command(PSM_JOINTS, [after - 0.3, 0, 0.1, 0, 0, 0]))
+        cp, cv = {}, {}
+        start = time.time()
+        while time.time() - start < 1.0:
+            for _, m in peer.take("/PSM1/measured_cp", PoseStamped_):
+                cp[round(stamp(m), 4)] = np.array([m.pose.position.x, m.pose.position.y, m.pose.position.z])
+            for _, m in peer.take("/PSM1/measured_cv", TwistStamped_):
+                cv[round(stamp(m), 4)] = np.array([m.twist.linear.x, m.twist.linear.y, m.twist.linear.z])
+                assert m.header.frame_id == "PSM1_base"
+            time.sleep(0.002)
+        times = sorted(set(cp) & set(cv))
+        errors, speeds = [], []
+        for a, b, c in zip(times, times[1:], times[2:]):
+            if c - a > 0.011:
+                continue
+            fd = (cp[c] - cp[a]) / (c - a)
+            errors.append(np.linalg.norm(fd - cv[b]))
+            speeds.append(np.linalg.norm(cv[b]))
+        assert len(errors) > 100
+        print(f"measured_cv vs the derivative of measured_cp: peak speed {max(speeds):.3f} m/s, RMS difference {np.sqrt(np.mean(np.square(errors))):.4f} m/s")
+        assert max(speeds) > 0.05
+        assert np.sqrt(np.mean(np.square(errors))) < 0.05 * max(speeds)
+    finally:
+        summary, err = finish(proc)
+    refused = [l for l in err.splitlines() if "command refused" in l]
+    assert len(refused) == 3, err
+    assert any("the arm is DISABLED" in l for l in refused) and any("home: the arm is DISABLED" in l for l in refused)
+    assert any("unknown state command `dance`" in l for l in refused)

@@ -571,6 +571,7 @@ fn _dvrk_twin(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(builtin_models, m)?)?;
     m.add_class::<sim::PySim>()?;
     m.add_function(wrap_pyfunction!(sim::run_scene, m)?)?;
+    m.add_function(wrap_pyfunction!(sim::serve, m)?)?;
     m.add_function(wrap_pyfunction!(sim::builtin_scenes, m)?)?;
     m.add_function(wrap_pyfunction!(sim::export_mjcf, m)?)?;
     m.add_function(wrap_pyfunction!(calib::pivot, m)?)?;

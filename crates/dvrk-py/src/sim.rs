@@ -247,3 +247,66 @@ pub fn export_mjcf(name_or_path: &str) -> Result<String> {
 pub fn builtin_scenes() -> Vec<&'static str> {
     dvrk_sim::scene::builtin_scenes()
 }
+
+/// Serve a scene as a live twin on ROS 2 in real time (what `dvrk serve` does): the dVRK's
+/// CRTK topics published at `rate` Hz, `servo_jp`/`servo_jf` taken, on DDS domain `domain`
+/// (`ROS_DOMAIN_ID`, else 0, when None), loopback only unless `networks` names interface
+/// addresses. Blocks for `duration` simulated seconds, or until Ctrl-C (KeyboardInterrupt stops
+/// the twin cleanly, finishes `out`, and is raised again). Returns the summary as a dict.
+#[pyfunction]
+#[pyo3(signature = (scene="psm", domain=None, rate=200.0, duration=None, engine="reduced", out=None, networks=Vec::new()))]
+#[allow(clippy::too_many_arguments)]
+pub fn serve<'py>(
+    py: Python<'py>,
+    scene: &str,
+    domain: Option<u16>,
+    rate: f64,
+    duration: Option<f64>,
+    engine: &str,
+    out: Option<std::path::PathBuf>,
+    networks: Vec<String>,
+) -> Result<Bound<'py, PyAny>> {
+    use dvrk_sim::ros2::Ros2Options;
+    use std::sync::atomic::{AtomicBool, Ordering};
+    use std::sync::Arc;
+    let s = Scene::load(scene)?;
+    let sim_options = options("impulse", None, Some(engine))?;
+    let domain = match domain {
+        Some(d) => d,
+        None => Ros2Options::domain_from_env()?,
+    };
+    let mut nets = Vec::new();
+    for n in &networks {
+        nets.push(n.parse::<std::net::IpAddr>().map_err(|_| Error::Input(format!("networks: `{n}` is not an IP address")))?);
+    }
+    if !nets.is_empty() && !nets.iter().any(|n| n.is_loopback()) {
+        nets.push(std::net::IpAddr::from([127, 0, 0, 1]));
+    }
+    let serve_options = dvrk_sim::serve::ServeOptions {
+        duration,
+        rate,
+        ros2: Ros2Options { domain, networks: nets, node: "dvrk_twin".into() },
+        record: out.clone().map(|path| dvrk_sim::RecordOptions { path, rate }),
+    };
+    let stop = Arc::new(AtomicBool::new(false));
+    let flag = stop.clone();
+    let worker = std::thread::spawn(move || dvrk_sim::serve::serve(&s, &sim_options, &serve_options, &flag, None, |_| {}));
+    // Wait without the GIL, waking to let Python see Ctrl-C.
+    let mut interrupted = None;
+    while !worker.is_finished() {
+        py.detach(|| std::thread::sleep(std::time::Duration::from_millis(50)));
+        if let Err(e) = py.check_signals() {
+            stop.store(true, Ordering::Relaxed);
+            interrupted = Some(e);
+        }
+    }
+    let (summary, staged) = worker.join().map_err(|_| Error::Input("the twin's thread panicked".into()))??;
+    if let Some(staged) = staged {
+        staged.commit().map_err(|e| Error::Input(format!("out: {e}")))?;
+    }
+    if let Some(e) = interrupted {
+        return Err(e.into());
+    }
+    let text = serde_json::to_string(&summary).map_err(|e| Error::Input(e.to_string()))?;
+    Ok(py.import("json")?.call_method1("loads", (text,))?)
+}

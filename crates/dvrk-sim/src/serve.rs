@@ -5,8 +5,14 @@
 //! Commands, per arm (`PSM1`; the jaw on its own topic, as the dVRK has it):
 //! - `/PSM1/servo_jp`, `/PSM1/jaw/servo_jp` (sensor_msgs/msg/JointState): a position setpoint
 //!   (rad, m) for the PID, with the velocity as feed-forward when the message has one;
+//! - `/PSM1/servo_jr`, `/PSM1/jaw/servo_jr`: a step (rad, m) added to the current setpoint;
 //! - `/PSM1/servo_jf`, `/PSM1/jaw/servo_jf`: efforts (N·m, N), applied as they are (the joint
 //!   leaves PID until its next position command).
+//!
+//! - `/PSM1/state_command` (crtk_msgs/msg/StringStamped): `enable` (hold where the arm is),
+//!   `disable` (no effort: the arm hangs on its counterweight and cables), `home` (at once: the
+//!   simulated encoders need no index search), `unhome`; motion commands to a disabled arm are
+//!   refused. `operating_state` says each change.
 //!
 //! A message may name its joints (in any order: each must be one of the topic's) or leave the
 //! names empty (then it lists them in the arm's order). A command with an unknown name, the
@@ -60,6 +66,7 @@ pub struct ServeSummary {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Kind {
     ServoJp,
+    ServoJr,
     ServoJf,
 }
 
@@ -67,21 +74,29 @@ enum Kind {
 struct CommandTopic {
     subscription: usize,
     kind: Kind,
+    arm: usize,
     joints: Vec<usize>,
     names: Vec<String>,
 }
 
-/// The joint groups of every arm, as the recorder publishes them: `(prefix, joints, names)`.
-fn groups(sim: &Sim) -> Vec<(String, Vec<usize>, Vec<String>)> {
+/// An arm's `state_command` subscription and all its joints (global indices).
+struct StateTopic {
+    subscription: usize,
+    arm: usize,
+    joints: Vec<usize>,
+}
+
+/// The joint groups of every arm, as the recorder publishes them: `(arm, prefix, joints, names)`.
+fn groups(sim: &Sim) -> Vec<(usize, String, Vec<usize>, Vec<String>)> {
     let mut out = Vec::new();
-    for arm in &sim.arms {
+    for (a, arm) in sim.arms.iter().enumerate() {
         let ns = arm.name.replace('-', "/");
         let m = &arm.model;
         let tool = |k: &usize| TOOL_JOINTS.contains(&m.joints[*k].name.as_str());
         let arm_joints: Vec<usize> = (0..m.nq()).filter(|k| !tool(k)).collect();
-        out.push((ns.clone(), arm_joints.iter().map(|k| arm.q_offset + k).collect(), arm_joints.iter().map(|k| m.joints[*k].name.clone()).collect()));
+        out.push((a, ns.clone(), arm_joints.iter().map(|k| arm.q_offset + k).collect(), arm_joints.iter().map(|k| m.joints[*k].name.clone()).collect()));
         for k in (0..m.nq()).filter(tool) {
-            out.push((format!("{ns}/{}", m.joints[k].name), vec![arm.q_offset + k], vec![m.joints[k].name.clone()]));
+            out.push((a, format!("{ns}/{}", m.joints[k].name), vec![arm.q_offset + k], vec![m.joints[k].name.clone()]));
         }
     }
     out
@@ -89,15 +104,14 @@ fn groups(sim: &Sim) -> Vec<(String, Vec<usize>, Vec<String>)> {
 
 /// The values of a command in the topic's joint order, or why it is refused.
 fn command_values(topic: &CommandTopic, msg: &JointState, kind: Kind) -> std::result::Result<(Vec<f64>, Vec<f64>), String> {
-    let values = if kind == Kind::ServoJp { &msg.position } else { &msg.effort };
-    let field = if kind == Kind::ServoJp { "position" } else { "effort" };
+    let (values, field) = if kind == Kind::ServoJf { (&msg.effort, "effort") } else { (&msg.position, "position") };
     let n = topic.joints.len();
     if values.len() != n {
         return Err(format!("{} {field} values for {n} joints ({})", values.len(), topic.names.join(", ")));
     }
     let velocity = match (kind, msg.velocity.len()) {
         (Kind::ServoJp, len) if len == n => msg.velocity.clone(),
-        (Kind::ServoJp, 0) | (Kind::ServoJf, _) => vec![0.0; n],
+        (Kind::ServoJp, 0) | (Kind::ServoJr | Kind::ServoJf, _) => vec![0.0; n],
         (_, len) => return Err(format!("{len} velocity values for {n} joints")),
     };
     // Names, when given, say which value goes to which joint.
@@ -150,13 +164,18 @@ pub fn serve(scene: &Scene, sim_options: &SimOptions, options: &ServeOptions, st
         sim.set_target(i, q, 0.0)?;
     }
     let mut topics = Vec::new();
+    let mut states = Vec::new();
     {
         let ros2 = recorder.ros2_mut().expect("opened with ROS 2");
-        for (prefix, joints, names) in groups(&sim) {
-            for (kind, verb) in [(Kind::ServoJp, "servo_jp"), (Kind::ServoJf, "servo_jf")] {
+        for (arm, prefix, joints, names) in groups(&sim) {
+            for (kind, verb) in [(Kind::ServoJp, "servo_jp"), (Kind::ServoJr, "servo_jr"), (Kind::ServoJf, "servo_jf")] {
                 let subscription = ros2.subscribe(&format!("/{prefix}/{verb}"), "sensor_msgs/msg/JointState")?;
-                topics.push(CommandTopic { subscription, kind, joints: joints.clone(), names: names.clone() });
+                topics.push(CommandTopic { subscription, kind, arm, joints: joints.clone(), names: names.clone() });
             }
+        }
+        for (a, arm) in sim.arms.iter().enumerate() {
+            let subscription = ros2.subscribe(&format!("/{}/state_command", arm.name.replace('-', "/")), "crtk_msgs/msg/StringStamped")?;
+            states.push(StateTopic { subscription, arm: a, joints: (arm.q_offset..arm.q_offset + arm.model.nq()).collect() });
         }
     }
     ready(recorder.ros2().expect("opened with ROS 2"));
@@ -166,6 +185,7 @@ pub fn serve(scene: &Scene, sim_options: &SimOptions, options: &ServeOptions, st
     let start = Instant::now();
     let mut step = 0u64;
     while steps.is_none_or(|n| step < n) && !stop.load(Ordering::Relaxed) {
+        apply_states(&mut sim, &mut recorder, &states, &modes, &mut summary)?;
         apply_commands(&mut sim, &recorder, &topics, &modes, &mut summary)?;
         sim.step();
         step += 1;
@@ -199,16 +219,20 @@ fn apply_commands(sim: &mut Sim, recorder: &Recorder, topics: &[CommandTopic], m
     for topic in topics {
         while let Some(message) = ros2.take(topic.subscription) {
             let topic_name = ros2.command_topic(topic.subscription);
-            let values = message.and_then(|bytes| JointState::decode(&bytes).map_err(|e| format!("not a sensor_msgs/JointState: {e}"))).and_then(|msg| command_values(topic, &msg, topic.kind));
+            let disabled = recorder.state(topic.arm).state != "ENABLED";
+            let values = message
+                .and_then(|bytes| JointState::decode(&bytes).map_err(|e| format!("not a sensor_msgs/JointState: {e}")))
+                .and_then(|msg| if disabled { Err(format!("the arm is {} (send `enable` on state_command)", recorder.state(topic.arm).state)) } else { command_values(topic, &msg, topic.kind) });
             match values {
                 Ok((v, vd)) => {
                     for ((&i, x), xd) in topic.joints.iter().zip(v).zip(vd) {
                         match topic.kind {
-                            Kind::ServoJp => {
+                            Kind::ServoJp | Kind::ServoJr => {
                                 if sim.actuator(i)?.mode == Mode::Effort {
                                     sim.set_mode(i, modes[i])?;
                                 }
-                                sim.set_target(i, x, xd)?;
+                                let target = if topic.kind == Kind::ServoJr { sim.actuator(i)?.target + x } else { x };
+                                sim.set_target(i, target, xd)?;
                             }
                             Kind::ServoJf => {
                                 sim.set_mode(i, Mode::Effort)?;
@@ -222,7 +246,63 @@ fn apply_commands(sim: &mut Sim, recorder: &Recorder, topics: &[CommandTopic], m
                     summary.refused += 1;
                     let line = format!("{topic_name}: command refused: {why}");
                     eprintln!("warning: {line}");
-                    ros2.log_line(sim.time, 30, &line);
+                    ros2.log_line(30, &line);
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Take every waiting `state_command` and apply it.
+fn apply_states(sim: &mut Sim, recorder: &mut Recorder, states: &[StateTopic], modes: &[Mode], summary: &mut ServeSummary) -> Result<()> {
+    for topic in states {
+        loop {
+            let ros2 = recorder.ros2().expect("opened with ROS 2");
+            let Some(message) = ros2.take(topic.subscription) else { break };
+            let name = ros2.command_topic(topic.subscription).to_string();
+            let command = message.and_then(|b| crate::recording::ros_msgs::decode_string_stamped(&b).map_err(|e| format!("not a crtk_msgs/StringStamped: {e}")));
+            let mut state = recorder.state(topic.arm).clone();
+            let outcome = command.and_then(|(_, c)| match c.trim().to_ascii_lowercase().as_str() {
+                "enable" => {
+                    // Hold where the arm is now, under the controllers it started with.
+                    for &i in &topic.joints {
+                        sim.set_mode(i, modes[i]).map_err(|e| e.to_string())?;
+                        let q = sim.q()[i];
+                        sim.set_target(i, q, 0.0).map_err(|e| e.to_string())?;
+                    }
+                    state.state = "ENABLED".into();
+                    Ok(())
+                }
+                "disable" => {
+                    for &i in &topic.joints {
+                        sim.set_mode(i, Mode::Effort).map_err(|e| e.to_string())?;
+                        sim.set_effort(i, 0.0).map_err(|e| e.to_string())?;
+                    }
+                    state.state = "DISABLED".into();
+                    Ok(())
+                }
+                "home" if state.state != "ENABLED" => Err(format!("home: the arm is {} (enable it first)", state.state)),
+                "home" => {
+                    state.homed = true;
+                    Ok(())
+                }
+                "unhome" => {
+                    state.homed = false;
+                    Ok(())
+                }
+                other => Err(format!("unknown state command `{other}` (valid: enable, disable, home, unhome)")),
+            });
+            match outcome {
+                Ok(()) => {
+                    summary.commands += 1;
+                    recorder.set_state(topic.arm, sim.time, state)?;
+                }
+                Err(why) => {
+                    summary.refused += 1;
+                    let line = format!("{name}: command refused: {why}");
+                    eprintln!("warning: {line}");
+                    recorder.ros2().expect("opened with ROS 2").log_line(30, &line);
                 }
             }
         }
@@ -235,7 +315,7 @@ mod tests {
     use super::*;
 
     fn topic() -> CommandTopic {
-        CommandTopic { subscription: 0, kind: Kind::ServoJp, joints: vec![0, 1, 2], names: vec!["outer_yaw".into(), "outer_pitch".into(), "outer_insertion".into()] }
+        CommandTopic { subscription: 0, kind: Kind::ServoJp, arm: 0, joints: vec![0, 1, 2], names: vec!["outer_yaw".into(), "outer_pitch".into(), "outer_insertion".into()] }
     }
 
     #[test]

@@ -77,7 +77,7 @@ fn psm_recording_holds_the_simulated_values() {
     // The dVRK's CRTK layout: the jaw on its own topics.
     assert_eq!(
         topics,
-        ["/PSM1/jaw/measured_js", "/PSM1/jaw/setpoint_js", "/PSM1/measured_cp", "/PSM1/measured_js", "/PSM1/operating_state", "/PSM1/robot_description", "/PSM1/setpoint_js", "/scene", "/tf"]
+        ["/PSM1/jaw/measured_js", "/PSM1/jaw/setpoint_js", "/PSM1/measured_cp", "/PSM1/measured_cv", "/PSM1/measured_js", "/PSM1/operating_state", "/PSM1/robot_description", "/PSM1/setpoint_js", "/scene", "/tf"]
     );
     assert_eq!(m["/PSM1/operating_state"].len(), 1);
     // What does not change, once: the link geometry and the robot description.
@@ -123,6 +123,19 @@ fn psm_recording_holds_the_simulated_values() {
         let want = serial.inverse() * fk[model.tip];
         let gap = (want.translation.vector - pose.translation.vector).norm();
         assert!(gap < 1e-6, "sample {k}: tip {gap} m from FK");
+        // measured_cv: the tip's twist in the base's axes, J(q) qd of the unplaced model turned
+        // by the serial base (an independent path: no scene placement, no body poses).
+        let cv = &m["/PSM1/measured_cv"][k].1;
+        let mut r = dvrk_sim::recording::cdr::CdrReader::new(cv).unwrap();
+        let (_, _, frame) = (r.i32("sec").unwrap(), r.u32("nanosec").unwrap(), r.string("frame_id").unwrap());
+        assert_eq!(frame, "PSM1_base");
+        let twist: Vec<f64> = (0..6).map(|_| r.f64("twist").unwrap()).collect();
+        let qd = joined(&js.velocity, &jaw.velocity);
+        let jt = unplaced.jacobian(&js.position, model.tip).unwrap() * nalgebra::DVector::from_vec(qd);
+        let rt = serial.rotation.inverse();
+        let (v, w) = (rt * nalgebra::Vector3::new(jt[0], jt[1], jt[2]), rt * nalgebra::Vector3::new(jt[3], jt[4], jt[5]));
+        let got = (nalgebra::Vector3::new(twist[0], twist[1], twist[2]), nalgebra::Vector3::new(twist[3], twist[4], twist[5]));
+        assert!((got.0 - v).norm() < 1e-6 && (got.1 - w).norm() < 1e-6, "sample {k}: measured_cv {got:?} vs J qd {v:?} {w:?}");
     }
     // The tip moved: the sine is running (the yaw's 1 rad sine reaches 0.59 rad at 1 s).
     let yaw_last = e.q.last().unwrap()[0];
@@ -202,6 +215,7 @@ fn python_mcap_ros2_reads_the_recording() {
         ["/PSM1/jaw/measured_js", js_type],
         ["/PSM1/jaw/setpoint_js", js_type],
         ["/PSM1/measured_cp", "geometry_msgs/msg/PoseStamped"],
+        ["/PSM1/measured_cv", "geometry_msgs/msg/TwistStamped"],
         ["/PSM1/measured_js", js_type],
         ["/PSM1/operating_state", "crtk_msgs/msg/OperatingState"],
         ["/PSM1/robot_description", "std_msgs/msg/String"],

@@ -37,6 +37,7 @@ from ._dvrk_twin import (
     pivot as pivot,
     read_recording as read_recording,
     run_scene as run_scene,
+    serve as serve,
     synth_hidden_effect as synth_hidden_effect,
 )
 
@@ -58,5 +59,6 @@ __all__ = [
     "pivot",
     "read_recording",
     "run_scene",
+    "serve",
     "synth_hidden_effect",
 ]

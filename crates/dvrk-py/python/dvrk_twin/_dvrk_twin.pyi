@@ -196,6 +196,19 @@ class Sim:
     def live_url(self) -> Optional[str]:
         """The live view's address, or None."""
 
+def serve(
+    scene: str = "psm",
+    domain: Optional[int] = None,
+    rate: float = 200.0,
+    duration: Optional[float] = None,
+    engine: str = "reduced",
+    out: Optional[Union[str, os.PathLike]] = None,
+    networks: List[str] = ...,
+) -> Dict[str, Any]:
+    """Serve a scene as a live ROS 2 twin in real time (`dvrk serve`); blocks for `duration`
+    simulated seconds or until Ctrl-C; returns the summary."""
+    ...
+
 def run_scene(
     scene: str,
     duration: float,

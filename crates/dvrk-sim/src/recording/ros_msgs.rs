@@ -204,6 +204,40 @@ fn header_defs() -> String {
     format!("{SEP}MSG: std_msgs/Header\nbuiltin_interfaces/Time stamp\nstring frame_id\n{SEP}MSG: builtin_interfaces/Time\nint32 sec\nuint32 nanosec\n")
 }
 
+/// crtk_msgs/msg/StringStamped (a `state_command`: `enable`, `home`, ...): its header and string.
+pub fn decode_string_stamped(bytes: &[u8]) -> Result<(Header, String), String> {
+    let mut r = CdrReader::new(bytes)?;
+    let header = Header::read(&mut r)?;
+    Ok((header, r.string("string")?))
+}
+
+/// crtk_msgs/msg/StringStamped as CDR.
+pub fn encode_string_stamped(t: f64, text: &str) -> Vec<u8> {
+    let mut w = CdrWriter::new();
+    Header::at(t, "").write(&mut w);
+    w.string(text);
+    w.finish()
+}
+
+/// geometry_msgs/msg/TwistStamped at time `t` (s) in `frame`: linear (m/s) and angular (rad/s)
+/// velocity, as the dVRK's `measured_cv`.
+pub fn encode_twist_stamped(t: f64, frame: &str, linear: [f64; 3], angular: [f64; 3]) -> Vec<u8> {
+    let mut w = CdrWriter::new();
+    Header::at(t, frame).write(&mut w);
+    for x in linear.into_iter().chain(angular) {
+        w.f64(x);
+    }
+    w.finish()
+}
+
+/// Schema name and `ros2msg` text of geometry_msgs/msg/TwistStamped.
+pub fn twist_stamped_schema() -> (&'static str, String) {
+    (
+        "geometry_msgs/msg/TwistStamped",
+        format!("std_msgs/Header header\nTwist twist\n{}{SEP}MSG: geometry_msgs/Twist\nVector3 linear\nVector3 angular\n{SEP}MSG: geometry_msgs/Vector3\nfloat64 x\nfloat64 y\nfloat64 z\n", header_defs()),
+    )
+}
+
 /// rcl_interfaces/msg/Log, what a ROS 2 node publishes on `/rosout`: at time `t` (s), `level`
 /// (10 debug, 20 info, 30 warn, 40 error, 50 fatal) from logger `name`.
 pub fn encode_log(t: f64, level: u8, name: &str, msg: &str) -> Vec<u8> {

@@ -87,12 +87,18 @@ struct ArmChannels {
     /// The arm's own joints first, then each tool joint's topics.
     topics: Vec<JointChannels>,
     measured_cp: usize,
+    measured_cv: usize,
     operating_state: usize,
+    /// What `operating_state` says now.
+    state: ArmState,
     base_frame_id: String,
     base: BaseRef,
     /// The tip frame's body and its placement in that body.
     tip_body: usize,
     tip_rel: Pose,
+    /// Kinematics workspace for the tip's Jacobian (`measured_cv`).
+    kin: dvrk_kin::Data,
+    jacobian: nalgebra::Matrix6xX<f64>,
 }
 
 /// Where the recorder's messages go: an MCAP file ([`McapOut`]), a live view ([`Live`]), a
@@ -189,6 +195,27 @@ pub struct Recorder {
     stamp_origin: f64,
 }
 
+/// An arm's CRTK operating state: `ENABLED` and homed, as a simulated arm starts.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ArmState {
+    /// `ENABLED`, `DISABLED`, ...
+    pub state: String,
+    pub homed: bool,
+    pub busy: bool,
+}
+
+impl Default for ArmState {
+    fn default() -> Self {
+        ArmState { state: "ENABLED".into(), homed: true, busy: false }
+    }
+}
+
+impl ArmState {
+    fn message(&self, t: f64) -> ros_msgs::OperatingState {
+        ros_msgs::OperatingState { header: Header::at(t, ""), state: self.state.clone(), is_homed: self.homed, is_busy: self.busy }
+    }
+}
+
 /// Channels of the camera: per eye (left, right) image, depth and calibration.
 struct CameraChannels {
     image: [usize; 2],
@@ -253,6 +280,7 @@ impl Recorder {
         let js_schema = ros2(ros_msgs::joint_state_schema());
         let cp_schema = ros2(ros_msgs::pose_stamped_schema());
         let state_schema = ros2(ros_msgs::operating_state_schema());
+        let cv_schema = ros2(ros_msgs::twist_stamped_schema());
         let (tf_schema, tf_encoding) = sdk_schema::<FrameTransforms>();
         let tf = w.add_channel("/tf", &tf_schema, &tf_encoding)?;
         let tf_ros2 = match w.ros2.is_some() {
@@ -294,11 +322,15 @@ impl Recorder {
             arms.push(ArmChannels {
                 topics,
                 measured_cp: w.add_channel(&format!("/{ns}/measured_cp"), &cp_schema, "cdr")?,
+                measured_cv: w.add_channel(&format!("/{ns}/measured_cv"), &cv_schema, "cdr")?,
                 operating_state: w.add_channel(&format!("/{ns}/operating_state"), &state_schema, "cdr")?,
+                state: ArmState::default(),
                 base_frame_id: format!("{}_base", arm.name.replace('-', "_")),
                 base,
                 tip_body,
                 tip_rel,
+                kin: dvrk_kin::Data::new(m),
+                jacobian: nalgebra::Matrix6xX::zeros(m.nq()),
             });
             body_names.push(m.bodies.iter().map(|b| format!("{}/{}", arm.name, b.name)).collect());
         }
@@ -344,6 +376,44 @@ impl Recorder {
         }
     }
 
+    /// Arm `a`'s operating state.
+    pub fn state(&self, a: usize) -> &ArmState {
+        &self.arms[a].state
+    }
+
+    /// Change arm `a`'s operating state and say so at once (at simulated time `time`, s) on
+    /// every sink, as the dVRK publishes `operating_state` when it changes.
+    pub fn set_state(&mut self, a: usize, time: f64, state: ArmState) -> Result<()> {
+        let t = time + self.stamp_origin;
+        self.arms[a].state = state;
+        let bytes = self.arms[a].state.message(t).encode();
+        self.write(self.arms[a].operating_state, t, &bytes)
+    }
+
+    /// The tool tip's velocity of arm `a` in its base frame's axes (what `measured_cv` holds):
+    /// linear (m/s, of the tip point) and angular (rad/s), from the model's Jacobian of the
+    /// tip at the measured joints (the carrying arm, if any, held still).
+    fn tip_velocity(&mut self, sim: &Sim, a: usize) -> Result<([f64; 3], [f64; 3])> {
+        let arm = &sim.arms[a];
+        let (off, n) = (arm.q_offset, arm.model.nq());
+        let (q, qd) = (&sim.q()[off..off + n], &sim.qd()[off..off + n]);
+        if !q.iter().chain(qd).all(|x| x.is_finite()) {
+            // A run gone non-finite is the run's error to report, not the kinematics'.
+            return Ok(([f64::NAN; 3], [f64::NAN; 3]));
+        }
+        let base = self.base_pose(sim, a).rotation;
+        let c = &mut self.arms[a];
+        dvrk_kin::forward_kinematics(&arm.model, &mut c.kin, q)?;
+        dvrk_kin::frame_jacobian(&arm.model, &c.kin, arm.model.tip, &mut c.jacobian)?;
+        let twist = &c.jacobian * nalgebra::DVector::from_column_slice(qd);
+        // The Jacobian's axes are the scene's world (the model's FK places it with its base);
+        // the base frame's rotation takes them into the base.
+        let to_base = base.inverse();
+        let v = to_base * nalgebra::Vector3::new(twist[0], twist[1], twist[2]);
+        let w = to_base * nalgebra::Vector3::new(twist[3], twist[4], twist[5]);
+        Ok(([v.x, v.y, v.z], [w.x, w.y, w.z]))
+    }
+
     /// The tool tip of arm `a` in its base frame (what `measured_cp` holds), m.
     pub fn tip_in_base(&self, sim: &Sim, a: usize) -> Pose {
         let c = &self.arms[a];
@@ -386,14 +456,19 @@ impl Recorder {
             let mc = c.measured_cp;
             let cp = self.sinks.wanted(mc).then(|| PoseStamped::from_pose(t, &c.base_frame_id, &self.tip_in_base(sim, a)));
             if self.samples == 0 {
-                let state = ros_msgs::OperatingState { header: Header::at(t, ""), state: "ENABLED".into(), is_homed: true, is_busy: false };
-                messages.insert(0, (c.operating_state, state.encode()));
+                messages.insert(0, (c.operating_state, c.state.message(t).encode()));
             }
             for (ch, bytes) in messages {
                 self.write(ch, t, &bytes)?;
             }
             if let Some(cp) = cp {
                 self.write(mc, t, &cp.encode())?;
+            }
+            let cv = self.arms[a].measured_cv;
+            if self.sinks.wanted(cv) {
+                let (linear, angular) = self.tip_velocity(sim, a)?;
+                let frame = self.arms[a].base_frame_id.clone();
+                self.write(cv, t, &ros_msgs::encode_twist_stamped(t, &frame, linear, angular))?;
             }
         }
         // What does not change: once in the file, and to the live view every wall-clock second
@@ -409,8 +484,7 @@ impl Recorder {
             }
             // The arm's state too: a ROS 2 client that joins later waits for it.
             for c in &self.arms {
-                let state = ros_msgs::OperatingState { header: Header::at(t, ""), state: "ENABLED".into(), is_homed: true, is_busy: false };
-                self.sinks.log_live(c.operating_state, stamp_ns(t), &state.encode());
+                self.sinks.log_live(c.operating_state, stamp_ns(t), &c.state.message(t).encode());
             }
             self.statics_sent = Some(std::time::Instant::now());
         }

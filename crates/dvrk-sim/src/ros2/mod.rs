@@ -160,8 +160,9 @@ impl Ros2 {
         }
     }
 
-    /// A line on `/rosout` at time `t` (s) and `level` (20 info, 30 warn, 40 error).
-    pub fn log_line(&self, t: f64, level: u8, text: &str) {
+    /// A line on `/rosout`, stamped with the wall clock, at `level` (20 info, 30 warn, 40 error).
+    pub fn log_line(&self, level: u8, text: &str) {
+        let t = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0.0, |d| d.as_secs_f64());
         let _ = self.rosout.write(RawCdr(ros_msgs::encode_log(t, level, &self.node, text)), None);
     }
 }
