@@ -31,6 +31,14 @@ pub struct ServeArgs {
     /// leaves this machine.
     #[arg(long = "network")]
     pub networks: Vec<std::net::IpAddr>,
+    /// Add the model's gravity torque to every arm's controller (PID and servo_jf efforts), as
+    /// the dVRK's gravity compensation does.
+    #[arg(long)]
+    pub gravity_compensation: bool,
+    /// Also serve the run to Foxglove or Lichtblick (WebSocket), on HOST:PORT (127.0.0.1:8765
+    /// by default): the same pacing loop feeds both.
+    #[arg(long, num_args = 0..=1, default_missing_value = "")]
+    pub live: Option<String>,
     /// Print the summary as JSON.
     #[arg(long)]
     pub json: bool,
@@ -43,7 +51,12 @@ pub fn run(args: &ServeArgs) -> Result<()> {
         e => bail!("--engine {e}: unknown (valid: reduced, rapier)"),
     };
     crate::io::check_outputs(&[("--scene", std::path::Path::new(&args.scene))], &[("--out", args.out.as_deref())])?;
-    let scene = Scene::load(&args.scene).map_err(|e| anyhow::anyhow!("--scene: {e}"))?;
+    let mut scene = Scene::load(&args.scene).map_err(|e| anyhow::anyhow!("--scene: {e}"))?;
+    if args.gravity_compensation {
+        for arm in &mut scene.arms {
+            arm.gravity_compensation = true;
+        }
+    }
     let domain = match args.domain {
         Some(d) => d,
         None => Ros2Options::domain_from_env()?,
@@ -63,7 +76,16 @@ pub fn run(args: &ServeArgs) -> Result<()> {
     };
     let stop = crate::signals::stop_flag();
     let sim_options = SimOptions { engine: Some(engine), ..Default::default() };
-    let (summary, staged) = dvrk_sim::serve::serve(&scene, &sim_options, &options, stop, None, |node| {
+    let live = match &args.live {
+        Some(a) => {
+            let o = dvrk_sim::LiveOptions::parse(a).map_err(anyhow::Error::msg)?;
+            let live = dvrk_sim::Live::serve(&o, &format!("dvrk-twin {}", args.scene))?;
+            eprintln!("live: serving {} (Foxglove WebSocket protocol)", live.url());
+            Some(live)
+        }
+        None => None,
+    };
+    let (summary, staged) = dvrk_sim::serve::serve(&scene, &sim_options, &options, stop, live, |node| {
         let arms: Vec<&str> = scene.arms.iter().map(|a| a.name.as_str()).collect();
         eprintln!("serving {} on ROS 2 domain {} ({}), {} Hz; Ctrl-C stops", arms.join(", "), node.domain(), if args.networks.is_empty() { "loopback only" } else { "loopback and --network" }, args.rate);
     })?;

@@ -463,3 +463,90 @@ def test_state_commands_servo_jr_and_measured_cv():
     assert len(refused) == 3, err
     assert any("the arm is DISABLED" in l for l in refused) and any("home: the arm is DISABLED" in l for l in refused)
     assert any("unknown state command `dance`" in l for l in refused)
+
+
+def test_servo_jf_on_a_gravity_compensated_arm_moves_it_as_the_simulator_predicts(tmp_path):
+    """Efforts (servo_jf) with the dVRK's gravity compensation: the arm's joints leave PID, the
+    gravity torque holds them up and 0.3 N·m turns the yaw. The twin's recorded motion against
+    `dvrk_twin.Sim` given the same efforts at the same step, on the same scene."""
+    import numpy as np
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+
+    dvrk_twin = pytest.importorskip("dvrk_twin")
+    scene = tmp_path / "psm-gc.toml"
+    text = (ROOT / "models" / "scenes" / "psm.toml").read_text()
+    scene.write_text(text.replace('name = "PSM1"\n', 'name = "PSM1"\ngravity_compensation = true\n'))
+    domain = unique_domain(7)
+    peer = Peer(domain)
+    peer.reader("/PSM1/measured_js")
+    effort = peer.writer("/PSM1/servo_jf")
+    out = tmp_path / "twin.mcap"
+    proc = subprocess.Popen(
+        [dvrk_binary(), "serve", "--scene", str(scene), "--domain", str(domain), "--duration", "3", "--rate", "1000", "--out", str(out), "--json"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    push = [0.3, 0.0, 0.0, 0.0, 0.0, 0.0]
+    try:
+        first_sample(peer, "/PSM1/measured_js")
+        time.sleep(0.8)
+        effort.write(command(PSM_JOINTS, effort=push))
+    finally:
+        summary, _ = finish(proc)
+    assert summary["commands"] == 1
+    measured, applied = [], []
+    with open(out, "rb") as f:
+        for _, _, _, msg in make_reader(f, decoder_factories=[DecoderFactory()]).iter_decoded_messages(topics=["/PSM1/measured_js"]):
+            measured.append(list(msg.position))
+            applied.append(list(msg.effort))
+    measured, applied = np.array(measured), np.array(applied)
+    # Sample j is the first with the push in the yaw's applied effort: it went in before step j + 1.
+    j = int(np.argmax(np.diff(applied[:, 0]) > 0.25)) + 1
+    assert 300 < j < 2900, j
+    sim = dvrk_twin.Sim.from_scene(str(scene), engine="reduced")
+    q0 = sim.q.copy()
+    for i in range(len(q0)):
+        sim.set_target(i, q0[i], 0.0)
+    sim.step(j)
+    arm = [sim.joint_names.index(f"PSM1/{n}") for n in PSM_JOINTS]
+    for k, e in zip(arm, push):
+        sim.set_mode(k, "effort")
+        sim.set_effort(k, e)
+    expected = []
+    for _ in range(len(measured) - j):
+        sim.step()
+        expected.append([sim.q[k] for k in arm])
+    twin = measured[j:, :6]
+    expected = np.array(expected)
+    moved = twin[-1, 0] - twin[0, 0]
+    others = np.abs(twin[:, 1:3] - twin[0, 1:3]).max()
+    rms = float(np.sqrt(np.mean((twin - expected) ** 2)))
+    print(f"servo_jf: yaw turned {moved:.4f} rad in {len(twin) / 1000:.2f} s under 0.3 N·m, pitch and insertion moved at most {others:.2e}; RMS difference from the simulator {rms:.3e}")
+    assert moved > 0.05
+    assert rms < 0.01 * abs(moved)
+
+
+def test_one_pacing_loop_feeds_ros2_and_the_foxglove_view_together():
+    import asyncio
+
+    test_live = pytest.importorskip("test_live")
+    domain = unique_domain(8)
+    peer = Peer(domain)
+    peer.reader("/PSM1/measured_js")
+    port = test_live.free_port()
+    proc = serve(domain, 4, "--live", f"127.0.0.1:{port}")
+    try:
+        _, ros = first_sample(peer, "/PSM1/measured_js")
+        channel, data = asyncio.run(test_live.first_message(port, "/PSM1/measured_js"))
+        assert channel["schemaName"] == "sensor_msgs/msg/JointState"
+        from rosbags.typesys import Stores, get_typestore
+
+        fox = get_typestore(Stores.ROS2_HUMBLE).deserialize_cdr(data, "sensor_msgs/msg/JointState")
+        # The same messages on both: names, and wall-clock stamps within the run.
+        assert list(fox.name) == list(ros.name) == PSM_JOINTS
+        assert abs((fox.header.stamp.sec + fox.header.stamp.nanosec * 1e-9) - stamp(ros)) < 4.0
+    finally:
+        summary, _ = finish(proc)
+    assert summary["finite"]

@@ -251,10 +251,10 @@ pub fn builtin_scenes() -> Vec<&'static str> {
 /// Serve a scene as a live twin on ROS 2 in real time (what `dvrk serve` does): the dVRK's
 /// CRTK topics published at `rate` Hz, `servo_jp`/`servo_jf` taken, on DDS domain `domain`
 /// (`ROS_DOMAIN_ID`, else 0, when None), loopback only unless `networks` names interface
-/// addresses. Blocks for `duration` simulated seconds, or until Ctrl-C (KeyboardInterrupt stops
+/// addresses; `gravity_compensation` adds the model's gravity torque to every controller. Blocks for `duration` simulated seconds, or until Ctrl-C (KeyboardInterrupt stops
 /// the twin cleanly, finishes `out`, and is raised again). Returns the summary as a dict.
 #[pyfunction]
-#[pyo3(signature = (scene="psm", domain=None, rate=200.0, duration=None, engine="reduced", out=None, networks=Vec::new()))]
+#[pyo3(signature = (scene="psm", domain=None, rate=200.0, duration=None, engine="reduced", out=None, networks=Vec::new(), gravity_compensation=false))]
 #[allow(clippy::too_many_arguments)]
 pub fn serve<'py>(
     py: Python<'py>,
@@ -265,11 +265,17 @@ pub fn serve<'py>(
     engine: &str,
     out: Option<std::path::PathBuf>,
     networks: Vec<String>,
+    gravity_compensation: bool,
 ) -> Result<Bound<'py, PyAny>> {
     use dvrk_sim::ros2::Ros2Options;
     use std::sync::atomic::{AtomicBool, Ordering};
     use std::sync::Arc;
-    let s = Scene::load(scene)?;
+    let mut s = Scene::load(scene)?;
+    if gravity_compensation {
+        for arm in &mut s.arms {
+            arm.gravity_compensation = true;
+        }
+    }
     let sim_options = options("impulse", None, Some(engine))?;
     let domain = match domain {
         Some(d) => d,

@@ -75,7 +75,9 @@ impl Actuator {
     pub fn update(&mut self, q: f64, qd: f64, dt: f64) -> f64 {
         self.effort = match self.mode {
             Mode::Position => 0.0,
-            Mode::Effort => self.clamp(self.effort_command),
+            // The gravity feed-forward (when the arm has it) is added, as the dVRK adds its
+            // gravity compensation to an effort command.
+            Mode::Effort => self.clamp(self.effort_command + self.feedforward),
             Mode::Pid => {
                 let e = self.target - q;
                 let ed = self.target_velocity - qd;

@@ -24,6 +24,7 @@ pub mod geometry;
 pub mod inertials;
 pub mod live;
 pub mod mjcf;
+pub mod pace;
 pub mod pivot;
 pub mod plot;
 pub mod recipe;

@@ -398,6 +398,7 @@ pub fn run_staged(scene: &Scene, options: &RunOptions, outputs: &Outputs, mut pr
         (stride, Trace { t: Vec::with_capacity(cap), joints })
     });
     let start = Instant::now();
+    let mut pacer = outputs.realtime.map(crate::pace::Pacer::new);
     let mut done = steps;
     for s in 0..steps {
         let t = (s + 1) as f64 * sim.dt;
@@ -466,12 +467,8 @@ pub fn run_staged(scene: &Scene, options: &RunOptions, outputs: &Outputs, mut pr
         if s % every == 0 {
             progress(s as f64 / steps as f64);
         }
-        if let Some(f) = outputs.realtime {
-            // Sleep until the wall clock catches up with the simulated time over the factor.
-            let ahead = t / f - start.elapsed().as_secs_f64();
-            if ahead > 1e-3 {
-                std::thread::sleep(std::time::Duration::from_secs_f64(ahead));
-            }
+        if let Some(p) = pacer.as_mut() {
+            p.wait(t);
         }
         if outputs.stop.is_some_and(|f| f.load(std::sync::atomic::Ordering::Relaxed)) && s + 1 < steps {
             done = s + 1;

@@ -27,7 +27,8 @@ use crate::recording::writer::TOOL_JOINTS;
 use crate::ros2::{Ros2, Ros2Options};
 use crate::{RecordOptions, Recorder, Scene, Sim, SimOptions};
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::time::{Instant, SystemTime, UNIX_EPOCH};
+use crate::pace::Pacer;
+use std::time::{SystemTime, UNIX_EPOCH};
 
 /// What to serve and for how long.
 #[derive(Debug, Clone)]
@@ -182,7 +183,7 @@ pub fn serve(scene: &Scene, sim_options: &SimOptions, options: &ServeOptions, st
     let modes: Vec<Mode> = (0..sim.nq()).map(|i| sim.actuator(i).map(|a| a.mode)).collect::<Result<_>>()?;
     let mut summary = ServeSummary { finite: true, ..Default::default() };
     let steps = options.duration.map(|d| (d / sim.dt).round().max(1.0) as u64);
-    let start = Instant::now();
+    let mut pacer = Pacer::new(1.0);
     let mut step = 0u64;
     while steps.is_none_or(|n| step < n) && !stop.load(Ordering::Relaxed) {
         apply_states(&mut sim, &mut recorder, &states, &modes, &mut summary)?;
@@ -194,17 +195,12 @@ pub fn serve(scene: &Scene, sim_options: &SimOptions, options: &ServeOptions, st
             summary.finite = false;
             break;
         }
-        // Real time: sleep until the wall clock reaches the simulated time.
-        let behind = start.elapsed().as_secs_f64() - step as f64 * sim.dt;
-        if behind < -1e-4 {
-            std::thread::sleep(std::time::Duration::from_secs_f64(-behind));
-        } else if step as f64 * sim.dt > 1.0 {
-            summary.worst_lag = summary.worst_lag.max(behind);
-        }
+        pacer.wait(step as f64 * sim.dt);
     }
+    summary.worst_lag = pacer.worst_lag();
     summary.steps = step;
     summary.simulated = step as f64 * sim.dt;
-    summary.wall = start.elapsed().as_secs_f64();
+    summary.wall = pacer.elapsed();
     summary.samples = recorder.samples();
     let staged = recorder.finish_staged()?;
     if !summary.finite {

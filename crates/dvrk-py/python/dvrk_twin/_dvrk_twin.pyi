@@ -204,6 +204,7 @@ def serve(
     engine: str = "reduced",
     out: Optional[Union[str, os.PathLike]] = None,
     networks: List[str] = ...,
+    gravity_compensation: bool = False,
 ) -> Dict[str, Any]:
     """Serve a scene as a live ROS 2 twin in real time (`dvrk serve`); blocks for `duration`
     simulated seconds or until Ctrl-C; returns the summary."""
