@@ -550,3 +550,56 @@ def test_one_pacing_loop_feeds_ros2_and_the_foxglove_view_together():
     finally:
         summary, _ = finish(proc)
     assert summary["finite"]
+
+
+def test_move_jp_reaches_its_goal_under_the_consoles_limits_and_the_arm_is_busy_meanwhile():
+    import numpy as np
+
+    domain = unique_domain(9)
+    peer = Peer(domain)
+    peer.reader("/PSM1/setpoint_js")
+    peer.reader("/PSM1/measured_js")
+    peer.reader("/PSM1/operating_state", OperatingState_)
+    move = peer.writer("/PSM1/move_jp")
+    proc = serve(domain, 5)
+    try:
+        _, sp = first_sample(peer, "/PSM1/setpoint_js")
+        time.sleep(0.3)
+        _, sp = first_sample(peer, "/PSM1/setpoint_js")
+        start = np.array(sp.position)
+        goal = start + np.array([0.5, 0.0, 0.1, 0.0, 0.0, 0.0])
+        peer.take("/PSM1/setpoint_js")
+        sent = time.time()
+        move.write(command(PSM_JOINTS, list(goal)))
+        trace, busy = [], []
+        while time.time() - sent < 2.5:
+            for arrived, s in peer.take("/PSM1/setpoint_js"):
+                trace.append((stamp(s), np.array(s.position)))
+            for _, s in peer.take("/PSM1/operating_state", OperatingState_):
+                busy.append((time.time() - sent, s.is_busy))
+            time.sleep(0.002)
+        _, measured = first_sample(peer, "/PSM1/measured_js")
+    finally:
+        summary, _ = finish(proc)
+    t = np.array([x[0] for x in trace])
+    q = np.array([x[1] for x in trace])
+    moving = np.where(np.abs(q[:, 0] - start[0]) > 1e-9)[0]
+    t0 = t[moving[0]] - 0.005
+    arrived = t[np.argmax(np.abs(q[:, 0] - goal[0]) < 1e-9)]
+    # 0.5 rad of yaw and 0.1 m of insertion under (180 deg/s, 180 deg/s^2) and (0.2 m/s, 0.2
+    # m/s^2): the insertion sets the pace, a triangle of 2/sqrt(2) s.
+    print(f"move_jp: {arrived - t0:.3f} s to the goal (closed form 1.414 s); busy flags {busy}")
+    assert abs((arrived - t0) - 2 ** 0.5) < 0.02
+    # A straight line in joint space: the insertion's progress equals the yaw's.
+    progress = (q[moving, 0] - start[0]) / 0.5
+    assert np.allclose((q[moving, 2] - start[2]) / 0.1, progress, atol=1e-9)
+    # Velocity never above the limit, along the way (finite differences of the setpoints).
+    speed = np.abs(np.diff(q[:, 2])) / np.maximum(np.diff(t), 1e-9)
+    assert speed.max() < 0.2 * 1.05
+    # Busy from the command until the arrival (the state is also repeated every second).
+    changes = [(t, b) for k, (t, b) in enumerate(busy) if k == 0 or b != busy[k - 1][1]]
+    assert [b for _, b in changes] == [True, False] and changes[0][0] < 0.1 and abs(changes[1][0] - 2 ** 0.5) < 0.1, busy
+    # The arm follows its setpoint within the PID's tracking (Table 8 gains, no gravity
+    # compensation: the yaw settles over seconds).
+    assert abs(measured.position[0] - goal[0]) < 0.03
+    assert summary["commands"] == 1

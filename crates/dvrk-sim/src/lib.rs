@@ -22,6 +22,7 @@ pub mod effects;
 mod error;
 pub mod geometry;
 pub mod inertials;
+pub mod joint_move;
 pub mod live;
 pub mod mjcf;
 pub mod pace;

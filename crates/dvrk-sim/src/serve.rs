@@ -6,6 +6,9 @@
 //! - `/PSM1/servo_jp`, `/PSM1/jaw/servo_jp` (sensor_msgs/msg/JointState): a position setpoint
 //!   (rad, m) for the PID, with the velocity as feed-forward when the message has one;
 //! - `/PSM1/servo_jr`, `/PSM1/jaw/servo_jr`: a step (rad, m) added to the current setpoint;
+//! - `/PSM1/move_jp`, `/PSM1/jaw/move_jp`: a goal reached by an interpolated move under the
+//!   console's velocity and acceleration limits ([`crate::joint_move`]); the arm is busy until
+//!   it arrives, a new move replaces it and a servo command ends it;
 //! - `/PSM1/servo_jf`, `/PSM1/jaw/servo_jf`: efforts (N·m, N), applied as they are (the joint
 //!   leaves PID until its next position command).
 //!
@@ -69,6 +72,7 @@ enum Kind {
     ServoJp,
     ServoJr,
     ServoJf,
+    MoveJp,
 }
 
 /// One command topic: the joints it moves (global indices) and their names.
@@ -112,7 +116,7 @@ fn command_values(topic: &CommandTopic, msg: &JointState, kind: Kind) -> std::re
     }
     let velocity = match (kind, msg.velocity.len()) {
         (Kind::ServoJp, len) if len == n => msg.velocity.clone(),
-        (Kind::ServoJp, 0) | (Kind::ServoJr | Kind::ServoJf, _) => vec![0.0; n],
+        (Kind::ServoJp, 0) | (Kind::ServoJr | Kind::ServoJf | Kind::MoveJp, _) => vec![0.0; n],
         (_, len) => return Err(format!("{len} velocity values for {n} joints")),
     };
     // Names, when given, say which value goes to which joint.
@@ -169,7 +173,7 @@ pub fn serve(scene: &Scene, sim_options: &SimOptions, options: &ServeOptions, st
     {
         let ros2 = recorder.ros2_mut().expect("opened with ROS 2");
         for (arm, prefix, joints, names) in groups(&sim) {
-            for (kind, verb) in [(Kind::ServoJp, "servo_jp"), (Kind::ServoJr, "servo_jr"), (Kind::ServoJf, "servo_jf")] {
+            for (kind, verb) in [(Kind::ServoJp, "servo_jp"), (Kind::ServoJr, "servo_jr"), (Kind::ServoJf, "servo_jf"), (Kind::MoveJp, "move_jp")] {
                 let subscription = ros2.subscribe(&format!("/{prefix}/{verb}"), "sensor_msgs/msg/JointState")?;
                 topics.push(CommandTopic { subscription, kind, arm, joints: joints.clone(), names: names.clone() });
             }
@@ -181,13 +185,21 @@ pub fn serve(scene: &Scene, sim_options: &SimOptions, options: &ServeOptions, st
     }
     ready(recorder.ros2().expect("opened with ROS 2"));
     let modes: Vec<Mode> = (0..sim.nq()).map(|i| sim.actuator(i).map(|a| a.mode)).collect::<Result<_>>()?;
+    let (mut v_max, mut a_max) = (Vec::with_capacity(sim.nq()), Vec::with_capacity(sim.nq()));
+    for arm in &sim.arms {
+        let (v, a) = crate::joint_move::limits(&arm.model);
+        v_max.extend(v);
+        a_max.extend(a);
+    }
+    let mut moves = Moves { active: vec![None; topics.len()], v_max, a_max };
     let mut summary = ServeSummary { finite: true, ..Default::default() };
     let steps = options.duration.map(|d| (d / sim.dt).round().max(1.0) as u64);
     let mut pacer = Pacer::new(1.0);
     let mut step = 0u64;
     while steps.is_none_or(|n| step < n) && !stop.load(Ordering::Relaxed) {
         apply_states(&mut sim, &mut recorder, &states, &modes, &mut summary)?;
-        apply_commands(&mut sim, &recorder, &topics, &modes, &mut summary)?;
+        apply_commands(&mut sim, &mut recorder, &topics, &modes, &mut moves, &mut summary)?;
+        moves.advance(&mut sim, &mut recorder, &topics)?;
         sim.step();
         step += 1;
         recorder.after_step(&sim, step)?;
@@ -209,18 +221,86 @@ pub fn serve(scene: &Scene, sim_options: &SimOptions, options: &ServeOptions, st
     Ok((summary, staged))
 }
 
+/// The `move_jp` under way on each command topic, and every joint's limits.
+struct Moves {
+    active: Vec<Option<crate::joint_move::JointMove>>,
+    v_max: Vec<f64>,
+    a_max: Vec<f64>,
+}
+
+impl Moves {
+    /// Set the targets of the moves under way for the step about to be taken; end those that
+    /// arrived, and say when an arm is no longer busy.
+    fn advance(&mut self, sim: &mut Sim, recorder: &mut Recorder, topics: &[CommandTopic]) -> Result<()> {
+        let t = sim.time + sim.dt;
+        let mut ended = Vec::new();
+        for (slot, topic) in self.active.iter_mut().zip(topics) {
+            let Some(m) = slot.as_ref() else { continue };
+            for (i, &joint) in m.joints.iter().enumerate() {
+                let (q, qd) = m.at(i, t);
+                sim.set_target(joint, q, qd)?;
+            }
+            if m.done(t) {
+                *slot = None;
+                ended.push(topic.arm);
+            }
+        }
+        for arm in ended {
+            self.say_busy(sim, recorder, topics, arm)?;
+        }
+        Ok(())
+    }
+
+    /// Publish arm `arm`'s busy flag if it changed.
+    fn say_busy(&self, sim: &Sim, recorder: &mut Recorder, topics: &[CommandTopic], arm: usize) -> Result<()> {
+        let busy = self.active.iter().zip(topics).any(|(m, t)| m.is_some() && t.arm == arm);
+        if recorder.state(arm).busy != busy {
+            let mut state = recorder.state(arm).clone();
+            state.busy = busy;
+            recorder.set_state(arm, sim.time, state)?;
+        }
+        Ok(())
+    }
+}
+
 /// Take every waiting command and apply the valid ones.
-fn apply_commands(sim: &mut Sim, recorder: &Recorder, topics: &[CommandTopic], modes: &[Mode], summary: &mut ServeSummary) -> Result<()> {
-    let ros2 = recorder.ros2().expect("opened with ROS 2");
-    for topic in topics {
-        while let Some(message) = ros2.take(topic.subscription) {
-            let topic_name = ros2.command_topic(topic.subscription);
+fn apply_commands(sim: &mut Sim, recorder: &mut Recorder, topics: &[CommandTopic], modes: &[Mode], moves: &mut Moves, summary: &mut ServeSummary) -> Result<()> {
+    for (slot, topic) in topics.iter().enumerate() {
+        loop {
+            let ros2 = recorder.ros2().expect("opened with ROS 2");
+            let Some(message) = ros2.take(topic.subscription) else { break };
+            let topic_name = ros2.command_topic(topic.subscription).to_string();
             let disabled = recorder.state(topic.arm).state != "ENABLED";
             let values = message
                 .and_then(|bytes| JointState::decode(&bytes).map_err(|e| format!("not a sensor_msgs/JointState: {e}")))
                 .and_then(|msg| if disabled { Err(format!("the arm is {} (send `enable` on state_command)", recorder.state(topic.arm).state)) } else { command_values(topic, &msg, topic.kind) });
             match values {
+                Ok((v, _)) if topic.kind == Kind::MoveJp => {
+                    for &i in &topic.joints {
+                        if sim.actuator(i)?.mode == Mode::Effort {
+                            sim.set_mode(i, modes[i])?;
+                        }
+                    }
+                    let start: Vec<f64> = topic.joints.iter().map(|&i| sim.actuator(i).map(|a| a.target)).collect::<Result<_>>()?;
+                    let pick = |l: &[f64]| topic.joints.iter().map(|&i| l[i]).collect::<Vec<f64>>();
+                    let m = crate::joint_move::JointMove::new(topic.joints.clone(), start, &v, &pick(&moves.v_max), &pick(&moves.a_max), sim.time);
+                    moves.active[slot] = Some(m);
+                    moves.say_busy(sim, recorder, topics, topic.arm)?;
+                    summary.commands += 1;
+                }
                 Ok((v, vd)) => {
+                    // A servo command takes over the joints from a move under way.
+                    let overlaps = |m: &crate::joint_move::JointMove| m.joints.iter().any(|j| topic.joints.contains(j));
+                    let mut cancelled = false;
+                    for m in moves.active.iter_mut() {
+                        if m.as_ref().is_some_and(overlaps) {
+                            *m = None;
+                            cancelled = true;
+                        }
+                    }
+                    if cancelled {
+                        moves.say_busy(sim, recorder, topics, topic.arm)?;
+                    }
                     for ((&i, x), xd) in topic.joints.iter().zip(v).zip(vd) {
                         match topic.kind {
                             Kind::ServoJp | Kind::ServoJr => {
@@ -234,6 +314,8 @@ fn apply_commands(sim: &mut Sim, recorder: &Recorder, topics: &[CommandTopic], m
                                 sim.set_mode(i, Mode::Effort)?;
                                 sim.set_effort(i, x)?;
                             }
+                            // A move is taken by the arm above.
+                            Kind::MoveJp => {}
                         }
                     }
                     summary.commands += 1;
@@ -242,7 +324,7 @@ fn apply_commands(sim: &mut Sim, recorder: &Recorder, topics: &[CommandTopic], m
                     summary.refused += 1;
                     let line = format!("{topic_name}: command refused: {why}");
                     eprintln!("warning: {line}");
-                    ros2.log_line(30, &line);
+                    recorder.ros2().expect("opened with ROS 2").log_line(30, &line);
                 }
             }
         }
