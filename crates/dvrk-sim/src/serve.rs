@@ -320,16 +320,21 @@ fn apply_commands(sim: &mut Sim, recorder: &mut Recorder, topics: &[CommandTopic
                     }
                     summary.commands += 1;
                 }
-                Err(why) => {
-                    summary.refused += 1;
-                    let line = format!("{topic_name}: command refused: {why}");
-                    eprintln!("warning: {line}");
-                    recorder.ros2().expect("opened with ROS 2").log_line(30, &line);
-                }
+                Err(why) => refuse(recorder, summary, &topic_name, &why),
             }
         }
     }
     Ok(())
+}
+
+/// Count a refused command and say why, on stderr and `/rosout` (a warning).
+fn refuse(recorder: &Recorder, summary: &mut ServeSummary, topic: &str, why: &str) {
+    summary.refused += 1;
+    let line = format!("{topic}: command refused: {why}");
+    eprintln!("warning: {line}");
+    if let Some(r) = recorder.ros2() {
+        r.log_line(30, &line);
+    }
 }
 
 /// Take every waiting `state_command` and apply it.
@@ -376,12 +381,7 @@ fn apply_states(sim: &mut Sim, recorder: &mut Recorder, states: &[StateTopic], m
                     summary.commands += 1;
                     recorder.set_state(topic.arm, sim.time, state)?;
                 }
-                Err(why) => {
-                    summary.refused += 1;
-                    let line = format!("{name}: command refused: {why}");
-                    eprintln!("warning: {line}");
-                    recorder.ros2().expect("opened with ROS 2").log_line(30, &line);
-                }
+                Err(why) => refuse(recorder, summary, &name, &why),
             }
         }
     }

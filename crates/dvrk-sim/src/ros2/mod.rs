@@ -43,13 +43,23 @@ impl Ros2Options {
     }
 }
 
-/// The dVRK's QoS: reliable, volatile, keep last 10.
-fn dvrk_qos() -> QosPolicies {
+/// Reliable QoS (a writer blocks at most 100 ms) with `durability`, keeping the last `depth`.
+fn reliable_qos(durability: Durability, depth: i32) -> QosPolicies {
     QosPolicyBuilder::new()
         .reliability(Reliability::Reliable { max_blocking_time: rustdds::Duration::from_millis(100) })
-        .durability(Durability::Volatile)
-        .history(History::KeepLast { depth: 10 })
+        .durability(durability)
+        .history(History::KeepLast { depth })
         .build()
+}
+
+/// The dVRK's QoS: reliable, volatile, keep last 10.
+fn dvrk_qos() -> QosPolicies {
+    reliable_qos(Durability::Volatile, 10)
+}
+
+/// `/rosout`'s QoS in ROS 2: reliable, transient local, keep last 1000.
+fn rosout_qos() -> QosPolicies {
+    reliable_qos(Durability::TransientLocal, 1000)
 }
 
 /// A subscription to one command topic.
@@ -165,13 +175,4 @@ impl Ros2 {
         let t = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0.0, |d| d.as_secs_f64());
         let _ = self.rosout.write(RawCdr(ros_msgs::encode_log(t, level, &self.node, text)), None);
     }
-}
-
-/// `/rosout`'s QoS in ROS 2: reliable, transient local, keep last 1000.
-fn rosout_qos() -> QosPolicies {
-    QosPolicyBuilder::new()
-        .reliability(Reliability::Reliable { max_blocking_time: rustdds::Duration::from_millis(100) })
-        .durability(Durability::TransientLocal)
-        .history(History::KeepLast { depth: 1000 })
-        .build()
 }
