@@ -603,3 +603,48 @@ def test_move_jp_reaches_its_goal_under_the_consoles_limits_and_the_arm_is_busy_
     # compensation: the yaw settles over seconds).
     assert abs(measured.position[0] - goal[0]) < 0.03
     assert summary["commands"] == 1
+
+
+def test_servo_cp_moves_the_tip_through_the_ik_and_refuses_a_pose_out_of_reach():
+    import numpy as np
+
+    domain = unique_domain(10)
+    peer = Peer(domain)
+    peer.reader("/PSM1/measured_cp", PoseStamped_)
+    servo = peer.writer("/PSM1/servo_cp", PoseStamped_)
+    proc = serve(domain, 4)
+
+    def tip():
+        deadline = time.time() + 5
+        while time.time() < deadline:
+            got = peer.take("/PSM1/measured_cp", PoseStamped_)
+            if got:
+                return got[-1][1]
+            time.sleep(0.002)
+        raise AssertionError("no measured_cp")
+
+    try:
+        tip()
+        time.sleep(0.5)
+        now = tip()
+        assert now.header.frame_id == "PSM1_base"
+        p = now.pose.position
+        start = np.array([p.x, p.y, p.z])
+        goal = start + np.array([0.01, 0.0, -0.005])  # 1 cm sideways, 5 mm deeper
+        target = PoseStamped_(Header_(Time_(0, 0), "PSM1_base"), Pose_(Point_(*goal), now.pose.orientation))
+        servo.write(target)
+        time.sleep(1.5)
+        p = tip().pose.position
+        reached = np.array([p.x, p.y, p.z])
+        far = PoseStamped_(Header_(Time_(0, 0), "PSM1_base"), Pose_(Point_(2.0, 0.0, 0.0), now.pose.orientation))
+        servo.write(far)
+        time.sleep(0.3)
+    finally:
+        summary, err = finish(proc)
+    print(f"servo_cp: tip {np.linalg.norm(reached - goal) * 1e3:.2f} mm from a goal 11.2 mm away, after 1.5 s")
+    # The tip goes the way asked, within the PID's tracking (Table 8 gains, no gravity
+    # compensation: millimetres).
+    assert np.linalg.norm(reached - goal) < 0.003
+    assert np.dot(reached - start, goal - start) / np.dot(goal - start, goal - start) > 0.8
+    assert (summary["commands"], summary["refused"]) == (1, 1), summary
+    assert any("/PSM1/servo_cp: command refused" in l for l in err.splitlines()), err

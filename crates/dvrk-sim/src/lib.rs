@@ -35,6 +35,7 @@ pub mod ros2;
 pub mod run;
 pub mod scene;
 pub mod serve;
+pub mod serve_cp;
 pub mod sim;
 pub mod trajectory;
 

@@ -12,6 +12,8 @@
 //! - `/PSM1/servo_jf`, `/PSM1/jaw/servo_jf`: efforts (N·m, N), applied as they are (the joint
 //!   leaves PID until its next position command).
 //!
+//! - `/PSM1/servo_cp` (geometry_msgs/msg/PoseStamped): a tool-tip pose in `PSM1_base`, through
+//!   the IK from the current setpoints ([`crate::serve_cp`]); a pose out of reach is refused;
 //! - `/PSM1/state_command` (crtk_msgs/msg/StringStamped): `enable` (hold where the arm is),
 //!   `disable` (no effort: the arm hangs on its counterweight and cables), `home` (at once: the
 //!   simulated encoders need no index search), `unhome`; motion commands to a disabled arm are
@@ -82,6 +84,14 @@ struct CommandTopic {
     arm: usize,
     joints: Vec<usize>,
     names: Vec<String>,
+}
+
+/// An arm's `servo_cp` subscription and the joints it sets (global and model indices: the arm's
+/// own joints, not the jaw).
+struct CartesianTopic {
+    subscription: usize,
+    arm: usize,
+    joints: Vec<(usize, usize)>,
 }
 
 /// An arm's `state_command` subscription and all its joints (global indices).
@@ -170,6 +180,7 @@ pub fn serve(scene: &Scene, sim_options: &SimOptions, options: &ServeOptions, st
     }
     let mut topics = Vec::new();
     let mut states = Vec::new();
+    let mut cartesian = Vec::new();
     {
         let ros2 = recorder.ros2_mut().expect("opened with ROS 2");
         for (arm, prefix, joints, names) in groups(&sim) {
@@ -179,7 +190,11 @@ pub fn serve(scene: &Scene, sim_options: &SimOptions, options: &ServeOptions, st
             }
         }
         for (a, arm) in sim.arms.iter().enumerate() {
-            let subscription = ros2.subscribe(&format!("/{}/state_command", arm.name.replace('-', "/")), "crtk_msgs/msg/StringStamped")?;
+            let ns = arm.name.replace('-', "/");
+            let own = (0..arm.model.nq()).filter(|k| !TOOL_JOINTS.contains(&arm.model.joints[*k].name.as_str()));
+            let subscription = ros2.subscribe(&format!("/{ns}/servo_cp"), "geometry_msgs/msg/PoseStamped")?;
+            cartesian.push(CartesianTopic { subscription, arm: a, joints: own.map(|k| (arm.q_offset + k, k)).collect() });
+            let subscription = ros2.subscribe(&format!("/{ns}/state_command"), "crtk_msgs/msg/StringStamped")?;
             states.push(StateTopic { subscription, arm: a, joints: (arm.q_offset..arm.q_offset + arm.model.nq()).collect() });
         }
     }
@@ -199,6 +214,7 @@ pub fn serve(scene: &Scene, sim_options: &SimOptions, options: &ServeOptions, st
     while steps.is_none_or(|n| step < n) && !stop.load(Ordering::Relaxed) {
         apply_states(&mut sim, &mut recorder, &states, &modes, &mut summary)?;
         apply_commands(&mut sim, &mut recorder, &topics, &modes, &mut moves, &mut summary)?;
+        apply_cartesian(&mut sim, &mut recorder, &cartesian, &topics, &modes, &mut moves, &mut summary)?;
         moves.advance(&mut sim, &mut recorder, &topics)?;
         sim.step();
         step += 1;
@@ -251,6 +267,21 @@ impl Moves {
         Ok(())
     }
 
+    /// End the moves under way on any of `joints` (a servo command takes them over).
+    fn cancel(&mut self, sim: &Sim, recorder: &mut Recorder, topics: &[CommandTopic], joints: &[usize], arm: usize) -> Result<()> {
+        let mut cancelled = false;
+        for m in self.active.iter_mut() {
+            if m.as_ref().is_some_and(|m| m.joints.iter().any(|j| joints.contains(j))) {
+                *m = None;
+                cancelled = true;
+            }
+        }
+        if cancelled {
+            self.say_busy(sim, recorder, topics, arm)?;
+        }
+        Ok(())
+    }
+
     /// Publish arm `arm`'s busy flag if it changed.
     fn say_busy(&self, sim: &Sim, recorder: &mut Recorder, topics: &[CommandTopic], arm: usize) -> Result<()> {
         let busy = self.active.iter().zip(topics).any(|(m, t)| m.is_some() && t.arm == arm);
@@ -290,17 +321,7 @@ fn apply_commands(sim: &mut Sim, recorder: &mut Recorder, topics: &[CommandTopic
                 }
                 Ok((v, vd)) => {
                     // A servo command takes over the joints from a move under way.
-                    let overlaps = |m: &crate::joint_move::JointMove| m.joints.iter().any(|j| topic.joints.contains(j));
-                    let mut cancelled = false;
-                    for m in moves.active.iter_mut() {
-                        if m.as_ref().is_some_and(overlaps) {
-                            *m = None;
-                            cancelled = true;
-                        }
-                    }
-                    if cancelled {
-                        moves.say_busy(sim, recorder, topics, topic.arm)?;
-                    }
+                    moves.cancel(sim, recorder, topics, &topic.joints, topic.arm)?;
                     for ((&i, x), xd) in topic.joints.iter().zip(v).zip(vd) {
                         match topic.kind {
                             Kind::ServoJp | Kind::ServoJr => {
@@ -321,6 +342,38 @@ fn apply_commands(sim: &mut Sim, recorder: &mut Recorder, topics: &[CommandTopic
                     summary.commands += 1;
                 }
                 Err(why) => refuse(recorder, summary, &topic_name, &why),
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Take every waiting `servo_cp` and servo the arm's joints to the IK's setpoints.
+fn apply_cartesian(sim: &mut Sim, recorder: &mut Recorder, cartesian: &[CartesianTopic], topics: &[CommandTopic], modes: &[Mode], moves: &mut Moves, summary: &mut ServeSummary) -> Result<()> {
+    for topic in cartesian {
+        loop {
+            let ros2 = recorder.ros2().expect("opened with ROS 2");
+            let Some(message) = ros2.take(topic.subscription) else { break };
+            let name = ros2.command_topic(topic.subscription).to_string();
+            let state = &recorder.state(topic.arm).state;
+            let q = match message {
+                Ok(_) if state != "ENABLED" => Err(format!("the arm is {state} (send `enable` on state_command)")),
+                Ok(bytes) => crate::serve_cp::setpoints(sim, recorder, topic.arm, &bytes),
+                Err(e) => Err(e),
+            };
+            match q {
+                Ok(q) => {
+                    let global: Vec<usize> = topic.joints.iter().map(|(g, _)| *g).collect();
+                    moves.cancel(sim, recorder, topics, &global, topic.arm)?;
+                    for &(i, k) in &topic.joints {
+                        if sim.actuator(i)?.mode == Mode::Effort {
+                            sim.set_mode(i, modes[i])?;
+                        }
+                        sim.set_target(i, q[k], 0.0)?;
+                    }
+                    summary.commands += 1;
+                }
+                Err(why) => refuse(recorder, summary, &name, &why),
             }
         }
     }

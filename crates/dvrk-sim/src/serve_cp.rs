@@ -1,0 +1,37 @@
+//! `servo_cp` for the served twin ([`crate::serve`]): a tool-tip pose in the arm's base frame
+//! (`PSM1_base`, what `measured_cp` reports), taken to joint setpoints through the model's IK
+//! from the current setpoints, as the dVRK console servos in Cartesian space. A pose the IK
+//! cannot reach within the joint limits is refused with the IK's reason.
+
+use crate::recording::ros_msgs::PoseStamped;
+use crate::{Recorder, Sim};
+use dvrk_kin::{IkOptions, Pose};
+use nalgebra::{Quaternion, Translation3, UnitQuaternion};
+
+/// The IK of a servo command: Newton from the current setpoints only (no restarts: a servo
+/// target is near where the arm is, and a miss must not stall the real-time loop).
+fn servo_ik() -> IkOptions {
+    IkOptions { frame: None, position_tolerance: 1e-7, orientation_tolerance: 1e-6, max_iterations: 50, restarts: 0 }
+}
+
+/// The joint setpoints (the arm's model joints, local order) that put arm `a`'s tip at the pose
+/// in `bytes` (geometry_msgs/msg/PoseStamped, m, in the base frame), or why not.
+pub fn setpoints(sim: &Sim, recorder: &Recorder, a: usize, bytes: &[u8]) -> Result<Vec<f64>, String> {
+    let msg = PoseStamped::decode(bytes).map_err(|e| format!("not a geometry_msgs/PoseStamped: {e}"))?;
+    let [x, y, z] = msg.position;
+    let [qx, qy, qz, qw] = msg.orientation;
+    if !msg.position.iter().chain(&msg.orientation).all(|v| v.is_finite()) {
+        return Err("the pose has a value that is not a finite number".into());
+    }
+    let norm = (qx * qx + qy * qy + qz * qz + qw * qw).sqrt();
+    if (norm - 1.0).abs() > 1e-3 {
+        return Err(format!("the orientation's quaternion has norm {norm:.6}, not 1"));
+    }
+    let rotation = UnitQuaternion::from_quaternion(Quaternion::new(qw, qx, qy, qz)).to_rotation_matrix();
+    let in_base = Pose::from_parts(Translation3::new(x, y, z), rotation);
+    let target = recorder.base_pose(sim, a) * in_base;
+    let arm = &sim.arms[a];
+    let seed: Vec<f64> = arm.actuators.iter().map(|act| act.target).collect();
+    let solution = dvrk_kin::inverse_kinematics(&arm.model, &target, &seed, &servo_ik()).map_err(|e| e.to_string())?;
+    Ok(solution.q)
+}
