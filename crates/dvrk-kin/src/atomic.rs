@@ -233,6 +233,14 @@ mod tests {
             let link = dir.join("link.csv");
             std::fs::hard_link(&input, &link).unwrap();
             assert!(check_outputs(&[("--input", &input)], &[("--output", &link)]).is_err());
+            // A symbolic link to the input, and a path through a symlinked directory.
+            let sym = dir.join("sym.csv");
+            std::os::unix::fs::symlink(&input, &sym).unwrap();
+            let e = check_outputs(&[("--input", &input)], &[("--output", &sym)]).unwrap_err().to_string();
+            assert!(e.contains("is the input --input"), "{e}");
+            let sub = dir.join("sub");
+            std::os::unix::fs::symlink(&dir, &sub).unwrap();
+            assert!(check_outputs(&[("--input", &input)], &[("--output", &sub.join("in.csv"))]).is_err());
         }
         check_outputs(&[("--input", &input)], &[("--output", &dir.join("out.csv")), ("--plot", &dir.join("p.png"))]).unwrap();
         std::fs::remove_dir_all(&dir).unwrap();
