@@ -51,12 +51,7 @@ pub fn run(args: &ServeArgs) -> Result<()> {
         e => bail!("--engine {e}: unknown (valid: reduced, rapier)"),
     };
     crate::io::check_outputs(&[("--scene", std::path::Path::new(&args.scene))], &[("--out", args.out.as_deref())])?;
-    let mut scene = Scene::load(&args.scene).map_err(|e| anyhow::anyhow!("--scene: {e}"))?;
-    if args.gravity_compensation {
-        for arm in &mut scene.arms {
-            arm.gravity_compensation = true;
-        }
-    }
+    let scene = Scene::load(&args.scene).map_err(|e| anyhow::anyhow!("--scene: {e}"))?;
     let domain = match args.domain {
         Some(d) => d,
         None => Ros2Options::domain_from_env()?,
@@ -64,27 +59,16 @@ pub fn run(args: &ServeArgs) -> Result<()> {
     if domain > Ros2Options::MAX_DOMAIN {
         bail!("--domain {domain}: must be in 0..={}", Ros2Options::MAX_DOMAIN);
     }
-    let mut networks = args.networks.clone();
-    if !networks.is_empty() && !networks.iter().any(|n| n.is_loopback()) {
-        networks.push(std::net::IpAddr::from([127, 0, 0, 1]));
-    }
     let options = ServeOptions {
         duration: args.duration,
         rate: args.rate,
-        ros2: Ros2Options { domain, networks, node: "dvrk_twin".into() },
+        ros2: Ros2Options { domain, networks: args.networks.clone(), node: "dvrk_twin".into() },
         record: args.out.as_ref().map(|p| dvrk_sim::RecordOptions { path: p.clone(), rate: args.rate }),
+        gravity_compensation: args.gravity_compensation,
     };
     let stop = crate::signals::stop_flag();
     let sim_options = SimOptions { engine: Some(engine), ..Default::default() };
-    let live = match &args.live {
-        Some(a) => {
-            let o = dvrk_sim::LiveOptions::parse(a).map_err(anyhow::Error::msg)?;
-            let live = dvrk_sim::Live::serve(&o, &format!("dvrk-twin {}", args.scene))?;
-            eprintln!("live: serving {} (Foxglove WebSocket protocol)", live.url());
-            Some(live)
-        }
-        None => None,
-    };
+    let live = args.live.as_deref().map(|a| super::sim::start_live(a, &args.scene)).transpose()?;
     let (summary, staged) = dvrk_sim::serve::serve(&scene, &sim_options, &options, stop, live, |node| {
         let arms: Vec<&str> = scene.arms.iter().map(|a| a.name.as_str()).collect();
         eprintln!("serving {} on ROS 2 domain {} ({}), {} Hz; Ctrl-C stops", arms.join(", "), node.domain(), if args.networks.is_empty() { "loopback only" } else { "loopback and --network" }, args.rate);

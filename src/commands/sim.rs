@@ -99,6 +99,15 @@ fn engine(args: &SimArgs, scene: &Scene) -> Engine {
     }
 }
 
+/// Start the Foxglove live view `--live` asks for (`HOST:PORT`, `PORT`, or empty: the default)
+/// and say where, on stderr (stdout stays the summary: --json scripts read it).
+pub fn start_live(address: &str, scene: &str) -> Result<dvrk_sim::Live> {
+    let options = dvrk_sim::LiveOptions::parse(address).map_err(anyhow::Error::msg)?;
+    let live = dvrk_sim::Live::serve(&options, &format!("dvrk-twin {scene}"))?;
+    eprintln!("live: serving {} (Foxglove WebSocket protocol): open it in Foxglove or Lichtblick; Ctrl-C stops", live.url());
+    Ok(live)
+}
+
 pub fn run(args: &SimArgs) -> Result<()> {
     if !(args.duration.is_finite() && args.duration > 0.0) {
         bail!("--duration {}: must be a positive number of seconds", args.duration);
@@ -175,16 +184,7 @@ pub fn run(args: &SimArgs) -> Result<()> {
             bail!("--realtime {f}: must be a positive factor of wall-clock time (1: real time)");
         }
     }
-    let live = match &args.live {
-        Some(a) => {
-            let options = dvrk_sim::LiveOptions::parse(a).map_err(anyhow::Error::msg)?;
-            let live = dvrk_sim::Live::serve(&options, &format!("dvrk-twin {}", args.scene))?;
-            // stderr: stdout stays the summary (--json scripts read it).
-            eprintln!("live: serving {} (Foxglove WebSocket protocol): open it in Foxglove or Lichtblick; Ctrl-C stops", live.url());
-            Some(std::sync::Mutex::new(Some(live)))
-        }
-        None => None,
-    };
+    let live = args.live.as_deref().map(|a| start_live(a, &args.scene)).transpose()?.map(|l| std::sync::Mutex::new(Some(l)));
     let outputs = Outputs { record: record.as_ref(), trace_rate, frames_dir: args.frames_dir.as_deref(), stop: Some(stop), live: live.as_ref(), realtime: args.realtime };
     // Simulated time and the real-time factor so far (`--json`: nothing drawn).
     let started = std::time::Instant::now();

@@ -107,7 +107,7 @@ pub fn encode_pose_in_frame_protobuf(p: &FoxglovePose) -> Vec<u8> {
     let [x, y, z] = p.position;
     let [qx, qy, qz, qw] = p.orientation;
     let m = PoseInFrame {
-        timestamp: Some(fox::Timestamp::saturating_from_epoch_secs_f64(p.time.max(0.0))),
+        timestamp: Some(dvrk_sim::recording::frame_transform::timestamp(p.time)),
         frame_id: p.frame_id.clone(),
         pose: Some(fox::Pose { position: Some(fox::Vector3 { x, y, z }), orientation: Some(fox::Quaternion { x: qx, y: qy, z: qz, w: qw }) }),
     };

@@ -270,12 +270,7 @@ pub fn serve<'py>(
     use dvrk_sim::ros2::Ros2Options;
     use std::sync::atomic::{AtomicBool, Ordering};
     use std::sync::Arc;
-    let mut s = Scene::load(scene)?;
-    if gravity_compensation {
-        for arm in &mut s.arms {
-            arm.gravity_compensation = true;
-        }
-    }
+    let s = Scene::load(scene)?;
     let sim_options = options("impulse", None, Some(engine))?;
     let domain = match domain {
         Some(d) => d,
@@ -285,14 +280,12 @@ pub fn serve<'py>(
     for n in &networks {
         nets.push(n.parse::<std::net::IpAddr>().map_err(|_| Error::Input(format!("networks: `{n}` is not an IP address")))?);
     }
-    if !nets.is_empty() && !nets.iter().any(|n| n.is_loopback()) {
-        nets.push(std::net::IpAddr::from([127, 0, 0, 1]));
-    }
     let serve_options = dvrk_sim::serve::ServeOptions {
         duration,
         rate,
         ros2: Ros2Options { domain, networks: nets, node: "dvrk_twin".into() },
         record: out.clone().map(|path| dvrk_sim::RecordOptions { path, rate }),
+        gravity_compensation,
     };
     let stop = Arc::new(AtomicBool::new(false));
     let flag = stop.clone();

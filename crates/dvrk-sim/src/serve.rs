@@ -28,7 +28,7 @@ use crate::control::Mode;
 use crate::error::{Result, SimError};
 use crate::live::Live;
 use crate::recording::ros_msgs::JointState;
-use crate::recording::writer::TOOL_JOINTS;
+use crate::recording::writer::{joint_groups, topic_namespace};
 use crate::ros2::{Ros2, Ros2Options};
 use crate::{RecordOptions, Recorder, Scene, Sim, SimOptions};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -46,6 +46,9 @@ pub struct ServeOptions {
     pub ros2: Ros2Options,
     /// Also record the run to this MCAP file.
     pub record: Option<RecordOptions>,
+    /// Add the model's gravity torque to every arm's controllers (PID and `servo_jf` efforts),
+    /// as the dVRK's gravity compensation does, whatever the scene says.
+    pub gravity_compensation: bool,
 }
 
 /// What a served run did.
@@ -101,22 +104,6 @@ struct StateTopic {
     joints: Vec<usize>,
 }
 
-/// The joint groups of every arm, as the recorder publishes them: `(arm, prefix, joints, names)`.
-fn groups(sim: &Sim) -> Vec<(usize, String, Vec<usize>, Vec<String>)> {
-    let mut out = Vec::new();
-    for (a, arm) in sim.arms.iter().enumerate() {
-        let ns = arm.name.replace('-', "/");
-        let m = &arm.model;
-        let tool = |k: &usize| TOOL_JOINTS.contains(&m.joints[*k].name.as_str());
-        let arm_joints: Vec<usize> = (0..m.nq()).filter(|k| !tool(k)).collect();
-        out.push((a, ns.clone(), arm_joints.iter().map(|k| arm.q_offset + k).collect(), arm_joints.iter().map(|k| m.joints[*k].name.clone()).collect()));
-        for k in (0..m.nq()).filter(tool) {
-            out.push((a, format!("{ns}/{}", m.joints[k].name), vec![arm.q_offset + k], vec![m.joints[k].name.clone()]));
-        }
-    }
-    out
-}
-
 /// The values of a command in the topic's joint order, or why it is refused.
 fn command_values(topic: &CommandTopic, msg: &JointState, kind: Kind) -> std::result::Result<(Vec<f64>, Vec<f64>), String> {
     let (values, field) = if kind == Kind::ServoJf { (&msg.effort, "effort") } else { (&msg.position, "position") };
@@ -165,6 +152,16 @@ pub fn serve(scene: &Scene, sim_options: &SimOptions, options: &ServeOptions, st
             return Err(SimError::value("duration (s)", d, "must be a positive finite number"));
         }
     }
+    let compensated;
+    let scene = match options.gravity_compensation {
+        true => {
+            let mut s = scene.clone();
+            s.arms.iter_mut().for_each(|a| a.gravity_compensation = true);
+            compensated = s;
+            &compensated
+        }
+        false => scene,
+    };
     let mut sim = Sim::new(scene, sim_options)?;
     if !(options.rate.is_finite() && options.rate > 0.0 && options.rate <= 1.0 / sim.dt + 1e-9) {
         return Err(SimError::value("publishing rate (Hz)", options.rate, format!("must be in (0, {}] (one message per step of {} s at most)", 1.0 / sim.dt, sim.dt)));
@@ -183,17 +180,20 @@ pub fn serve(scene: &Scene, sim_options: &SimOptions, options: &ServeOptions, st
     let mut cartesian = Vec::new();
     {
         let ros2 = recorder.ros2_mut().expect("opened with ROS 2");
-        for (arm, prefix, joints, names) in groups(&sim) {
-            for (kind, verb) in [(Kind::ServoJp, "servo_jp"), (Kind::ServoJr, "servo_jr"), (Kind::ServoJf, "servo_jf"), (Kind::MoveJp, "move_jp")] {
-                let subscription = ros2.subscribe(&format!("/{prefix}/{verb}"), "sensor_msgs/msg/JointState")?;
-                topics.push(CommandTopic { subscription, kind, arm, joints: joints.clone(), names: names.clone() });
-            }
-        }
         for (a, arm) in sim.arms.iter().enumerate() {
-            let ns = arm.name.replace('-', "/");
-            let own = (0..arm.model.nq()).filter(|k| !TOOL_JOINTS.contains(&arm.model.joints[*k].name.as_str()));
+            // The command topics mirror the published ones: the arm's joints, then the jaw's.
+            let groups = joint_groups(&arm.name, &arm.model);
+            for (prefix, local) in &groups {
+                let joints: Vec<usize> = local.iter().map(|k| arm.q_offset + k).collect();
+                let names: Vec<String> = local.iter().map(|k| arm.model.joints[*k].name.clone()).collect();
+                for (kind, verb) in [(Kind::ServoJp, "servo_jp"), (Kind::ServoJr, "servo_jr"), (Kind::ServoJf, "servo_jf"), (Kind::MoveJp, "move_jp")] {
+                    let subscription = ros2.subscribe(&format!("/{prefix}/{verb}"), "sensor_msgs/msg/JointState")?;
+                    topics.push(CommandTopic { subscription, kind, arm: a, joints: joints.clone(), names: names.clone() });
+                }
+            }
+            let ns = topic_namespace(&arm.name);
             let subscription = ros2.subscribe(&format!("/{ns}/servo_cp"), "geometry_msgs/msg/PoseStamped")?;
-            cartesian.push(CartesianTopic { subscription, arm: a, joints: own.map(|k| (arm.q_offset + k, k)).collect() });
+            cartesian.push(CartesianTopic { subscription, arm: a, joints: groups[0].1.iter().map(|&k| (arm.q_offset + k, k)).collect() });
             let subscription = ros2.subscribe(&format!("/{ns}/state_command"), "crtk_msgs/msg/StringStamped")?;
             states.push(StateTopic { subscription, arm: a, joints: (arm.q_offset..arm.q_offset + arm.model.nq()).collect() });
         }

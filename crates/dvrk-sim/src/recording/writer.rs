@@ -71,6 +71,21 @@ enum BaseRef {
 /// The joint names the dVRK publishes on a sub-topic of their own (`/PSM1/jaw/measured_js`).
 pub const TOOL_JOINTS: [&str; 2] = ["jaw", "gripper"];
 
+/// The topic namespace of an arm: `PSM1`, and `SUJ/PSM1` for the scene's arm `SUJ-PSM1`.
+pub fn topic_namespace(arm: &str) -> String {
+    arm.replace('-', "/")
+}
+
+/// An arm's joints grouped as the dVRK publishes them: `(prefix, model joint indices)`, the
+/// arm's own joints under `PSM1` first, then each tool joint under `PSM1/jaw`.
+pub fn joint_groups(arm: &str, model: &dvrk_kin::Model) -> Vec<(String, Vec<usize>)> {
+    let ns = topic_namespace(arm);
+    let is_tool = |k: &usize| TOOL_JOINTS.contains(&model.joints[*k].name.as_str());
+    let mut groups = vec![(ns.clone(), (0..model.nq()).filter(|k| !is_tool(k)).collect())];
+    groups.extend((0..model.nq()).filter(is_tool).map(|k| (format!("{ns}/{}", model.joints[k].name), vec![k])));
+    groups
+}
+
 /// One JointState topic pair (measured, setpoint) and the model joints it carries.
 #[derive(Debug, Clone)]
 struct JointChannels {
@@ -290,7 +305,7 @@ impl Recorder {
         let mut arms = Vec::with_capacity(sim.arms.len());
         let mut body_names = Vec::with_capacity(sim.arms.len());
         for arm in &sim.arms {
-            let ns = arm.name.replace('-', "/");
+            let ns = topic_namespace(&arm.name);
             let m = &arm.model;
             // The serial dVRK base in frame 0 (identity when the model has no serial equivalent).
             let mut unplaced = m.clone();
@@ -307,9 +322,7 @@ impl Recorder {
             let fk = m.fk(&m.home())?;
             let tip_body = m.frames[m.tip].body;
             let tip_rel = fk[m.bodies[tip_body].frames[0]].inverse() * fk[m.tip];
-            let is_tool = |k: &usize| TOOL_JOINTS.contains(&m.joints[*k].name.as_str());
-            let mut groups: Vec<(String, Vec<usize>)> = vec![(ns.clone(), (0..m.nq()).filter(|k| !is_tool(k)).collect())];
-            groups.extend((0..m.nq()).filter(is_tool).map(|k| (format!("{ns}/{}", m.joints[k].name), vec![k])));
+            let groups = joint_groups(&arm.name, m);
             let mut topics = Vec::with_capacity(groups.len());
             for (prefix, joints) in groups {
                 topics.push(JointChannels {
@@ -344,7 +357,7 @@ impl Recorder {
         let string_schema = ros2(ros_msgs::string_schema());
         for (a, arm) in sim.arms.iter().enumerate() {
             let urdf = description::arm_urdf(&arm.name, &geometries[a], &body_names[a], colors[a]);
-            let topic = format!("/{}/robot_description", arm.name.replace('-', "/"));
+            let topic = format!("/{}/robot_description", topic_namespace(&arm.name));
             statics.push((w.add_channel(&topic, &string_schema, "cdr")?, ros_msgs::encode_string(&urdf)));
         }
         Ok(Recorder { sinks: w, staged, tmp, path, stride, arms, tf, tf_ros2, body_names, samples: 0, camera: None, statics, statics_sent: None, tf_buf: Vec::new(), stamp_origin: 0.0 })
@@ -405,12 +418,13 @@ impl Recorder {
         let c = &mut self.arms[a];
         dvrk_kin::forward_kinematics(&arm.model, &mut c.kin, q)?;
         dvrk_kin::frame_jacobian(&arm.model, &c.kin, arm.model.tip, &mut c.jacobian)?;
-        let twist = &c.jacobian * nalgebra::DVector::from_column_slice(qd);
+        // J qd, row by row (no temporary vectors: this runs at the publishing rate).
+        let twist = |r: usize| (0..n).map(|k| c.jacobian[(r, k)] * qd[k]).sum::<f64>();
         // The Jacobian's axes are the scene's world (the model's FK places it with its base);
         // the base frame's rotation takes them into the base.
         let to_base = base.inverse();
-        let v = to_base * nalgebra::Vector3::new(twist[0], twist[1], twist[2]);
-        let w = to_base * nalgebra::Vector3::new(twist[3], twist[4], twist[5]);
+        let v = to_base * nalgebra::Vector3::new(twist(0), twist(1), twist(2));
+        let w = to_base * nalgebra::Vector3::new(twist(3), twist(4), twist(5));
         Ok(([v.x, v.y, v.z], [w.x, w.y, w.z]))
     }
 

@@ -23,7 +23,8 @@ use std::net::IpAddr;
 pub struct Ros2Options {
     /// The DDS domain (0..=232; `ROS_DOMAIN_ID`).
     pub domain: u16,
-    /// Interfaces to announce and listen on: loopback only when empty.
+    /// Interfaces to announce and listen on besides loopback (which is always one): loopback
+    /// only when empty.
     pub networks: Vec<IpAddr>,
     /// The logger name on `/rosout`.
     pub node: String,
@@ -98,7 +99,10 @@ impl Ros2 {
         if options.domain > Ros2Options::MAX_DOMAIN {
             return Err(SimError::value("ROS 2 domain (--domain)", options.domain as f64, format!("must be in 0..={}", Ros2Options::MAX_DOMAIN)));
         }
-        let networks: Vec<IpAddr> = if options.networks.is_empty() { vec![IpAddr::from([127, 0, 0, 1])] } else { options.networks.clone() };
+        let mut networks = options.networks.clone();
+        if !networks.iter().any(|n| n.is_loopback()) {
+            networks.push(IpAddr::from([127, 0, 0, 1]));
+        }
         let participant = DomainParticipantBuilder::new(options.domain).with_only_networks(networks).build().map_err(|e| dds_error(&format!("domain {}", options.domain), e))?;
         let qos = dvrk_qos();
         let publisher = participant.create_publisher(&qos).map_err(|e| dds_error("publisher", e))?;
