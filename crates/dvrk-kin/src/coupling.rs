@@ -73,13 +73,13 @@ mod tests {
 /// while the mechanism moves by `q_true = (C + dC) m`; so `q_true = B q`, `B = (C + dC) C^-1`.
 /// The efforts follow by virtual work: the controller's `tau = B^T tau_true`. `None` without a
 /// coupling error; an error names the effect when `C + dC` is singular.
-pub(crate) fn error_map(model: &Model, effects: &[crate::effects::Effect]) -> Result<Option<DMatrix<f64>>> {
-    let errors: Vec<&crate::effects::Effect> = effects.iter().filter(|e| e.kind == crate::effects::EffectKind::CouplingError).collect();
+pub(crate) fn error_map(model: &Model, effects: &[crate::vocabulary::Effect]) -> Result<Option<DMatrix<f64>>> {
+    let errors: Vec<&crate::vocabulary::Effect> = effects.iter().filter(|e| e.kind == crate::vocabulary::EffectKind::CouplingError).collect();
     let Some(c) = model.coupling_matrix().filter(|_| !errors.is_empty()) else { return Ok(None) };
     let mut truth = c.clone();
     for e in &errors {
         for (name, v) in &e.parameters {
-            if let Some((r, col)) = crate::effects::coupling_entry(name) {
+            if let Some((r, col)) = crate::vocabulary::coupling_entry(name) {
                 truth[(r - 1, col - 1)] += v;
             }
         }
@@ -119,7 +119,7 @@ impl Model {
         let mut out = self.clone();
         if let Some(inv) = self.coupling_error_map().and_then(|b| b.try_inverse()) {
             remap_joints(&mut out, &inv);
-            out.effects.retain(|e| e.kind != crate::effects::EffectKind::CouplingError);
+            out.effects.retain(|e| e.kind != crate::vocabulary::EffectKind::CouplingError);
         }
         out
     }

@@ -9,7 +9,7 @@ use std::path::Path;
 
 /// Parse a dVRK JSON file (comments allowed).
 pub fn read_json(path: &Path) -> Result<Json> {
-    let text = crate::load::read_text(path)?;
+    let text = crate::text_file::read_text(path)?;
     parse_json(&text, path)
 }
 

@@ -5,6 +5,8 @@ use crate::model::Model;
 use crate::spec::ModelSpec;
 use std::path::{Path, PathBuf};
 
+pub use crate::text_file::{read_text, MAX_TEXT_BYTES};
+
 /// The built-in models: name, and the text of its file in `models/`.
 pub const BUILTIN: &[(&str, &str)] = &[
     ("psm", include_str!("../../../models/psm.toml")),
@@ -71,21 +73,6 @@ pub fn load_relative(name_or_path: &str, tool: Option<&Path>, dir: Option<&Path>
             load_toml_text(&text, &path, tool, Some(&path))
         }
     }
-}
-
-/// The largest description file (model, scene, inertials, dVRK JSON, URDF, configuration) read
-/// (bytes): the dVRK's are a few kB to a few MB; a larger one is a recording or a mistake, read
-/// whole into memory otherwise.
-pub const MAX_TEXT_BYTES: u64 = 64 << 20;
-
-/// A description file's text, refused past [`MAX_TEXT_BYTES`]; errors name the file.
-pub fn read_text(path: &Path) -> Result<String> {
-    let file = |message: String| KinError::File { path: path.into(), message };
-    let size = std::fs::metadata(path).map_err(|e| file(format!("cannot read: {e}")))?.len();
-    if size > MAX_TEXT_BYTES {
-        return Err(file(format!("{size} bytes: a model, scene or configuration file is at most {MAX_TEXT_BYTES} bytes (is this a recording?)")));
-    }
-    std::fs::read_to_string(path).map_err(|e| file(format!("cannot read: {e}")))
 }
 
 /// Load a model or system from TOML text; `path` names it in errors, `origin` is the real file.

@@ -290,6 +290,29 @@ pub struct InertialCovarianceSpec {
     pub source: String,
 }
 
+/// An effect as a model file writes it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EffectSpec {
+    /// A name of the vocabulary ([`crate::effects::EffectKind::ALL`]).
+    pub name: String,
+    /// The joint it acts on (joint effects).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub joint: Option<String>,
+    /// The link (frame number or name) it acts on (link effects).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub link: Option<FrameRef>,
+    /// The actuator (1-based: a column of the model's coupling) it acts on (actuator effects).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub actuator: Option<usize>,
+    /// Parameter values in the units of [`crate::effects::EffectKind::parameters`].
+    #[serde(default)]
+    pub parameters: BTreeMap<String, f64>,
+    /// Where the figures come from.
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub source: String,
+}
+
 /// A whole model file.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -327,7 +350,7 @@ pub struct ModelSpec {
     pub drive: Option<DriveSpec>,
     /// Physical effects: friction, springs, offsets, compliance... ([`crate::effects`]).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub effects: Vec<crate::effects::EffectSpec>,
+    pub effects: Vec<EffectSpec>,
     /// Inertials of some or all bodies (`[[inertials]]`); bodies without one take the scene's.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub inertials: Vec<InertialSpec>,

@@ -102,7 +102,7 @@ pub fn export_urdf_file(model: &Model, path: &Path) -> Result<()> {
 
 /// Read a URDF file into a [`Model`] (see [`import_urdf_str`]); errors name the file.
 pub fn import_urdf_file(path: &Path) -> Result<Model> {
-    let text = crate::load::read_text(path)?;
+    let text = crate::text_file::read_text(path)?;
     let mut m = import_urdf_str(&text, &path.display().to_string())?;
     m.origin = Some(path.to_path_buf());
     Ok(m)
