@@ -136,3 +136,12 @@ mod tests {
         assert!(Gains { kp: 1.0, ki: f64::INFINITY, kd: 0.0 }.check("j").is_err());
     }
 }
+
+/// Stiffness of the position-mode motor (1/s^2, per unit of the joint's effective mass: rapier's
+/// acceleration-based motor, and the reduced engine the same way, so both engines hold a joint alike). A held joint sags by load acceleration / stiffness: 1e5 let the
+/// cart's SUJ-ECM column (carrying the ECM) sink 0.11 mm under gravity, 1e6 keeps every setup
+/// joint within 1.2e-5 m / 4.3e-5 rad (measured, full scene). 1e7 is too stiff for 32 sweeps:
+/// the under-converged solve locks the PSM yaw joints carried by the SUJ (0.59 rad error in 1 s).
+pub(crate) const POSITION_STIFFNESS: f64 = 1.0e6;
+/// Damping of the position-mode motor (1/s): 3x critical (2 sqrt(k) = 2e3).
+pub(crate) const POSITION_DAMPING: f64 = 6.0e3;

@@ -37,6 +37,10 @@ pub mod scene;
 pub mod serve;
 pub mod serve_cp;
 pub mod sim;
+mod arm_state;
+mod options;
+mod rapier_build;
+mod rapier_world;
 pub mod trajectory;
 
 pub use control::{Actuator, Gains, Mode};

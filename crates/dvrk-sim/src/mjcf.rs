@@ -356,8 +356,8 @@ fn add_arm(scene: &Scene, arm: &Arm, arm_bodies: &[Vec<usize>], bodies: &mut Vec
         let (lead_body, c, b) = drives[*k];
         let coeff = ci / c;
         let frame2 = rapier_axis_frame(t);
-        let inertia = crate::sim::axis_inertia(&arm.inertials, model, bi, &frame2, t.revolute);
-        let w = crate::sim::CABLE_BANDWIDTH;
+        let inertia = crate::rapier_world::axis_inertia(&arm.inertials, model, bi, &frame2, t.revolute);
+        let w = crate::rapier_world::CABLE_BANDWIDTH;
         let lead = bodies[ids[lead_body]].joint.as_ref().map(|l| l.name.clone()).unwrap_or_default();
         extras.tendons.push(format!(
             "<fixed name=\"{}\" stiffness=\"{}\" damping=\"{}\" springlength=\"{}\"><joint joint=\"{}\" coef=\"1\"/><joint joint=\"{}\" coef=\"{}\"/></fixed>",

@@ -14,15 +14,11 @@
 //! into one dvrk-kin model ([`dvrk_kin::compose::merge`]), so the setup joints feel the arm they
 //! carry exactly, as in rapier's shared multibody.
 
+use crate::arm_state::ArmState;
+use crate::control::{POSITION_DAMPING, POSITION_STIFFNESS};
 use crate::error::{Result, SimError};
 use dvrk_kin::{DynamicsData, DynamicsModel, Model, Pose};
 use nalgebra::{DMatrix, DVector, Vector3};
-
-/// Stiffness of a position-mode drive (1/s^2, per unit of its joint's own inertia): rapier's
-/// acceleration-based motor's (`crate::sim`), so both engines hold a joint alike.
-pub const POSITION_STIFFNESS: f64 = 1.0e6;
-/// Damping of a position-mode drive (1/s), as rapier's.
-pub const POSITION_DAMPING: f64 = 6.0e3;
 
 /// One arm of a [`ReducedTree`], as the sim builds it.
 #[derive(Debug, Clone)]
@@ -328,73 +324,46 @@ fn tree_joints(model: &Model, part: &dvrk_kin::Part) -> Vec<DVector<f64>> {
         .collect()
 }
 
-impl crate::sim::Sim {
-    /// [`crate::sim::Sim::new`] with the reduced engine: one tree per arm on the world with the
-    /// arms it carries; no contacts.
-    pub(crate) fn new_reduced(scene: &crate::scene::Scene, options: &crate::sim::SimOptions) -> Result<crate::sim::Sim> {
-        use crate::sim::{ArmState, Colliders, GravityCompensation};
-        if options.colliders == Colliders::Contacts {
-            return Err(SimError::Build("the reduced engine has no contacts: use the rapier engine for --contacts".into()));
-        }
-        let g = if options.no_gravity { [0.0; 3] } else { scene.gravity };
-        let mut arms = Vec::with_capacity(scene.arms.len());
-        // Per scene arm: its tree and its place in that tree's arm list.
-        let mut place: Vec<(usize, usize)> = Vec::with_capacity(scene.arms.len());
-        let mut trees: Vec<(String, Vec<TreeArm>)> = Vec::new();
-        let mut q_offset = 0;
-        for arm in &scene.arms {
-            // The mechanism on the true joints, as the rapier path builds it.
-            let crate::sim::ArmPhysics { link_model, home: start, inertias, effects, .. } = crate::sim::ArmPhysics::new(arm, scene.dt)?;
-            let transmission: Vec<bool> = effects.transmissions.iter().map(Option::is_some).collect();
-            // On the world: the model's base is the mount. On an arm: the base relative to the
-            // carrier's frame at the carrier's home, where the scene placed it.
-            let (t, parent, mount) = match arm.parent {
-                None => {
-                    trees.push((arm.name.clone(), Vec::new()));
-                    (trees.len() - 1, None, arm.model.base)
-                }
-                Some((pa, pf)) => {
-                    let carrier = &scene.arms[pa].model;
-                    let at = carrier.fk(&carrier.home())?[pf];
-                    (place[pa].0, Some((place[pa].1, pf)), at.inverse() * arm.model.base)
-                }
-            };
-            let mut model = link_model;
-            model.base = Pose::identity();
-            place.push((t, trees[t].1.len()));
-            trees[t].1.push(TreeArm { name: arm.name.clone(), model, effects_model: arm.model.clone(), parent, mount, inertias: inertias.clone(), armature: arm.armature.clone(), transmission, damping: arm.damping, start });
-            let gravity_compensation = GravityCompensation::of(arm, scene, options, &inertias)?;
-            arms.push(ArmState::without_rapier(arm, q_offset, effects, gravity_compensation));
-            q_offset += arm.model.nq();
-        }
-        let reduced = trees.iter().map(|(name, a)| ReducedTree::new(name, a, g)).collect::<Result<Vec<_>>>()?;
-        let mut sim = crate::sim::Sim::assemble(scene, options, arms, Vec::new(), q_offset);
-        sim.reduced = reduced;
-        sim.reduced_place = place;
-        sim.read_state();
-        sim.apply_modes(scene)?;
-        Ok(sim)
+/// The arms of `scene` for the reduced engine, one tree per arm on the world with the arms it
+/// carries (no contacts); per scene arm its tree and place in that tree's arm list; the scene's
+/// number of joints.
+pub(crate) fn build(scene: &crate::scene::Scene, options: &crate::options::SimOptions) -> Result<(Vec<ArmState>, Vec<ReducedTree>, Vec<(usize, usize)>, usize)> {
+    use crate::arm_state::{ArmPhysics, ArmState, GravityCompensation};
+    use crate::options::Colliders;
+    if options.colliders == Colliders::Contacts {
+        return Err(SimError::Build("the reduced engine has no contacts: use the rapier engine for --contacts".into()));
     }
-
-    /// [`crate::sim::Sim::step`] with the reduced engine.
-    pub(crate) fn step_reduced(&mut self) {
-        for (a, arm) in self.arms.iter_mut().enumerate() {
-            arm.link_efforts(&self.q, &self.qd, &self.q_link, &self.qd_link, self.dt);
-            let (t, k) = self.reduced_place[a];
-            let tree = &mut self.reduced[t];
-            let js = tree.joints(k);
-            for (j, i) in js.enumerate() {
-                tree.tau[i] = arm.effects.drive[j];
-                tree.hold[i] = (arm.actuators[j].mode == crate::control::Mode::Position).then(|| arm.held_target(j));
+    let g = if options.no_gravity { [0.0; 3] } else { scene.gravity };
+    let mut arms = Vec::with_capacity(scene.arms.len());
+    // Per scene arm: its tree and its place in that tree's arm list.
+    let mut place: Vec<(usize, usize)> = Vec::with_capacity(scene.arms.len());
+    let mut trees: Vec<(String, Vec<TreeArm>)> = Vec::new();
+    let mut q_offset = 0;
+    for arm in &scene.arms {
+        // The mechanism on the true joints, as the rapier path builds it.
+        let ArmPhysics { link_model, home: start, inertias, effects, .. } = ArmPhysics::new(arm, scene.dt)?;
+        let transmission: Vec<bool> = effects.transmissions.iter().map(Option::is_some).collect();
+        // On the world: the model's base is the mount. On an arm: the base relative to the
+        // carrier's frame at the carrier's home, where the scene placed it.
+        let (t, parent, mount) = match arm.parent {
+            None => {
+                trees.push((arm.name.clone(), Vec::new()));
+                (trees.len() - 1, None, arm.model.base)
             }
-        }
-        // One thread: a tree's step (~10 us for a SUJ with its PSM) is too small a task; rayon's
-        // dispatch per step halved the full cart's speed (72x -> 38x real time).
-        for tree in self.reduced.iter_mut() {
-            tree.step(self.dt);
-        }
-        self.time += self.dt;
-        self.read_state();
+            Some((pa, pf)) => {
+                let carrier = &scene.arms[pa].model;
+                let at = carrier.fk(&carrier.home())?[pf];
+                (place[pa].0, Some((place[pa].1, pf)), at.inverse() * arm.model.base)
+            }
+        };
+        let mut model = link_model;
+        model.base = Pose::identity();
+        place.push((t, trees[t].1.len()));
+        trees[t].1.push(TreeArm { name: arm.name.clone(), model, effects_model: arm.model.clone(), parent, mount, inertias: inertias.clone(), armature: arm.armature.clone(), transmission, damping: arm.damping, start });
+        let gravity_compensation = GravityCompensation::of(arm, scene, options, &inertias)?;
+        arms.push(ArmState::without_rapier(arm, q_offset, effects, gravity_compensation));
+        q_offset += arm.model.nq();
     }
+    let reduced = trees.iter().map(|(name, a)| ReducedTree::new(name, a, g)).collect::<Result<Vec<_>>>()?;
+    Ok((arms, reduced, place, q_offset))
 }
-

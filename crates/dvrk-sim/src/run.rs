@@ -503,7 +503,7 @@ pub fn run_staged(scene: &Scene, options: &RunOptions, outputs: &Outputs, mut pr
         dt: sim.dt,
         steps: done,
         engine: sim.engine(),
-        solver: options.sim.solver_settings(scene),
+        solver: scene.solver_settings(&options.sim),
         group_pgs_iterations: sim.group_pgs_iterations(),
         loops: options.sim.loops,
         closing_links: options.sim.closing_links,

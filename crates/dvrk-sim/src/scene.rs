@@ -63,7 +63,7 @@ struct SceneFile {
     warmstart_joints: bool,
     /// The physics engine, if the file chooses one (`rapier` or `reduced`).
     #[serde(default)]
-    engine: Option<crate::sim::Engine>,
+    engine: Option<crate::options::Engine>,
     /// m/s^2, world frame
     #[serde(default = "default_gravity", deserialize_with = "dvrk_kin::exact::vec3")]
     gravity: [f64; 3],
@@ -212,7 +212,7 @@ pub struct Scene {
     pub dt: f64,
     /// The physics engine the file asks for, if any (a [`crate::SimOptions`] overrides it;
     /// the library's default is rapier, `dvrk sim`'s the reduced engine).
-    pub engine: Option<crate::sim::Engine>,
+    pub engine: Option<crate::options::Engine>,
     pub solver: SolverSettings,
     /// m/s^2
     pub gravity: [f64; 3],
@@ -470,6 +470,19 @@ impl Arm {
         }
         if !spec.inertials.is_empty() {
             self.pgs_iterations = Some(self.pgs_iterations.unwrap_or(scene_sweeps).max(IDENTIFIED_PGS_ITERATIONS));
+        }
+    }
+}
+
+impl Scene {
+    /// The solver settings a sim built on this scene with `options` uses.
+    pub fn solver_settings(&self, options: &crate::options::SimOptions) -> SolverSettings {
+        let s = self.solver;
+        SolverSettings {
+            iterations: options.solver_iterations.unwrap_or(s.iterations),
+            pgs_iterations: options.pgs_iterations.unwrap_or(s.pgs_iterations),
+            stabilization_iterations: options.stabilization_iterations.unwrap_or(s.stabilization_iterations),
+            warmstart_joints: options.warmstart_joints.unwrap_or(s.warmstart_joints),
         }
     }
 }
