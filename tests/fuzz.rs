@@ -185,7 +185,7 @@ fn joint_csv() {
     let model = dvrk_kin::load("psm", None).unwrap();
     let scratch = Scratch::new("log.csv");
     fuzz(&[joint_csv_seed()], |b| {
-        let _ = dvrk_calib::discrepancy::csv_log::read(scratch.with(b), &model);
+        let _ = dvrk_calib::recordings::joint_log_csv::read(scratch.with(b), &model);
     });
 }
 
@@ -200,8 +200,8 @@ fn wpi_csv() {
     let scratch = Scratch::new("wpi.csv");
     fuzz(&seeds, |b| {
         let path = scratch.with(b);
-        let _ = dvrk_calib::discrepancy::joint_log::read_wpi_csv(path, &model);
-        let _ = dvrk_calib::identify::recording::read_wpi_csv(path, &model);
+        let _ = dvrk_calib::recordings::joint_log::read_wpi_csv(path, &model);
+        let _ = dvrk_calib::recordings::torque_log::read_wpi_csv(path, &model);
     });
 }
 
@@ -211,8 +211,8 @@ fn pose_csv() {
     let scratch = Scratch::new("poses.csv");
     fuzz(&[seed], |b| {
         let path = scratch.with(b);
-        let _ = dvrk_calib::plain_csv::read(path);
-        let _ = dvrk_calib::motive_csv::read(path);
+        let _ = dvrk_calib::recordings::plain_csv::read(path);
+        let _ = dvrk_calib::recordings::motive_csv::read(path);
     });
 }
 
@@ -228,7 +228,7 @@ fn mcap_joint_states() {
     let scratch = Scratch::new("fuzz.mcap");
     fuzz(&[seed], |b| {
         let path = scratch.with(b);
-        let _ = dvrk_calib::discrepancy::joint_log::read_mcap(path, "PSM1");
+        let _ = dvrk_calib::recordings::joint_log::read_mcap(path, "PSM1");
         let _ = dvrk_calib::read_recording(path, &Default::default());
     });
 }

@@ -3,7 +3,8 @@
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use dvrk_calib::identify::{output, recording::read_joint_recording, report, IdentifyOptions};
+use dvrk_calib::identify::{output, report, IdentifyOptions};
+use dvrk_calib::recordings::torque_log::read_joint_recording;
 use std::path::PathBuf;
 
 #[derive(Debug, Args)]
@@ -70,7 +71,7 @@ pub fn run(args: &IdentifyArgs) -> Result<()> {
     };
     let g = crate::io::parse_list("--gravity", &args.gravity)?;
     let [gx, gy, gz] = g[..] else { bail!("--gravity {}: three components x,y,z (m/s^2)", args.gravity) };
-    let format = dvrk_calib::recording_format::resolve(&args.recording, &args.format).with_context(|| format!("--recording {}", args.recording.display()))?;
+    let format = dvrk_calib::recordings::format::resolve(&args.recording, &args.format).with_context(|| format!("--recording {}", args.recording.display()))?;
     let mut options = IdentifyOptions::for_recording(&model, format);
     if let Some(c) = args.cutoff {
         options.processing.cutoff = c;

@@ -5,7 +5,7 @@
 use crate::outln;
 use anyhow::{anyhow, bail, Result};
 use clap::{Args, Subcommand};
-use dvrk_calib::mcap_io::McapLayout;
+use dvrk_calib::recordings::mcap_io::McapLayout;
 use dvrk_calib::synth::{Scenario, SynthMotion, SynthOptions};
 use serde_json::json;
 use std::path::PathBuf;
@@ -118,7 +118,8 @@ pub fn run(c: &SynthCommand) -> Result<()> {
 }
 
 fn hidden_effect(a: &HiddenEffectArgs) -> Result<()> {
-    use dvrk_calib::discrepancy::{hidden_effect, joint_log, Hidden, HiddenOptions};
+    use dvrk_calib::discrepancy::{hidden_effect, Hidden, HiddenOptions};
+    use dvrk_calib::recordings::joint_log;
     let hidden: Hidden = a.effect.parse().map_err(|e| anyhow!("--effect: {e}"))?;
     let effort_noise = a.noise.as_deref().map(|t| crate::io::parse_list("--noise", t)).transpose()?;
     let ext = a.output.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
@@ -132,7 +133,7 @@ fn hidden_effect(a: &HiddenEffectArgs) -> Result<()> {
     let h = hidden_effect(&a.model, &o)?;
     spinner.finish();
     let bytes = match ext.as_str() {
-        "csv" => dvrk_calib::discrepancy::csv_log::write(&h.log).into_bytes(),
+        "csv" => dvrk_calib::recordings::joint_log_csv::write(&h.log).into_bytes(),
         _ => joint_log::write_mcap(&h.log, &dvrk_sim::Scene::load(&a.model)?.arms[0].name)?,
     };
     let staged = vec![crate::io::stage(&a.output, &bytes)?, crate::io::stage(&a.answer, format!("{}\n", serde_json::to_string_pretty(&h.answer)?).as_bytes())?];
@@ -181,8 +182,8 @@ fn mocap(a: &MocapArgs) -> Result<()> {
     spinner.finish();
     let ext = a.output.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
     let bytes = match ext.as_str() {
-        "mcap" => dvrk_calib::mcap_io::write(&rec, layout, &a.joint_topic)?,
-        "csv" => dvrk_calib::plain_csv::write(&rec).into_bytes(),
+        "mcap" => dvrk_calib::recordings::mcap_io::write(&rec, layout, &a.joint_topic)?,
+        "csv" => dvrk_calib::recordings::plain_csv::write(&rec).into_bytes(),
         _ => bail!("-o {}: unknown format `.{ext}`; valid: .mcap, .csv", a.output.display()),
     };
     let mut staged = vec![crate::io::stage(&a.output, &bytes)?];

@@ -10,7 +10,7 @@
 use crate::axes_config::{AxesConfig, TRACKER};
 use crate::axis::{fit_axis, AxisFit, AxisMethod, AxisOptions};
 use crate::error::{CalibError, Result};
-use crate::recording::{common_samples, BodyTrack, Recording};
+use crate::recordings::tracks::{common_samples, BodyTrack, Recording};
 use dvrk_kin::Pose;
 use nalgebra::{Matrix3, Vector3};
 

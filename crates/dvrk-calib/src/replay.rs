@@ -8,9 +8,9 @@
 //!   the scene that runs the tracking test.
 
 use crate::error::{CalibError, Result};
-use crate::mcap_io::McapOptions;
-use crate::read::read_recording;
-use crate::recording::JointTrack;
+use crate::recordings::mcap_io::McapOptions;
+use crate::recordings::read::read_recording;
+use crate::recordings::tracks::JointTrack;
 use dvrk_sim::run::Replay;
 use dvrk_sim::scene::Tracking;
 use dvrk_sim::trajectory::Trajectory;
@@ -20,10 +20,10 @@ use std::path::Path;
 /// Read the trajectories in `path` for the arms of `scene`.
 pub fn read_replay(path: &Path, scene: &Scene) -> Result<Replay> {
     let mut arms = Vec::new();
-    if crate::message_file::container(path)?.is_some() {
+    if crate::recordings::message_file::container(path)?.is_some() {
         // One pass over the file for every arm's topics.
         let names: Vec<&str> = scene.arms.iter().map(|a| a.name.as_str()).collect();
-        let mut found = crate::joint_states::read_arms(path, &names, &["setpoint_js", "measured_js"])?;
+        let mut found = crate::recordings::joint_states::read_arms(path, &names, &["setpoint_js", "measured_js"])?;
         let mut missing = Vec::new();
         for arm in &scene.arms {
             let mut states = found.remove(&arm.name).unwrap_or_default();

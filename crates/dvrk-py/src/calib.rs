@@ -143,7 +143,7 @@ pub fn identify<'py>(py: Python<'py>, recording: PathBuf, model: &str, format: &
     let m = dvrk_calib::dvrk_kin::load(model, None)?;
     let summary = py.detach(|| -> Result<serde_json::Value> {
         let prior = dvrk_sim::scene::builtin_inertials(&m.name, &m)?.body_inertias(&m)?;
-        let resolved = dvrk_calib::recording_format::resolve(&recording, format)?;
+        let resolved = dvrk_calib::recordings::format::resolve(&recording, format)?;
         let (rec, notes) = read_joint_recording(&recording, format, &m, arm)?;
         let held_out = validate.as_ref().map(|v| read_joint_recording(v, resolved, &m, arm).map(|r| r.0)).transpose()?;
         let options = IdentifyOptions::for_recording(&m, resolved);
@@ -218,7 +218,7 @@ pub fn synth_hidden_effect<'py>(py: Python<'py>, path: PathBuf, effect: &str, se
     let answer = py.detach(|| -> Result<serde_json::Value> {
         let h = hidden_effect(scene, &HiddenOptions { hidden, seed, duration, marker, ..Default::default() })?;
         let bytes = match path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
-            Some("csv") => dvrk_calib::discrepancy::csv_log::write(&h.log).into_bytes(),
+            Some("csv") => dvrk_calib::recordings::joint_log_csv::write(&h.log).into_bytes(),
             _ => joint_log::write_mcap(&h.log, &dvrk_sim::Scene::load(scene)?.arms[0].name)?,
         };
         dvrk_calib::dvrk_kin::atomic::write_atomic(&path, &bytes)?;

@@ -11,7 +11,7 @@
 use super::candidates::Table;
 use super::signals::{column, Prepared};
 use crate::error::Result;
-use crate::identify::filter::derivative;
+use crate::filter::derivative;
 use dvrk_kin::{DynamicsData, DynamicsModel};
 use nalgebra::{DMatrix, DVector, Matrix4, Vector3, Vector4};
 
@@ -158,7 +158,7 @@ impl LoadChange {
 pub fn motor_detail(prep: &Prepared, j: usize) -> Vec<f64> {
     let rate = 1.0 / prep.raw_dt();
     let pad = (rate / MOTOR_DETAIL_CUTOFF * 3.0) as usize;
-    crate::identify::filter::Butterworth2::new(MOTOR_DETAIL_CUTOFF.min(0.4 * rate), rate).filtfilt(&prep.motor_detail[j], pad)
+    crate::filter::Butterworth2::new(MOTOR_DETAIL_CUTOFF.min(0.4 * rate), rate).filtfilt(&prep.motor_detail[j], pad)
 }
 
 /// The link mass matrix at every analysed sample (kg m^2, kg).

@@ -7,8 +7,8 @@
 //! the load pushes). Scored as the torque channel is: likelihood ratio on an effective sample
 //! size, change in BIC, held-out check.
 
-use super::joint_log::JointLog;
-use super::markers::MarkerLog;
+use crate::recordings::joint_log::JointLog;
+use crate::recordings::marker_log::MarkerLog;
 use super::registration::{pose_difference, whiten, Registration};
 use super::report::{CandidateReport, EffectReport, KinematicReport};
 use super::signals::Prepared;

@@ -19,16 +19,13 @@
 
 pub mod candidates;
 pub mod consistency;
-pub mod csv_log;
 pub mod drive;
 pub mod excitation;
 pub mod fit;
 pub mod generate;
-pub mod joint_log;
 pub mod kinematic;
 pub mod kinematic_only;
 pub mod locate;
-pub mod markers;
 pub mod nuisance;
 pub mod options;
 pub mod payload;
@@ -44,7 +41,7 @@ pub mod tracking;
 pub mod workflow;
 
 pub use generate::{hidden_effect, Answer, Hidden, HiddenOptions, HiddenRecording};
-pub use joint_log::JointLog;
+pub use crate::recordings::JointLog;
 pub use nuisance::InertiaPrior;
 pub use plot::Residuals;
 pub use repeat::{discrepancy_repeated, discrepancy_repeated_with, Repeated};

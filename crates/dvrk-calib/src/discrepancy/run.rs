@@ -1,27 +1,12 @@
 //! `dvrk discrepancy` and `dvrk_twin.discrepancy` share this: read the recording in its format,
 //! take the arm's built-in scene, run the repeated workflow.
 
-use super::joint_log::{self, JointLog};
+use crate::recordings::read_log;
 use super::repeat::{discrepancy_repeated_with, Repeated};
 use super::options::Options;
 use crate::error::{CalibError, Result};
 use dvrk_kin::Model;
 use std::path::Path;
-
-/// Read `path` in `format` (`auto`: told from the file, [`crate::recording_format`]) for
-/// `model`'s arm `arm`; with what the reader assumed (notes for the report).
-pub fn read_log(path: &Path, format: &str, model: &Model, arm: &str) -> Result<(JointLog, Vec<String>)> {
-    let resolved = crate::recording_format::resolve(path, format)?;
-    let (log, mut notes) = match resolved {
-        "mcap" | "bag" => joint_log::read_mcap(path, arm)?,
-        "wpi-csv" => (joint_log::read_wpi_csv(path, model)?, vec![format!("{}: {}", path.display(), joint_log::NO_SETPOINTS)]),
-        _ => super::csv_log::read(path, model).map(|c| (c.log, c.notes))?,
-    };
-    notes.splice(0..0, crate::recording_format::auto_note(path, format, resolved));
-    // Measured data past the model's limits is analysed as measured, and said.
-    notes.extend(dvrk_kin::LimitTally::of(model, &log.position).summary(model).map(|s| format!("{}: {s}", path.display())));
-    Ok((log, notes))
-}
 
 /// The kinematic channel's input: a pose topic and the link (frame name or paper number) its
 /// marker is on.
@@ -43,10 +28,10 @@ pub fn run_with(path: &Path, format: &str, model: &Model, arm: &str, marker: Opt
     progress("reading the recording");
     let (mut log, notes) = read_log(path, format, model, arm)?;
     if let Some(m) = marker {
-        let frame = super::markers::marker_frame(model, &m.link)?;
-        log.markers = Some(match crate::recording_format::resolve(path, format)? {
-            "mcap" | "bag" => super::markers::read_mcap(path, &m.topic, frame)?,
-            "csv" => super::csv_log::read_markers(path, &m.topic, frame)?,
+        let frame = crate::recordings::marker_log::marker_frame(model, &m.link)?;
+        log.markers = Some(match crate::recordings::format::resolve(path, format)? {
+            "mcap" | "bag" => crate::recordings::marker_log::read_mcap(path, &m.topic, frame)?,
+            "csv" => crate::recordings::joint_log_csv::read_markers(path, &m.topic, frame)?,
             other => return Err(CalibError::field("--marker-topic", format!("tracked poses are read from MCAP, bag or CSV recordings; a {other} recording has none"))),
         });
     }

@@ -4,9 +4,9 @@
 //! carried through the same filter to the noise floor of the residual, with what the encoder
 //! noise, differentiated twice, makes of the predicted effort.
 
-use super::joint_log::JointLog;
+use crate::recordings::joint_log::JointLog;
 use crate::error::{CalibError, Result};
-use crate::identify::filter::{derivative, Butterworth2};
+use crate::filter::{derivative, Butterworth2};
 use dvrk_kin::{DynamicsData, DynamicsModel, Model};
 use nalgebra::{DMatrix, Vector3};
 use rand::SeedableRng;

@@ -9,7 +9,7 @@ pub use super::options::{Options, Outcome};
 use super::separation::separating_experiment;
 use super::consistency;
 use super::fit::{per_joint_ratio, Fitter, Rows};
-use super::joint_log::JointLog;
+use crate::recordings::joint_log::JointLog;
 use super::nuisance::Nuisance;
 use super::plot::Residuals;
 use super::report::{CandidateReport, EffectReport, JointExplained, JointRms, Report};

@@ -8,7 +8,7 @@
 //! 10) the roll's error on `two` is 0.172 against the raw efforts and 0.1356 with this protocol,
 //! against their published 0.134. So a comparison with their numbers takes this protocol.
 
-use super::filter::Butterworth;
+use crate::filter::Butterworth;
 use super::TorqueRecording;
 use serde::Serialize;
 

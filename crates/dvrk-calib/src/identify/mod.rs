@@ -12,11 +12,9 @@
 
 pub mod ablation;
 pub mod as_published;
-pub mod filter;
 pub mod output;
 pub mod plot;
 pub mod problem;
-pub mod recording;
 pub mod replay;
 pub mod run;
 pub mod report;
@@ -27,7 +25,7 @@ use dvrk_kin::dynamics::PARAMETERS_PER_BODY;
 use dvrk_kin::{BodyInertia, Model};
 use nalgebra::{DMatrix, DVector, SymmetricEigen};
 use problem::{EffectTerm, Layout, Param, Processing, Regression, Terms};
-pub use recording::{read_wpi_csv, TorqueRecording};
+pub use crate::recordings::{read_wpi_csv, TorqueRecording};
 use serde::Serialize;
 
 /// What to identify and how.

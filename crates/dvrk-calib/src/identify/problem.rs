@@ -2,8 +2,8 @@
 //! effects of each recorded channel), and the regression `tau_channel = Y theta` over a
 //! recording, built from dvrk-kin's closed-loop regressor mapped to the recorded channels.
 
-use super::filter::{derivative, Butterworth2};
-use super::recording::TorqueRecording;
+use crate::filter::{derivative, Butterworth2};
+use crate::recordings::torque_log::TorqueRecording;
 use crate::error::{CalibError, Result};
 use dvrk_kin::dynamics::{PARAMETERS_PER_BODY, PARAMETER_NAMES};
 use dvrk_kin::{DynamicsData, DynamicsModel, Model};

@@ -20,7 +20,7 @@
 //! identified one for 30% of `two` (yaw RMS 0.126 rad against 0.007 rad unlocked).
 
 use super::output::IdentifiedModel;
-use super::recording::TorqueRecording;
+use crate::recordings::torque_log::TorqueRecording;
 use crate::error::{CalibError, Result};
 use dvrk_kin::Model;
 use dvrk_sim::{Gains, Scene, Sim, SimOptions};

@@ -5,7 +5,8 @@
 //! The full detection-rate table is the ignored `detection_rate_table`.
 
 use dvrk_calib::discrepancy::generate::HIDDEN_KINDS;
-use dvrk_calib::discrepancy::{discrepancy, hidden_effect, joint_log, Hidden, HiddenOptions, HiddenRecording, Options};
+use dvrk_calib::discrepancy::{discrepancy, hidden_effect, Hidden, HiddenOptions, HiddenRecording, Options};
+use dvrk_calib::recordings::joint_log;
 use dvrk_kin::effects::EffectKind;
 
 /// The table tests' settings: environment variable `name` parsed, else `default`.
@@ -622,9 +623,9 @@ fn a_recording_without_efforts_runs_the_kinematic_channel_alone() {
     // without the marker is a one-line error naming the file and topic.
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("no-efforts.mcap");
-    std::fs::write(&path, dvrk_calib::discrepancy::joint_log::write_mcap(&h.log, "PSM1").unwrap()).unwrap();
+    std::fs::write(&path, dvrk_calib::recordings::joint_log::write_mcap(&h.log, "PSM1").unwrap()).unwrap();
     let model = dvrk_kin::load("psm", None).unwrap();
-    let (log, notes) = dvrk_calib::discrepancy::run::read_log(&path, "auto", &model, "PSM1").unwrap();
+    let (log, notes) = dvrk_calib::recordings::read_log(&path, "auto", &model, "PSM1").unwrap();
     assert!(!log.has_efforts() && notes.iter().any(|n| n.contains("/PSM1/measured_js carries no efforts")), "{notes:?}");
     let e = dvrk_calib::discrepancy::run::run(&path, "auto", &model, "PSM1", None, &Options::default(), 1).err().unwrap().to_string();
     assert!(e.contains("no-efforts.mcap") && e.contains("carries no efforts and no tracked marker was given") && !e.contains('\n'), "{e}");
@@ -646,7 +647,8 @@ fn a_recording_without_efforts_runs_the_kinematic_channel_alone() {
 #[ignore]
 fn payload_anywhere_table() {
     use dvrk_calib::discrepancy::generate::ANY_BODY;
-    use dvrk_calib::identify::{identify, output::identified_model, recording::read_mcap_joint_states, IdentifyOptions};
+    use dvrk_calib::identify::{identify, output::identified_model, IdentifyOptions};
+    use dvrk_calib::recordings::torque_log::read_mcap_joint_states;
     let trials: u64 = env_or("DVRK_TRIALS", 30);
     let first: u64 = env_or("DVRK_FIRST_SEED", 2000);
     let cad = std::env::var("DVRK_CAD").is_ok_and(|v| v == "1");

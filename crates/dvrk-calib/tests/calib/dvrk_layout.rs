@@ -7,9 +7,11 @@
 //! Skipped, with a message, where Python lacks `mcap_ros2` or `rosbags` (`bash scripts/test.sh`
 //! installs both) or the external data is absent.
 
-use dvrk_calib::discrepancy::{discrepancy, joint_log, scene_for_arm, Options};
-use dvrk_calib::identify::{recording::read_joint_recording, run, IdentifyOptions};
-use dvrk_calib::mcap_io::McapOptions;
+use dvrk_calib::discrepancy::{discrepancy, scene_for_arm, Options};
+use dvrk_calib::recordings::joint_log;
+use dvrk_calib::identify::{run, IdentifyOptions};
+use dvrk_calib::recordings::torque_log::read_joint_recording;
+use dvrk_calib::recordings::mcap_io::McapOptions;
 use dvrk_calib::{pivot_calibration, read_recording, PivotOptions};
 use std::path::{Path, PathBuf};
 use std::process::Command;

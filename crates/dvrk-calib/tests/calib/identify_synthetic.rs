@@ -6,9 +6,9 @@
 //! Also the excitation warnings (must-show 4) on trajectories that move too little.
 
 use crate::util::psm;
-use dvrk_calib::identify::filter::Butterworth2;
+use dvrk_calib::filter::Butterworth2;
 use dvrk_calib::identify::problem::{regression, EffectTerm, Layout, Param};
-use dvrk_calib::identify::recording::parse_wpi_csv;
+use dvrk_calib::recordings::torque_log::parse_wpi_csv;
 use dvrk_calib::identify::{identify_regression, IdentifyOptions, TorqueRecording};
 use dvrk_kin::dynamics::PARAMETERS_PER_BODY;
 use nalgebra::DVector;

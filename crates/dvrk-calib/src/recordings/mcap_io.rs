@@ -3,9 +3,9 @@
 //! [`Recording`] (through [`crate::message_file`]), and written by the synthetic tracker.
 
 use crate::error::{CalibError, Result};
-use crate::foxglove::{self, FoxglovePose};
-use crate::message_file::{self, Encoding, Message};
-use crate::recording::{BodyTrack, JointTrack, Recording};
+use crate::recordings::foxglove::{self, FoxglovePose};
+use crate::recordings::message_file::{self, Encoding, Message};
+use crate::recordings::tracks::{BodyTrack, JointTrack, Recording};
 use crate::ros_msgs::{self, Header, JointState, PoseStamped, TransformStamped};
 use dvrk_sim::recording::mcap_out::{ros2_schema, sdk_schema, McapOut};
 use dvrk_kin::Pose;
@@ -62,17 +62,8 @@ fn encoding_name(e: Encoding) -> &'static str {
     }
 }
 
-/// A JointState from `m`'s bytes in its wire encoding.
-pub(crate) fn decode_joint_state(m: &Message) -> std::result::Result<JointState, String> {
-    if m.encoding == Encoding::Ros1 {
-        JointState::decode_ros1(m.data)
-    } else {
-        JointState::decode(m.data)
-    }
-}
-
 fn pose(position: [f64; 3], q: [f64; 4]) -> std::result::Result<Pose, String> {
-    let u = crate::plain_csv::unit_quaternion(q[0], q[1], q[2], q[3])?;
+    let u = crate::recordings::plain_csv::unit_quaternion(q[0], q[1], q[2], q[3])?;
     if !position.iter().all(|x| x.is_finite()) {
         return Err(format!("position ({}, {}, {}) is not finite", position[0], position[1], position[2]));
     }
@@ -139,10 +130,10 @@ impl<'a> Reader<'a> {
         match k {
             Kind::JointState => {
                 // The asked-for topic, and its tool's (the dVRK's `/PSM1/jaw/measured_js`).
-                if options.joint_topic.as_ref().is_some_and(|t| t != ch_topic && !crate::joint_states::is_tool_topic_of(t, ch_topic)) {
+                if options.joint_topic.as_ref().is_some_and(|t| t != ch_topic && !crate::recordings::joint_states::is_tool_topic_of(t, ch_topic)) {
                     return Ok(());
                 }
-                let js = decode_joint_state(m).map_err(|e| CalibError::file(path, what(e)))?;
+                let js = crate::recordings::joint_states::decode_joint_state(m).map_err(|e| CalibError::file(path, what(e)))?;
                 let jt = joints.entry(ch_topic.to_string()).or_insert_with(|| JointTrack { source: ch_topic.to_string(), names: js.name.clone(), ..Default::default() });
                 if js.position.len() != jt.names.len() || js.name != jt.names {
                     *bad.entry(ch_topic.to_string()).or_default() += 1;
@@ -220,7 +211,7 @@ impl<'a> Reader<'a> {
                 b
             })
             .collect();
-        rec.joints = crate::joint_states::arm_track(path, joints, &mut rec.warnings)?;
+        rec.joints = crate::recordings::joint_states::arm_track(path, joints, &mut rec.warnings)?;
         Ok(rec)
     }
 }

@@ -13,13 +13,22 @@
 //! in [`ArmStates::notes`].
 
 use crate::error::{CalibError, Result};
-use crate::message_file::{self, Encoding};
+use crate::recordings::message_file::{self, Encoding};
 use std::collections::BTreeMap;
 use std::path::Path;
 
 /// The sub-topics (under `/ARM/`) on which the dVRK publishes a tool's joint: the PSM's jaw, the
 /// MTM's gripper (named as the joint; `dvrk sim --out` writes them so).
 pub const TOOL_TOPICS: [&str; 2] = dvrk_sim::recording::writer::TOOL_JOINTS;
+
+/// A JointState from `m`'s bytes in its wire encoding.
+pub(crate) fn decode_joint_state(m: &message_file::Message) -> std::result::Result<crate::ros_msgs::JointState, String> {
+    if m.encoding == Encoding::Ros1 {
+        crate::ros_msgs::JointState::decode_ros1(m.data)
+    } else {
+        crate::ros_msgs::JointState::decode(m.data)
+    }
+}
 
 /// True when `topic` is a tool sub-topic of the arm topic `main` (`/PSM1/jaw/measured_js` of
 /// `/PSM1/measured_js`).
@@ -112,7 +121,7 @@ pub fn read_topics(path: &Path, wanted: &[&str]) -> Result<(BTreeMap<String, Joi
         if m.schema != "sensor_msgs/msg/JointState" || !matches!(m.encoding, Encoding::Cdr | Encoding::Ros1) {
             return Err(CalibError::file(path, format!("topic {topic} carries {}; expected sensor_msgs/msg/JointState (cdr or ros1)", m.schema)));
         }
-        let js = crate::mcap_io::decode_joint_state(m).map_err(|e| CalibError::file(path, format!("message {} on {topic}: {e}", m.index)))?;
+        let js = decode_joint_state(m).map_err(|e| CalibError::file(path, format!("message {} on {topic}: {e}", m.index)))?;
         let tp = topics.entry(topic.to_string()).or_default();
         if tp.names.is_empty() {
             tp.names = js.name.clone();
@@ -217,10 +226,10 @@ fn assemble(path: &Path, topics: &mut BTreeMap<String, JointStates>, seen: &[Str
     Ok(out)
 }
 
-/// The joint track a pose-and-joints recording offers (`mcap_io`'s [`crate::recording::Recording`]):
+/// The joint track a pose-and-joints recording offers (`mcap_io`'s [`crate::recordings::tracks::Recording`]):
 /// of the JointState topics read, an arm's `measured_js` first, then `setpoint_js`, then any
 /// other; a tool sub-topic (`/ARM/jaw/...`) is never chosen alone but merged into its arm's.
-pub fn arm_track(path: &Path, mut tracks: BTreeMap<String, crate::recording::JointTrack>, notes: &mut Vec<String>) -> Result<Option<crate::recording::JointTrack>> {
+pub fn arm_track(path: &Path, mut tracks: BTreeMap<String, crate::recordings::tracks::JointTrack>, notes: &mut Vec<String>) -> Result<Option<crate::recordings::tracks::JointTrack>> {
     let is_tool = |t: &str| TOOL_TOPICS.iter().any(|s| t.contains(&format!("/{s}/")));
     let rank = |t: &str| {
         if t.ends_with("/measured_js") {
@@ -234,7 +243,7 @@ pub fn arm_track(path: &Path, mut tracks: BTreeMap<String, crate::recording::Joi
     let Some(main) = tracks.keys().filter(|t| !is_tool(t)).min_by_key(|t| rank(t)).cloned().or_else(|| tracks.keys().next().cloned()) else {
         return Ok(None);
     };
-    let to_states = |j: crate::recording::JointTrack| JointStates { names: j.names, velocity: vec![Vec::new(); j.t.len()], effort: vec![Vec::new(); j.t.len()], t: j.t, position: j.q, log_timed: 0 };
+    let to_states = |j: crate::recordings::tracks::JointTrack| JointStates { names: j.names, velocity: vec![Vec::new(); j.t.len()], effort: vec![Vec::new(); j.t.len()], t: j.t, position: j.q, log_timed: 0 };
     let Some(track) = tracks.remove(&main) else {
         return Ok(None);
     };
@@ -253,7 +262,7 @@ pub fn arm_track(path: &Path, mut tracks: BTreeMap<String, crate::recording::Joi
             }
         }
     }
-    Ok(Some(crate::recording::JointTrack { source: sources.join(" + "), names: states.names, t: states.t, q: states.position, ..Default::default() }))
+    Ok(Some(crate::recordings::tracks::JointTrack { source: sources.join(" + "), names: states.names, t: states.t, q: states.position, ..Default::default() }))
 }
 
 /// Order `js` in time and say what that took, and where its times came from.

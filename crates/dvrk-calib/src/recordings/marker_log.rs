@@ -3,7 +3,7 @@
 //! written by `dvrk synth hidden-effect --marker-link`.
 
 use crate::error::{CalibError, Result};
-use crate::mcap_io::{self, McapOptions};
+use crate::recordings::mcap_io::{self, McapOptions};
 use dvrk_kin::{FrameRef, Model, Pose};
 use std::path::Path;
 

@@ -121,12 +121,12 @@ pub fn parse_wpi_csv(text: &str, path: &Path, model: &Model) -> Result<TorqueRec
 
 /// Read `/<arm>/measured_js` (sensor_msgs/JointState with efforts, as the dVRK and `dvrk sim
 /// --out` record it) from an MCAP file or ROS 1 bag for `model`, with the jaw or gripper on its
-/// own topic merged by time ([`crate::joint_states::read_arm`]) or on the same topic: joints
+/// own topic merged by time ([`crate::recordings::joint_states::read_arm`]) or on the same topic: joints
 /// matched by name (every model joint must be there), velocities from the messages where they
 /// carry them, else by central differences of the positions. The channels are the model's
 /// joints. With what the reader did (notes for the report).
 pub fn read_mcap_joint_states(path: &Path, model: &Model, arm: &str) -> Result<(TorqueRecording, Vec<String>)> {
-    let mut states = crate::joint_states::read_arm(path, arm, &["measured_js"])?;
+    let mut states = crate::recordings::joint_states::read_arm(path, arm, &["measured_js"])?;
     let topic = format!("/{arm}/measured_js");
     let Some(js) = states.kinds.remove("measured_js") else {
         return Err(CalibError::file(path, format!("no topic {topic}; topics: {}", states.listing())));
@@ -179,7 +179,7 @@ pub fn read_mcap_joint_states(path: &Path, model: &Model, arm: &str) -> Result<(
 /// [`crate::recording_format`]; `wpi-csv`, `mcap` or `bag`) for `model`, the arm `arm` for
 /// MCAP and bags; with what the reader did (notes for the report).
 pub fn read_joint_recording(path: &Path, format: &str, model: &Model, arm: &str) -> Result<(TorqueRecording, Vec<String>)> {
-    let resolved = crate::recording_format::resolve(path, format)?;
+    let resolved = crate::recordings::format::resolve(path, format)?;
     let (rec, mut notes) = match resolved {
         "wpi-csv" => (read_wpi_csv(path, model)?, Vec::new()),
         "mcap" | "bag" => read_mcap_joint_states(path, model, arm)?,
@@ -190,7 +190,7 @@ pub fn read_joint_recording(path: &Path, format: &str, model: &Model, arm: &str)
             ))
         }
     };
-    notes.splice(0..0, crate::recording_format::auto_note(path, format, resolved));
+    notes.splice(0..0, crate::recordings::format::auto_note(path, format, resolved));
     // Measured data past the model's limits is fitted as measured, and said.
     let joints = rec.q.iter().map(|q| &rec.to_joint * nalgebra::DVector::from_column_slice(q));
     notes.extend(dvrk_kin::LimitTally::of(model, joints).summary(model).map(|s| format!("{}: {s}", path.display())));

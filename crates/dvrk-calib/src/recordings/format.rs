@@ -2,7 +2,7 @@
 //! default of `dvrk identify` and `dvrk discrepancy`) resolves here.
 
 use crate::error::{CalibError, Result};
-use crate::message_file::{self, Container};
+use crate::recordings::message_file::{self, Container};
 use std::path::Path;
 
 /// What `--format` may say.

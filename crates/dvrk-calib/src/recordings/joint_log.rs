@@ -25,7 +25,7 @@ pub struct JointLog {
     /// Measured efforts per sample (N·m, N).
     pub effort: Vec<Vec<f64>>,
     /// A tracker's poses of a marker on one link (the kinematic channel), when recorded.
-    pub markers: Option<super::markers::MarkerLog>,
+    pub markers: Option<super::marker_log::MarkerLog>,
 }
 
 impl JointLog {
@@ -59,7 +59,7 @@ impl JointLog {
 /// transpose's inverse, by virtual work). It has no setpoints: the encoders stand in for them
 /// (the tracking channel then compares the replay with the recording itself).
 pub fn read_wpi_csv(path: &Path, model: &dvrk_kin::Model) -> Result<JointLog> {
-    let rec = crate::identify::read_wpi_csv(path, model)?;
+    let rec = super::torque_log::read_wpi_csv(path, model)?;
     let to_joint = &rec.to_joint;
     let effort_map =
         to_joint.transpose().try_inverse().ok_or_else(|| CalibError::data(path.display().to_string(), "the tool coupling is singular: actuator efforts cannot be taken to joint space"))?;
@@ -112,13 +112,13 @@ pub fn write_mcap(log: &JointLog, arm: &str) -> Result<Vec<u8>> {
 /// Read an arm's setpoints and measurements (with efforts, or without any: then every sample's
 /// list is empty, [`JointLog::has_efforts`]) from an MCAP file or ROS 1 bag, in
 /// the dVRK's layout (`/<arm>/setpoint_js`, `/<arm>/measured_js`, the jaw or gripper on its own
-/// topic, merged by [`crate::joint_states::read_arm`]) or with every joint on one topic. The
+/// topic, merged by [`crate::recordings::joint_states::read_arm`]) or with every joint on one topic. The
 /// setpoints are matched to the measurements by time (the latest setpoint at or before each
 /// measurement); without setpoints the encoders stand in for them (said in the notes). Errors
 /// name the file, the topic and the message.
 pub fn read_mcap(path: &Path, arm: &str) -> Result<(JointLog, Vec<String>)> {
     let (set_kind, meas_kind) = ("setpoint_js", "measured_js");
-    let mut states = crate::joint_states::read_arm(path, arm, &[set_kind, meas_kind])?;
+    let mut states = crate::recordings::joint_states::read_arm(path, arm, &[set_kind, meas_kind])?;
     let meas_topic = format!("/{arm}/{meas_kind}");
     let Some(meas) = states.kinds.remove(meas_kind) else {
         return Err(CalibError::file(path, format!("no topic {meas_topic}; topics: {}", states.listing())));

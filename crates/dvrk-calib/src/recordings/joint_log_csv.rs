@@ -168,7 +168,7 @@ pub fn write(log: &JointLog) -> String {
 
 /// The tracked marker body `name` of the CSV joint log at `path`, on model frame `frame`: its
 /// pose columns on the rows that have them. A row with some but not all of them is an error.
-pub fn read_markers(path: &Path, name: &str, frame: usize) -> Result<super::markers::MarkerLog> {
+pub fn read_markers(path: &Path, name: &str, frame: usize) -> Result<super::marker_log::MarkerLog> {
     let text = std::fs::read_to_string(path).map_err(|e| CalibError::file(path, format!("cannot read: {e}")))?;
     let name = marker_name(name);
     let mut reader = csv::ReaderBuilder::new().comment(Some(b'#')).flexible(false).trim(csv::Trim::All).from_reader(text.as_bytes());
@@ -180,7 +180,7 @@ pub fn read_markers(path: &Path, name: &str, frame: usize) -> Result<super::mark
         return Err(CalibError::file(path, format!("--marker-topic {name}: no columns time, {name}.x .. {name}.qw (pose columns of: {})", if have.is_empty() { "none".to_string() } else { have.join(", ") })));
     };
     let cols: Vec<usize> = cols.into_iter().flatten().collect();
-    let mut out = super::markers::MarkerLog { topic: name.clone(), frame, t: Vec::new(), poses: Vec::new() };
+    let mut out = super::marker_log::MarkerLog { topic: name.clone(), frame, t: Vec::new(), poses: Vec::new() };
     for rec in reader.records() {
         let rec = rec.map_err(|e| CalibError::file(path, format!("line {}: {e}", e.position().map_or(0, |p| p.line()))))?;
         let line = rec.position().map_or(0, |p| p.line());
@@ -190,7 +190,7 @@ pub fn read_markers(path: &Path, name: &str, frame: usize) -> Result<super::mark
         }
         let v: Vec<f64> = cells.iter().map(|c| c.parse::<f64>().ok().filter(|x| x.is_finite())).collect::<Option<_>>().ok_or_else(|| CalibError::file(path, format!("line {line}: {name}'s pose columns hold {cells:?}: all seven finite numbers, or all empty")))?;
         let t: f64 = rec.get(time).unwrap_or("").parse().map_err(|_| CalibError::file(path, format!("line {line}: column `time` is not a number")))?;
-        let q = crate::plain_csv::unit_quaternion(v[3], v[4], v[5], v[6]).map_err(|e| CalibError::file(path, format!("line {line}: {name}: {e}")))?;
+        let q = crate::recordings::plain_csv::unit_quaternion(v[3], v[4], v[5], v[6]).map_err(|e| CalibError::file(path, format!("line {line}: {name}: {e}")))?;
         out.t.push(t);
         out.poses.push(dvrk_kin::Pose::from_parts(nalgebra::Translation3::new(v[0], v[1], v[2]), q.to_rotation_matrix()));
     }
@@ -249,7 +249,7 @@ mod tests {
             *v = (0..n).map(|i| vec![i as f64 * 1e-4; m.nq()]).collect();
         }
         let poses: Vec<dvrk_kin::Pose> = (0..n / 2).map(|i| dvrk_kin::Pose::from_parts(Translation3::new(0.1, -0.2, i as f64 * 1e-3), Rotation3::new(Vector3::new(0.3, i as f64 * 0.01, -0.2)))).collect();
-        l.markers = Some(crate::discrepancy::markers::MarkerLog { topic: "/mocap/marker_tool_roll/pose".into(), frame: 9, t: (0..n / 2).map(|i| 2.0 * i as f64 * 1e-3).collect(), poses: poses.clone() });
+        l.markers = Some(crate::recordings::marker_log::MarkerLog { topic: "/mocap/marker_tool_roll/pose".into(), frame: 9, t: (0..n / 2).map(|i| 2.0 * i as f64 * 1e-3).collect(), poses: poses.clone() });
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("m.csv");
         let text = write(&l);
@@ -257,7 +257,8 @@ mod tests {
         let back = read_markers(&path, "marker_tool_roll", 9).unwrap();
         assert_eq!(back.t.len(), n / 2);
         for (a, b) in back.poses.iter().zip(&poses) {
-            assert!(crate::discrepancy::registration::pose_difference(a, b).norm() < 1e-12);
+            let d = a.inverse() * b;
+            assert!(d.translation.vector.norm() < 1e-12 && d.rotation.angle() < 1e-12);
         }
         // The joints read as before, the pose columns not listed as ignored.
         assert!(parse(&text, &path, &m).unwrap().notes.is_empty());

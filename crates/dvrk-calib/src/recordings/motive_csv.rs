@@ -9,8 +9,8 @@
 //! unlabelled markers are skipped; labelled markers `BODY:MarkerN` become BODY's raw markers.
 
 use crate::error::{CalibError, Result};
-use crate::plain_csv::unit_quaternion;
-use crate::recording::{BodyTrack, MarkerTrack, Recording};
+use crate::recordings::plain_csv::unit_quaternion;
+use crate::recordings::tracks::{BodyTrack, MarkerTrack, Recording};
 use dvrk_kin::Pose;
 use nalgebra::Translation3;
 use std::path::Path;

@@ -3,7 +3,7 @@
 //! whole marker track to a pose track, dropping occluded and outlier frames with counts.
 
 use crate::error::{CalibError, Result};
-use crate::recording::{BodyTrack, MarkerTrack};
+use crate::recordings::tracks::{BodyTrack, MarkerTrack, Recording};
 use dvrk_kin::Pose;
 use nalgebra::{Matrix3, Rotation3, Translation3, Vector3};
 
@@ -171,6 +171,30 @@ pub fn drop_outliers(track: &mut BodyTrack) -> usize {
         track.outliers += dropped;
     }
     dropped
+}
+
+impl Recording {
+    /// The poses of a rigid body: its pose track, or (when it has none, or `from_markers` is set
+    /// and it has raw markers) poses fitted to its raw markers with `layout` (estimated when
+    /// `None`), occluded and outlier frames left out and counted.
+    pub fn poses(&self, name: &str, layout: Option<&[Vector3<f64>]>, from_markers: bool) -> Result<std::borrow::Cow<'_, BodyTrack>> {
+        let markers = self.marker_track(name);
+        if let (true, Some(m)) = (from_markers, markers) {
+            return Ok(std::borrow::Cow::Owned(poses_from_markers(m, layout)?));
+        }
+        match self.body(name) {
+            Ok(b) => Ok(std::borrow::Cow::Borrowed(b)),
+            Err(e) => match markers {
+                Some(m) => Ok(std::borrow::Cow::Owned(poses_from_markers(m, layout)?)),
+                None => {
+                    if self.bodies.is_empty() && !self.markers.is_empty() {
+                        return Err(CalibError::unknown("rigid body", name, self.markers.iter().map(|m| m.body.clone())));
+                    }
+                    Err(e)
+                }
+            },
+        }
+    }
 }
 
 #[cfg(test)]

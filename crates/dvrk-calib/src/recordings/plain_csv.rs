@@ -14,7 +14,7 @@
 //!   ignored with a warning.
 
 use crate::error::{CalibError, Result};
-use crate::recording::{BodyTrack, JointTrack, MarkerTrack, Recording};
+use crate::recordings::tracks::{BodyTrack, JointTrack, MarkerTrack, Recording};
 use dvrk_kin::Pose;
 use nalgebra::{Quaternion, Translation3, UnitQuaternion};
 use std::collections::BTreeMap;

@@ -1,0 +1,48 @@
+//! Reading a recording whatever its format: poses ([`read_recording`]: MCAP or a ROS 1 bag, told
+//! by their first bytes whatever the name, a Motive CSV export, recognised by its `Format Version`
+//! first line, or the plain CSV format) and joint logs with efforts ([`read_log`]).
+
+use crate::error::{CalibError, Result};
+use crate::recordings::mcap_io::McapOptions;
+use crate::recordings::tracks::Recording;
+use std::path::Path;
+
+/// Read `path`; `options` select MCAP topics (CSV files name their bodies in columns).
+pub fn read_recording(path: &Path, options: &McapOptions) -> Result<Recording> {
+    if !path.exists() {
+        return Err(CalibError::file(path, "no such file"));
+    }
+    if crate::recordings::message_file::container(path)?.is_some() {
+        return crate::recordings::mcap_io::read(path, options);
+    }
+    let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
+    match ext.as_str() {
+        "mcap" | "bag" => crate::recordings::mcap_io::read(path, options),
+        "csv" | "txt" => {
+            let text = std::fs::read_to_string(path).map_err(|e| CalibError::file(path, format!("cannot read: {e}")))?;
+            let rec = if crate::recordings::motive_csv::looks_like_motive(&text) { crate::recordings::motive_csv::parse(&text, path)? } else { crate::recordings::plain_csv::parse(&text, path)? };
+            if let Some(t) = &options.joint_topic {
+                if rec.joints.is_none() {
+                    return Err(CalibError::file(path, format!("joint states `{t}` asked for, but the file has no q1..qN columns")));
+                }
+            }
+            Ok(rec)
+        }
+        _ => Err(CalibError::file(path, format!("unknown recording format `.{ext}`; valid: .mcap, .bag (ROS 1), .csv (Motive export or plain)"))),
+    }
+}
+
+/// Read `path` in `format` (`auto`: told from the file, [`crate::recordings::format`]) for
+/// `model`'s arm `arm`; with what the reader assumed (notes for the report).
+pub fn read_log(path: &Path, format: &str, model: &dvrk_kin::Model, arm: &str) -> Result<(super::JointLog, Vec<String>)> {
+    let resolved = super::format::resolve(path, format)?;
+    let (log, mut notes) = match resolved {
+        "mcap" | "bag" => super::joint_log::read_mcap(path, arm)?,
+        "wpi-csv" => (super::joint_log::read_wpi_csv(path, model)?, vec![format!("{}: {}", path.display(), super::joint_log::NO_SETPOINTS)]),
+        _ => super::joint_log_csv::read(path, model).map(|c| (c.log, c.notes))?,
+    };
+    notes.splice(0..0, super::format::auto_note(path, format, resolved));
+    // Measured data past the model's limits is analysed as measured, and said.
+    notes.extend(dvrk_kin::LimitTally::of(model, &log.position).summary(model).map(|s| format!("{}: {s}", path.display())));
+    Ok((log, notes))
+}
