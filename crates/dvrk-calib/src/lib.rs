@@ -10,8 +10,9 @@
 //!   inertias from a recording of efforts, physically consistent;
 //! - [`discrepancy`]: which physical effect a model is missing, named from a recording.
 //!
-//! Recordings come in as MCAP or ROS 1 bags (ROS 2 CDR, ROS 1, Foxglove messages), OptiTrack
-//! Motive CSV, the WPI CSV layout and plain CSV.
+//! The products read through [`recordings`] (MCAP or ROS 1 bags with ROS 2 CDR, ROS 1 or Foxglove
+//! messages, OptiTrack Motive CSV, the WPI CSV layout and plain CSV) and filter through
+//! [`filter`]; none of them imports another.
 //!
 //! ```
 //! use dvrk_calib::{pivot_calibration, PivotOptions, synth};

@@ -12,8 +12,7 @@ use dvrk_kin::effects::{EffectKind, EffectSpec};
 use dvrk_kin::spec::FrameRef;
 use std::collections::BTreeMap;
 
-/// `[sample][joint]` effort table (N·m, N per unit of a parameter).
-pub type Table = Vec<Vec<f64>>;
+pub use super::signals::Table;
 
 /// A candidate: an effect of the vocabulary on one joint or link, and its signature.
 #[derive(Debug, Clone)]
