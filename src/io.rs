@@ -19,12 +19,6 @@ pub fn parse_list(flag: &str, text: &str) -> Result<Vec<f64>> {
         .collect()
 }
 
-/// Write `contents` to `path` whole or not at all (dvrk-kin's one output discipline: a temporary
-/// file beside it, then a rename).
-pub fn write_atomic(path: &Path, contents: &[u8]) -> Result<()> {
-    Ok(dvrk_kin::atomic::write_atomic(path, contents)?)
-}
-
 /// Stage `contents` for `path` (written, not yet visible): commit with
 /// [`dvrk_kin::atomic::commit_all`] once every output of the command is staged.
 pub fn stage(path: &Path, contents: &[u8]) -> Result<dvrk_kin::atomic::Staged> {

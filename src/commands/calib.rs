@@ -121,7 +121,7 @@ fn pivot(a: &PivotArgs) -> Result<()> {
     if let Some(p) = &a.plot {
         let cloud = fit.cloud(&track.poses);
         let image = dvrk_calib::plot::cloud(&cloud, &fit.pivot, &format!("RCM point cloud: {} ({})", track.name, method.name()))?;
-        crate::io::write_atomic(p, &image.encode(p)?)?;
+        dvrk_kin::atomic::write_atomic(p, &image.encode(p)?)?;
     }
     if a.json {
         let mut v = dvrk_calib::report_json::pivot_json(&fit);
@@ -221,7 +221,7 @@ fn apply(a: &ApplyArgs) -> Result<()> {
     let applied = dvrk_calib::apply::apply_psm(&model.spec, &update, &name).map_err(|e| anyhow!("--model {}: {e}", a.model))?;
     let toml = applied.spec.to_toml()?;
     let header = format!("# {name}: {} calibrated by `dvrk calib apply --axes {}`.\n# Units: m, rad.\n", a.model, a.axes.display());
-    crate::io::write_atomic(&a.output, format!("{header}{toml}").as_bytes())?;
+    dvrk_kin::atomic::write_atomic(&a.output, format!("{header}{toml}").as_bytes())?;
     outln!("wrote {} ({})", a.output.display(), name);
     for c in &applied.changes {
         outln!("  {:<32} {:>12.6} -> {:>12.6}", c.what, c.old, c.new);

@@ -1,7 +1,33 @@
 //! `dvrk export urdf|sdf|mjcf`.
 
-use crate::cli::{ExportArgs, ExportFormat};
+use clap::{Args, ValueEnum};
+use std::path::PathBuf;
 use anyhow::Result;
+
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum ExportFormat {
+    Urdf,
+    Sdf,
+    /// MuJoCo XML of a scene (built-in name or scene file) or of a model with its built-in
+    /// inertials and gains.
+    Mjcf,
+}
+
+#[derive(Debug, Args)]
+pub struct ExportArgs {
+    /// urdf, sdf or mjcf.
+    pub format: ExportFormat,
+    /// MODEL (urdf, sdf); for mjcf a scene (psm, ecm, 2psm-ecm, 3psm, full, or a scene file),
+    /// else a model.
+    #[command(flatten)]
+    pub model: crate::cli::ModelArgs,
+    /// Output file (written whole or not at all).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Configuration the SDF link poses are written at (default: home).
+    #[arg(long, allow_hyphen_values = true)]
+    pub q: Option<String>,
+}
 
 pub fn run(args: &ExportArgs) -> Result<()> {
     let mut inputs = vec![("MODEL", std::path::Path::new(&args.model.model))];
@@ -29,5 +55,5 @@ pub fn run(args: &ExportArgs) -> Result<()> {
             dvrk_sim::mjcf::export_named(&args.model.model)?
         }
     };
-    crate::io::write_atomic(&args.output, text.as_bytes())
+    Ok(dvrk_kin::atomic::write_atomic(&args.output, text.as_bytes())?)
 }

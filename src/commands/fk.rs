@@ -1,9 +1,40 @@
 //! `dvrk fk`: every frame at one configuration (table or JSON), or one frame over a CSV.
 
-use crate::cli::FkArgs;
+use clap::Args;
+use std::path::PathBuf;
 use anyhow::{anyhow, bail, Context, Result};
 use dvrk_kin::{compute_frame_placements, pose_to_rows, Data, Model};
 use serde_json::json;
+
+#[derive(Debug, Args)]
+pub struct FkArgs {
+    #[command(flatten)]
+    pub model: crate::cli::ModelArgs,
+    /// Joint positions, comma-separated (rad, m); the model's home when absent.
+    #[arg(long, allow_hyphen_values = true)]
+    pub q: Option<String>,
+    /// Print every frame as JSON.
+    #[arg(long)]
+    pub json: bool,
+    /// `--q` holds actuator positions (encoders), mapped to joints by the model's coupling.
+    #[arg(long)]
+    pub actuators: bool,
+    /// CSV of measured configurations: a header with a column per joint, `qK` or the joint's name
+    /// (`outer_yaw`, ...); other columns are ignored. Joints the output frame does not depend on
+    /// (a PSM's jaw for the tool tip) may be left out: they are held at their home. Rows past the
+    /// model's joint limits are evaluated as measured and counted on stderr.
+    #[arg(long, requires = "output")]
+    pub input: Option<PathBuf>,
+    /// CSV of poses x,y,z,qx,qy,qz,qw (m) of `--frame`, one row per input row.
+    #[arg(long, requires = "input")]
+    pub output: Option<PathBuf>,
+    /// Frame name or paper frame number for `--output` (default: the tool tip).
+    #[arg(long)]
+    pub frame: Option<String>,
+    /// With `--input`: refuse a row outside the model's joint limits instead of counting it.
+    #[arg(long, requires = "input")]
+    pub strict: bool,
+}
 
 pub fn run(args: &FkArgs) -> Result<()> {
     let m = super::load(&args.model)?;
@@ -134,7 +165,7 @@ fn batch(m: &Model, input: &std::path::Path, output: &std::path::Path, frame: us
         let r = nalgebra::UnitQuaternion::from_rotation_matrix(&t.rotation);
         out.push_str(&format!("{},{},{},{},{},{},{}\n", p.x, p.y, p.z, r.i, r.j, r.k, r.w));
     }
-    crate::io::write_atomic(output, out.as_bytes())?;
+    dvrk_kin::atomic::write_atomic(output, out.as_bytes())?;
     if let Some(s) = tally.summary(m) {
         eprintln!("note: {name}: {s}");
     }

@@ -1,13 +1,31 @@
 //! `dvrk ik`: joint positions that put the tip at a pose.
 
-use crate::cli::IkArgs;
+use clap::Args;
 use anyhow::{anyhow, bail, Result};
 use dvrk_kin::{inverse_kinematics, IkOptions, Pose};
 use nalgebra::{Quaternion, Translation3, UnitQuaternion};
 use serde_json::json;
 
+#[derive(Debug, Args)]
+pub struct IkArgs {
+    #[command(flatten)]
+    pub model: crate::cli::ModelArgs,
+    /// Target pose of the tip in the model's base frame: x,y,z (m), qx,qy,qz,qw.
+    #[arg(long, allow_hyphen_values = true)]
+    pub pose: String,
+    /// Start configuration, comma-separated (default: home).
+    #[arg(long, allow_hyphen_values = true)]
+    pub seed: Option<String>,
+    /// Frame to place (default: the tool tip).
+    #[arg(long)]
+    pub frame: Option<String>,
+    /// Print the solution as JSON.
+    #[arg(long)]
+    pub json: bool,
+}
+
 pub fn run(args: &IkArgs) -> Result<()> {
-    let m = super::load(&args.model)?;
+    // The pose's flags are checked before the model is loaded.
     let v = crate::io::parse_list("--pose", &args.pose)?;
     if v.len() != 7 {
         bail!("--pose: expected 7 numbers x,y,z,qx,qy,qz,qw, got {}", v.len());
@@ -19,6 +37,7 @@ pub fn run(args: &IkArgs) -> Result<()> {
     }
     let rot = UnitQuaternion::from_quaternion(quat).to_rotation_matrix();
     let target = Pose::from_parts(Translation3::new(v[0], v[1], v[2]), rot);
+    let m = super::load(&args.model)?;
     let seed = super::q_arg(&m, "--seed", args.seed.as_deref())?;
     let frame = args.frame.as_deref().map(|f| super::frame_arg(&m, "--frame", f)).transpose()?;
     let opts = IkOptions { frame, ..Default::default() };

@@ -2,16 +2,17 @@
 
 pub mod calib;
 pub mod discrepancy;
-mod export;
-mod fk;
+pub mod export;
+pub mod fk;
 pub mod identify;
-mod ik;
-mod model;
+pub mod ik;
+pub mod model;
 pub mod serve;
 pub mod sim;
 pub mod synth;
 
-use crate::cli::{Cli, Command, ModelArgs, ModelCommand};
+use crate::cli::{Cli, Command, ModelArgs};
+use model::ModelCommand;
 use anyhow::Result;
 use dvrk_kin::{FrameRef, Model};
 

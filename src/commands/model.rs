@@ -1,10 +1,33 @@
 //! `dvrk model list|show|check`.
 
-use crate::cli::{CheckArgs, ModelArgs};
+use crate::cli::ModelArgs;
+use clap::{Args, Subcommand};
 use anyhow::Result;
 use dvrk_kin::expr::Affine;
 use dvrk_kin::spec::Value;
 use dvrk_kin::Model;
+
+#[derive(Debug, Subcommand)]
+pub enum ModelCommand {
+    /// List the built-in models.
+    List,
+    /// Print a model's DH table, joints, bodies and closures, as the paper prints them.
+    Show(ModelArgs),
+    /// Closure residual, RCM, closure conditioning over the joint range, serial equivalence.
+    Check(CheckArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct CheckArgs {
+    #[command(flatten)]
+    pub model: ModelArgs,
+    /// Print the report as one JSON object.
+    #[arg(long)]
+    pub json: bool,
+    /// Configurations sampled over the joint range.
+    #[arg(long, default_value_t = 10_000)]
+    pub samples: usize,
+}
 
 pub fn list() -> Result<()> {
     crate::outln!("{:<12} {:>6} {:>7}  title", "name", "joints", "frames");

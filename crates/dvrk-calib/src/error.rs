@@ -24,6 +24,23 @@ pub enum CalibError {
     /// A model could not be loaded or rebuilt.
     #[error(transparent)]
     Kin(#[from] dvrk_kin::KinError),
+    /// A scene, simulation or recorder error.
+    #[error(transparent)]
+    Sim(#[from] dvrk_sim::SimError),
+    /// An error found in file `path` ([`CalibError::in_file`]); the error itself is kept.
+    #[error("{}: {source}", path.display())]
+    InFile {
+        path: PathBuf,
+        #[source]
+        source: Box<CalibError>,
+    },
+    /// A layer below (a model, a scene, a solver) failed while doing `what`; its error is kept.
+    #[error("{what}: {source}")]
+    Context {
+        what: String,
+        #[source]
+        source: Box<dyn std::error::Error + Send + Sync>,
+    },
 }
 
 impl CalibError {
@@ -52,9 +69,13 @@ impl CalibError {
     /// Attach the file this error was found in (errors that already name a file keep it).
     pub fn in_file(self, path: impl Into<PathBuf>) -> Self {
         match self {
-            e @ CalibError::File { .. } => e,
-            e => CalibError::File { path: path.into(), message: e.to_string() },
+            e @ (CalibError::File { .. } | CalibError::InFile { .. }) => e,
+            e => CalibError::InFile { path: path.into(), source: Box::new(e) },
         }
+    }
+    /// `source`, met while doing `what`, kept as the cause.
+    pub fn context(what: impl Into<String>, source: impl std::error::Error + Send + Sync + 'static) -> Self {
+        CalibError::Context { what: what.into(), source: Box::new(source) }
     }
 }
 

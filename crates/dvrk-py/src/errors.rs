@@ -172,8 +172,8 @@ impl From<Error> for PyErr {
                 }
                 Error::Calib(e) => {
                     let class = match &e {
-                        dvrk_calib::CalibError::File { path, .. } if !path.exists() => &ex.not_found,
-                        dvrk_calib::CalibError::Field { .. } | dvrk_calib::CalibError::File { .. } => &ex.model,
+                        dvrk_calib::CalibError::File { path, .. } | dvrk_calib::CalibError::InFile { path, .. } if !path.exists() => &ex.not_found,
+                        dvrk_calib::CalibError::Field { .. } | dvrk_calib::CalibError::File { .. } | dvrk_calib::CalibError::InFile { .. } => &ex.model,
                         _ => &ex.input,
                     };
                     PyErr::from_type(class.bind(py).clone(), e.to_string())

@@ -350,7 +350,7 @@ fn draw(kind: EffectKind, model: &Model, inertials: &dvrk_sim::inertials::Inerti
                         model.frames[f].body
                     };
                     // Near the body's own centre of mass (its first frame's coordinates).
-                    let com = inertials.body_inertias(model).map_err(|e| CalibError::data("inertials", e.to_string()))?[b].com;
+                    let com = inertials.body_inertias(model).map_err(|e| CalibError::context("inertials", e))?[b].com;
                     for (k, axis) in ["x", "y", "z"].iter().enumerate() {
                         p.insert((*axis).into(), com[k] + rng.random_range(-0.03..0.03));
                     }

@@ -26,7 +26,7 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
     };
     let a = scene.arm_index(arm_name).map_err(|e| CalibError::field("--arm", e.to_string()))?;
     let mut scene = scene.clone();
-    scene.set_model(a, model.clone()).map_err(|e| CalibError::data("model", e.to_string()))?;
+    scene.set_model(a, model.clone()).map_err(|e| CalibError::context("model", e))?;
     let arm = &scene.arms[a];
     // Without efforts the prepared effort is zero: the model's prediction stands in for it (the
     // drive's load the kinematic channel deflects compliant joints by).

@@ -61,7 +61,7 @@ pub fn scene_for_arm(arm: &str) -> crate::error::Result<dvrk_sim::Scene> {
     } else {
         return Err(crate::error::CalibError::field("arm", format!("`{arm}`: no built-in scene for it (PSM1..3, ECM)")));
     };
-    let mut scene = dvrk_sim::Scene::load(name).map_err(|e| crate::error::CalibError::data("scene", e.to_string()))?;
+    let mut scene = dvrk_sim::Scene::load(name).map_err(|e| crate::error::CalibError::context("scene", e))?;
     scene.arms[0].name = arm.to_string();
     Ok(scene)
 }

@@ -42,7 +42,7 @@ pub fn run_with(path: &Path, format: &str, model: &Model, arm: &str, marker: Opt
         ));
     }
     let scene = super::scene_for_arm(arm)?;
-    let mut out = discrepancy_repeated_with(model, &scene, arm, &log, options, max_rounds, progress).map_err(|e| CalibError::data(path.display().to_string(), e.to_string()))?;
+    let mut out = discrepancy_repeated_with(model, &scene, arm, &log, options, max_rounds, progress).map_err(|e| CalibError::context(path.display().to_string(), e))?;
     out.report.notes.splice(0..0, notes);
     Ok(out)
 }

@@ -277,7 +277,7 @@ pub struct Predictor {
 impl Predictor {
     /// For `model` on arm `arm` of a scene with `gravity` (m/s^2, world).
     pub fn new(model: &Model, arm: &dvrk_sim::scene::Arm, gravity: [f64; 3]) -> Result<Predictor> {
-        let inertias = arm.inertials.body_inertias(model).map_err(|e| CalibError::data("inertials", e.to_string()))?;
+        let inertias = arm.inertials.body_inertias(model).map_err(|e| CalibError::context("inertials", e))?;
         let inertias = dvrk_kin::effects::effect_inertias(model, &model.effects, &inertias)?;
         let dm = DynamicsModel::new(model, inertias)?;
         let nq = model.nq();

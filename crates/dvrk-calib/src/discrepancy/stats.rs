@@ -157,7 +157,7 @@ fn scaled_fit(h: &DMatrix<f64>, g: &DVector<f64>, bounds: &[Bounds], scale: &[f6
     }
     let am = CscMatrix::new(rows.len(), p, colptr, rowval, nzval);
     let b: Vec<f64> = rows.iter().map(|(_, _, v)| *v).collect();
-    let settings = DefaultSettingsBuilder::default().verbose(false).max_iter(100).build().map_err(|e| CalibError::data("bounded fit settings", e.to_string()))?;
+    let settings = DefaultSettingsBuilder::default().verbose(false).max_iter(100).build().map_err(|e| CalibError::context("bounded fit settings", e))?;
     let cones = [NonnegativeConeT(rows.len())];
     let mut solver = DefaultSolver::new(&pm, &q, &am, &b, &cones, settings).map_err(|e| CalibError::data("bounded fit", format!("{e:?}")))?;
     solver.solve();

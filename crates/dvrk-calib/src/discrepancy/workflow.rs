@@ -165,7 +165,7 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
         return super::kinematic_only::discrepancy(model, &scene, arm_name, log, o);
     }
     let mut scene = scene.clone();
-    scene.set_model(a, model.clone()).map_err(|e| CalibError::data("model", e.to_string()))?;
+    scene.set_model(a, model.clone()).map_err(|e| CalibError::context("model", e))?;
     let arm = &scene.arms[a];
     let mut prep = prepare(log, &o.processing)?;
     let mut predictor = Predictor::new(&arm.model, arm, scene.gravity)?;

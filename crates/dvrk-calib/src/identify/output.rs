@@ -268,13 +268,13 @@ and motor inertias are actuator effects):\n{}",
             )
         }
     );
-    Model::compile(spec.clone()).map_err(|e| CalibError::data("identified model", e.to_string()))?;
+    Model::compile(spec.clone()).map_err(|e| CalibError::context("identified model", e))?;
     Ok(IdentifiedModel { spec, effects, armature, not_expressed, kept_prior })
 }
 
 /// The text of the output file: [`identified_model`]'s model file with a header.
 pub fn output_toml(identified: &IdentifiedModel, recording: &str) -> Result<String> {
-    let body = identified.spec.to_toml().map_err(|e| CalibError::data("identification output", e.to_string()))?;
+    let body = identified.spec.to_toml().map_err(|e| CalibError::context("identification output", e))?;
     Ok(format!(
         "# Model {} identified by `dvrk identify` from {recording}: [[inertials]] (kg, m, kg m^2, per body in its first DH frame),\n\
 # [[effects]] (N·m or N; N·m s/rad or N s/m; N·m/rad or N/m) and [drive] (joint damping; motor inertias, kg m^2 or kg).\n\

@@ -35,7 +35,7 @@ pub use dvrk_sim::scene::IDENTIFIED_PGS_ITERATIONS;
 pub fn identified_scene(base: &Scene, arm: usize, identified: &IdentifiedModel) -> Result<Scene> {
     let model = Model::compile(identified.spec.clone())?;
     let mut scene = base.clone();
-    scene.set_model(arm, model).map_err(|e| CalibError::data("identified scene", e.to_string()))?;
+    scene.set_model(arm, model).map_err(|e| CalibError::context("identified scene", e))?;
     Ok(scene)
 }
 
@@ -52,13 +52,13 @@ pub fn torque_replay(scene: &Scene, arm: usize, rec: &TorqueRecording, feedback:
     let qd: Vec<Vec<f64>> = rec.qd.iter().map(|r| joints(r)).collect();
     let tau: Vec<Vec<f64>> = rec.tau.iter().map(|r| efforts(r)).collect();
     let mut scene = scene.clone();
-    scene.set_start_recorded(arm, &q[0], dvrk_sim::scene::RECORDED_START_SLACK).map_err(|e| CalibError::data("torque replay", e.to_string()))?;
+    scene.set_start_recorded(arm, &q[0], dvrk_sim::scene::RECORDED_START_SLACK).map_err(|e| CalibError::context("torque replay", e))?;
     let options = SimOptions { engine: Some(dvrk_sim::Engine::Reduced), ..SimOptions::default() };
-    let mut sim = Sim::new(&scene, &options).map_err(|e| CalibError::data("torque replay", e.to_string()))?;
+    let mut sim = Sim::new(&scene, &options).map_err(|e| CalibError::context("torque replay", e))?;
     let off = sim.arms[arm].q_offset;
     for k in 0..n {
         let g = scene.arms[arm].gains[k];
-        sim.set_gains(off + k, Gains { kp: feedback * g.kp, ki: 0.0, kd: feedback * g.kd }).map_err(|e| CalibError::data("torque replay", e.to_string()))?;
+        sim.set_gains(off + k, Gains { kp: feedback * g.kp, ki: 0.0, kd: feedback * g.kd }).map_err(|e| CalibError::context("torque replay", e))?;
     }
     let (t0, t1) = (rec.t[0], rec.t[rec.len() - 1]);
     let steps = ((t1 - t0) / sim.dt).floor() as usize;

@@ -149,7 +149,7 @@ pub fn solve(layout: &Layout, objective: &Objective, theta0: &DVector<f64>, scal
             rows.push(row);
         }
     }
-    let settings = DefaultSettingsBuilder::default().verbose(false).max_iter(200).build().map_err(|e| CalibError::data("identification solver settings", e.to_string()))?;
+    let settings = DefaultSettingsBuilder::default().verbose(false).max_iter(200).build().map_err(|e| CalibError::context("identification solver settings", e))?;
     let mut rounds = 0;
     loop {
         rounds += 1;

@@ -14,19 +14,14 @@ pub fn write_frame_files(camera: &StereoCamera, dir: &Path, buf: &mut Vec<u8>, s
         let img = camera.image(eye);
         buf.clear();
         img.encode_rgb_png(buf).map_err(|e| png_error(dir, e))?;
-        write_atomic(&dir.join(format!("{}_{n:06}.png", eye.name())), buf)?;
+        dvrk_kin::atomic::write_atomic(&dir.join(format!("{}_{n:06}.png", eye.name())), buf)?;
         buf.clear();
         img.encode_depth_png(buf, scratch).map_err(|e| png_error(dir, e))?;
-        write_atomic(&dir.join(format!("{}_depth_{n:06}.png", eye.name())), buf)?;
+        dvrk_kin::atomic::write_atomic(&dir.join(format!("{}_depth_{n:06}.png", eye.name())), buf)?;
     }
     Ok(())
 }
 
 fn png_error(dir: &Path, e: png::EncodingError) -> SimError {
     SimError::Io { path: dir.display().to_string(), source: std::io::Error::other(e.to_string()) }
-}
-
-/// Write `bytes` whole or not at all (dvrk-kin's one output discipline).
-pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    dvrk_kin::atomic::write_atomic(path, bytes).map_err(|e| SimError::Io { path: path.display().to_string(), source: std::io::Error::other(e.to_string()) })
 }
