@@ -139,7 +139,8 @@ pub fn read_recording<'py>(py: Python<'py>, path: PathBuf, topics: Option<Vec<St
 #[pyfunction]
 #[pyo3(signature = (recording, model="psm", format="auto", validate=None, arm="PSM1"))]
 pub fn identify<'py>(py: Python<'py>, recording: PathBuf, model: &str, format: &str, validate: Option<PathBuf>, arm: &str) -> Result<Bound<'py, PyAny>> {
-    use dvrk_calib::identify::{recording::read_joint_recording, run, IdentifyOptions};
+    use dvrk_calib::identify::{run, IdentifyOptions};
+    use dvrk_calib::recordings::torque_log::read_joint_recording;
     let m = dvrk_calib::dvrk_kin::load(model, None)?;
     let summary = py.detach(|| -> Result<serde_json::Value> {
         let prior = dvrk_sim::scene::builtin_inertials(&m.name, &m)?.body_inertias(&m)?;
@@ -211,7 +212,8 @@ pub fn discrepancy<'py>(
 #[pyo3(signature = (path, effect="random", seed=1, scene="psm", duration=30.0, marker_link=None))]
 pub fn synth_hidden_effect<'py>(py: Python<'py>, path: PathBuf, effect: &str, seed: u64, scene: &str, duration: f64, marker_link: Option<String>) -> Result<Bound<'py, PyAny>> {
     use dvrk_calib::discrepancy::generate::MarkerOptions;
-    use dvrk_calib::discrepancy::{hidden_effect, joint_log, Hidden, HiddenOptions};
+    use dvrk_calib::discrepancy::{hidden_effect, Hidden, HiddenOptions};
+    use dvrk_calib::recordings::joint_log;
     let hidden: Hidden = effect.parse().map_err(|e: String| Error::Input(format!("effect: {e}")))?;
     let marker = marker_link.map(|link| MarkerOptions { link, ..Default::default() });
     dvrk_calib::dvrk_kin::atomic::check_outputs(&[], &[("path", &path)])?;
