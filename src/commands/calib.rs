@@ -4,7 +4,7 @@
 use crate::outln;
 use anyhow::{anyhow, bail, Result};
 use clap::{Args, Subcommand};
-use dvrk_calib::axes::AxesReport;
+use dvrk_calib::axis_distances::AxesReport;
 use dvrk_calib::psm_dh::{psm_dh, PsmDh, PSM_AXES};
 use dvrk_calib::{calibrate_axes, pivot_calibration, read_recording, AxesConfig, AxesOptions, McapOptions, PivotMethod, PivotOptions};
 use std::path::{Path, PathBuf};

@@ -89,9 +89,9 @@ pub fn run(a: &DiscrepancyArgs) -> Result<()> {
         }
         options.inertia_prior = dvrk_calib::discrepancy::InertiaPrior::relative(v[0], v.get(1).copied().unwrap_or(options.inertia_prior.mass));
     }
-    let marker = a.marker_topic.as_ref().zip(a.marker_link.as_ref()).map(|(topic, link)| dvrk_calib::discrepancy::run::MarkerSource { topic: topic.clone(), link: link.clone() });
+    let marker = a.marker_topic.as_ref().zip(a.marker_link.as_ref()).map(|(topic, link)| dvrk_calib::discrepancy::from_file::MarkerSource { topic: topic.clone(), link: link.clone() });
     let spinner = crate::progress::Progress::spinner("", crate::progress::Progress::wanted(false));
-    let out = dvrk_calib::discrepancy::run::run_with(&a.recording, &a.format, &model, &a.arm, marker.as_ref(), &options, a.max_rounds as usize, &mut |stage| spinner.set_message(stage))?;
+    let out = dvrk_calib::discrepancy::from_file::run_with(&a.recording, &a.format, &model, &a.arm, marker.as_ref(), &options, a.max_rounds as usize, &mut |stage| spinner.set_message(stage))?;
     spinner.finish();
     let r = &out.report;
     // Drawn before anything is written: a failure leaves no partial set of outputs.

@@ -85,7 +85,7 @@ pub fn run(args: &IdentifyArgs) -> Result<()> {
         None => None,
     };
     let spinner = crate::progress::Progress::spinner("", crate::progress::Progress::wanted(args.json));
-    let result = dvrk_calib::identify::run::run_with(&model, &inertias, &rec, held_out.as_ref(), &options, &args.recording.display().to_string(), format, &mut |stage| spinner.set_message(stage))
+    let result = dvrk_calib::identify::summary::run_with(&model, &inertias, &rec, held_out.as_ref(), &options, &args.recording.display().to_string(), format, &mut |stage| spinner.set_message(stage))
         .with_context(|| format!("--recording {}", args.recording.display()))?;
     spinner.finish();
     let (id, rigid, mut summary) = (&result.identification, &result.rigid, result.summary.clone());

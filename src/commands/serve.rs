@@ -52,6 +52,9 @@ pub fn run(args: &ServeArgs) -> Result<()> {
     };
     crate::io::check_outputs(&[("--scene", std::path::Path::new(&args.scene))], &[("--out", args.out.as_deref())])?;
     let scene = Scene::load(&args.scene).map_err(|e| anyhow::anyhow!("--scene: {e}"))?;
+    for n in &scene.notes {
+        eprintln!("note: {n}");
+    }
     let domain = match args.domain {
         Some(d) => d,
         None => Ros2Options::domain_from_env()?,

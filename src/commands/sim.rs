@@ -126,6 +126,9 @@ pub fn run(args: &SimArgs) -> Result<()> {
     crate::io::check_outputs(&inputs, &[("--out", args.out.as_deref()), ("--plot", args.plot.as_deref())])?;
     // The scene error names the file and field: one line, the flag in front.
     let mut scene = Scene::load(&args.scene).map_err(|e| anyhow::anyhow!("--scene: {e}"))?;
+    for n in &scene.notes {
+        eprintln!("note: {n}");
+    }
     for m in &args.model {
         let Some((arm, file)) = m.split_once('=') else { bail!("--model {m}: expected ARM=MODEL (a built-in model or a file), e.g. PSM1=my-psm.toml") };
         let a = scene.arm_index(arm).with_context(|| format!("--model {m}"))?;

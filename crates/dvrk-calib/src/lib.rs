@@ -27,9 +27,9 @@
 //! Units: metres, radians, seconds. Poses are `dvrk_kin::Pose` (rotation matrix + translation).
 
 pub mod apply;
-pub mod axes;
+pub mod axis_distances;
 pub mod axes_config;
-pub mod axis;
+pub mod axis_fit;
 pub mod discrepancy;
 mod error;
 pub mod filter;
@@ -51,7 +51,7 @@ pub use dvrk_sim::recording::{cdr, ros_msgs};
 pub mod plot {
     pub use dvrk_sim::plot::*;
 
-    use crate::axes::AxesReport;
+    use crate::axis_distances::AxesReport;
     use crate::error::{CalibError, Result};
 
     /// Per-sample residual (mm) of every axis against the sample number.
@@ -77,9 +77,9 @@ pub mod plot {
     }
 }
 
-pub use axes::{calibrate_axes, AxesOptions, AxesReport};
+pub use axis_distances::{calibrate_axes, AxesOptions, AxesReport};
 pub use axes_config::AxesConfig;
-pub use axis::{fit_axis, AxisFit, AxisMethod, AxisOptions};
+pub use axis_fit::{fit_axis, AxisFit, AxisMethod, AxisOptions};
 pub use error::{CalibError, Result};
 pub use recordings::{read_recording, BodyTrack, JointTrack, MarkerTrack, McapOptions, Recording};
 pub use pivot::{pivot_calibration, PivotFit, PivotMethod, PivotOptions};

@@ -8,7 +8,7 @@
 //! `a6 sin(beta1) = a9` (note 2), which [`crate::apply`] enforces; what the axes give
 //! configuration-free is `beta2 - beta1`, the angle 6-3-7 on the back link.
 
-use crate::axes::{AxesReport, Line};
+use crate::axis_distances::{AxesReport, Line};
 use crate::error::{CalibError, Result};
 use nalgebra::{Matrix3, Vector3};
 

@@ -3,7 +3,7 @@
 //! `dvrk calib apply`. Metres, radians, in the recording's frames.
 
 use crate::apply::PsmUpdate;
-use crate::axes::AxesReport;
+use crate::axis_distances::AxesReport;
 use crate::error::{CalibError, Result};
 use crate::pivot::PivotFit;
 use crate::psm_dh::{Estimate, PsmDh};

@@ -139,7 +139,7 @@ pub fn read_recording<'py>(py: Python<'py>, path: PathBuf, topics: Option<Vec<St
 #[pyfunction]
 #[pyo3(signature = (recording, model="psm", format="auto", validate=None, arm="PSM1"))]
 pub fn identify<'py>(py: Python<'py>, recording: PathBuf, model: &str, format: &str, validate: Option<PathBuf>, arm: &str) -> Result<Bound<'py, PyAny>> {
-    use dvrk_calib::identify::{run, IdentifyOptions};
+    use dvrk_calib::identify::{summary, IdentifyOptions};
     use dvrk_calib::recordings::torque_log::read_joint_recording;
     let m = dvrk_calib::dvrk_kin::load(model, None)?;
     let summary = py.detach(|| -> Result<serde_json::Value> {
@@ -148,7 +148,7 @@ pub fn identify<'py>(py: Python<'py>, recording: PathBuf, model: &str, format: &
         let (rec, notes) = read_joint_recording(&recording, format, &m, arm)?;
         let held_out = validate.as_ref().map(|v| read_joint_recording(v, resolved, &m, arm).map(|r| r.0)).transpose()?;
         let options = IdentifyOptions::for_recording(&m, resolved);
-        let mut r = run::run(&m, &prior, &rec, held_out.as_ref(), &options, &recording.display().to_string(), resolved)?;
+        let mut r = summary::run(&m, &prior, &rec, held_out.as_ref(), &options, &recording.display().to_string(), resolved)?;
         r.summary["notes"] = serde_json::json!(notes);
         Ok(r.summary)
     })?;
@@ -179,7 +179,7 @@ pub fn discrepancy<'py>(
     marker_topic: Option<String>,
     marker_link: Option<String>,
 ) -> Result<Bound<'py, PyAny>> {
-    use dvrk_calib::discrepancy::{plot as residual_plot, run, Options};
+    use dvrk_calib::discrepancy::{from_file, plot as residual_plot, Options};
     use dvrk_calib::plot::check_path;
     let m = dvrk_calib::dvrk_kin::load(model, None)?;
     if let Some(p) = &plot {
@@ -188,12 +188,12 @@ pub fn discrepancy<'py>(
         dvrk_calib::dvrk_kin::atomic::check_outputs(&[("recording", &recording)], &[("plot", p)])?;
     }
     let marker = match (marker_topic, marker_link) {
-        (Some(topic), Some(link)) => Some(run::MarkerSource { topic, link }),
+        (Some(topic), Some(link)) => Some(from_file::MarkerSource { topic, link }),
         (None, None) => None,
         _ => return Err(Error::Input("marker_topic and marker_link go together (the pose topic and the link its marker is on)".into())),
     };
     let report = py.detach(|| -> Result<serde_json::Value> {
-        let out = run::run(&recording, format, &m, arm, marker.as_ref(), &Options { tracking, ..Default::default() }, max_rounds)?;
+        let out = from_file::run(&recording, format, &m, arm, marker.as_ref(), &Options { tracking, ..Default::default() }, max_rounds)?;
         if let Some(p) = &plot {
             let image = residual_plot::figure(&out.residuals, &recording.display().to_string())?.encode(p)?;
             dvrk_calib::dvrk_kin::atomic::write_atomic(p, &image)?;

@@ -446,7 +446,7 @@ fn single_model(model: Model, what: &str) -> Result<Scene> {
                 // An identified model file's own inertials and drive, as `Scene::set_model` takes them.
                 a.take_model_file(scene.solver.pgs_iterations);
                 a.inertials.check(&format!("{} inertials", a.model.name), &a.model)?;
-                return Ok(Scene { name: a.name.clone(), title: format!("{} alone ({})", a.name, model_title(&a.model)), dt: scene.dt, engine: scene.engine, solver: scene.solver, gravity: scene.gravity, arms: vec![a], camera: None, file: scene.file.clone() });
+                return Ok(Scene { name: a.name.clone(), title: format!("{} alone ({})", a.name, model_title(&a.model)), dt: scene.dt, engine: scene.engine, solver: scene.solver, gravity: scene.gravity, arms: vec![a], camera: None, file: scene.file.clone(), notes: scene.notes.clone() });
             }
             if !with.contains(&arm.model.name) {
                 with.push(arm.model.name.clone());

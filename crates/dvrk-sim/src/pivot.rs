@@ -4,9 +4,10 @@
 use dvrk_kin::Pose;
 use nalgebra::{DMatrix, DVector, Vector3};
 
-/// Result of a pivot fit (m).
+/// A pivot: the point fixed in the moving frame and the fixed point it keeps passing through (m),
+/// with the fit's residuals. (dvrk-calib's `PivotFit` is the calibration's report, with intervals.)
 #[derive(Debug, Clone, PartialEq)]
-pub struct PivotFit {
+pub struct PivotPoint {
     /// The point in the moving frame.
     pub tip: Vector3<f64>,
     /// The fixed point in the world.
@@ -19,7 +20,7 @@ pub struct PivotFit {
 
 /// Least-squares pivot fit of `poses` (at least 3 distinct orientations); `None` when the
 /// orientations do not determine the point (rank-deficient).
-pub fn pivot_fit(poses: &[Pose]) -> Option<PivotFit> {
+pub fn pivot_fit(poses: &[Pose]) -> Option<PivotPoint> {
     let n = poses.len();
     if n < 3 {
         return None;
@@ -47,14 +48,14 @@ pub fn pivot_fit(poses: &[Pose]) -> Option<PivotFit> {
     let res: Vec<f64> = poses.iter().map(|p| (post - (p.rotation * tip + p.translation.vector)).norm()).collect();
     let rms = (res.iter().map(|r| r * r).sum::<f64>() / n as f64).sqrt();
     let max = res.iter().copied().fold(0.0, f64::max);
-    Some(PivotFit { tip, post, rms, max })
+    Some(PivotPoint { tip, post, rms, max })
 }
 
 /// The paper's section 4.2 experiment in simulation: arm `arm` of `scene` sweeps its first two
 /// joints over a 3 x 3 grid (`q1_amplitude`, `q2_amplitude` about home, rad, clamped to the
 /// limits) under PID, settling `settle` seconds at each point, and the pose of `frame`'s body is
 /// pivot-fitted. The fitted `post` is the arm's remote centre of motion in the world (m).
-pub fn simulated_rcm(scene: &crate::Scene, arm: usize, frame: &dvrk_kin::FrameRef, q1_amplitude: f64, q2_amplitude: f64, settle: f64) -> crate::Result<PivotFit> {
+pub fn simulated_rcm(scene: &crate::Scene, arm: usize, frame: &dvrk_kin::FrameRef, q1_amplitude: f64, q2_amplitude: f64, settle: f64) -> crate::Result<PivotPoint> {
     use crate::error::SimError;
     let mut sim = crate::Sim::new(scene, &crate::SimOptions::default())?;
     let a = sim.arms.get(arm).ok_or_else(|| SimError::value("arm index", arm as f64, format!("the scene has {} arms", scene.arms.len())))?;

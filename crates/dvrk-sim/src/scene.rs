@@ -221,6 +221,9 @@ pub struct Scene {
     pub camera: Option<CameraParams>,
     /// The file (or built-in name) the scene came from, for errors.
     pub file: String,
+    /// What loading found odd but not wrong (an inertials file labelled for another model whose
+    /// bodies all match): the CLI prints them on stderr.
+    pub notes: Vec<String>,
 }
 
 impl Scene {
@@ -345,6 +348,7 @@ impl Scene {
             return Err(SimError::field(file, "arms", "a scene needs at least one arm"));
         }
         let mut arms = Vec::with_capacity(f.arms.len());
+        let mut notes = Vec::new();
         for (i, a) in f.arms.iter().enumerate() {
             let field = |x: &str| format!("arms[{i}] ({}).{x}", a.name);
             // A model path is relative to the scene file, like its inertials path.
@@ -394,7 +398,13 @@ impl Scene {
                 false => {
                     let p = dir.map(|d| d.join(&a.inertials)).unwrap_or_else(|| a.inertials.clone().into());
                     let text = dvrk_kin::load::read_text(&p)?;
-                    Inertials::parse(&text, &p.display().to_string(), &model)?
+                    let ine = Inertials::parse(&text, &p.display().to_string(), &model)?;
+                    // The bodies and frames were checked one by one; a label for another model
+                    // is said, not refused (a renamed copy of the arm's own file is legitimate).
+                    if ine.model != model.name {
+                        notes.push(format!("{}: model = \"{}\", but arm {} is model {}: every body matched, the label does not", p.display(), ine.model, a.name, model.name));
+                    }
+                    ine
                 }
             };
             let n = model.nq();
@@ -428,7 +438,7 @@ impl Scene {
                 return Err(SimError::field(file, "camera.arm", format!("`{}` is not an arm of the scene (valid: {})", c.arm, valid.join(", "))));
             }
         }
-        Ok(Scene { name: f.name, title: f.title, dt: f.dt, engine: f.engine, camera: f.camera, file: file.to_string(), solver: SolverSettings {
+        Ok(Scene { name: f.name, title: f.title, dt: f.dt, engine: f.engine, camera: f.camera, file: file.to_string(), notes, solver: SolverSettings {
                 iterations: f.solver_iterations,
                 pgs_iterations: f.pgs_iterations,
                 stabilization_iterations: f.stabilization_iterations,

@@ -93,3 +93,23 @@ fn parallel_step_matches_sequential() {
         assert_eq!(seq.closure_error(), par.closure_error(), "{name}");
     }
 }
+
+/// An inertials file labelled for another model whose bodies all match is loaded with a note
+/// (#45: `model = "ecm"` in a PSM inertials file was accepted without a word); the arm's own
+/// label gives none.
+#[test]
+fn an_inertials_file_labelled_for_another_model_is_noted() {
+    let dir = std::env::temp_dir().join(format!("dvrk-scene-label-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let psm = include_str!("../../../models/inertials/psm.toml");
+    let scene = include_str!("../../../models/scenes/psm.toml").replace("inertials = \"psm\"", "inertials = \"labelled.toml\"");
+    for (label, noted) in [("ecm", true), ("psm", false)] {
+        std::fs::write(dir.join("labelled.toml"), psm.replace("model = \"psm\"", &format!("model = \"{label}\""))).unwrap();
+        let s = Scene::parse(&scene, "psm.toml", Some(&dir)).unwrap();
+        assert_eq!(s.notes.len(), usize::from(noted), "{label}: {:?}", s.notes);
+        if noted {
+            assert!(s.notes[0].contains("labelled.toml") && s.notes[0].contains("model = \"ecm\"") && s.notes[0].contains("PSM1"), "{}", s.notes[0]);
+        }
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -4,7 +4,7 @@
 //! - [`generate`]: recordings with a hidden effect and their answers (`dvrk synth hidden-effect`),
 //!   on an exciting multi-sine ([`excitation`]);
 //! - [`joint_log`]: setpoints, encoder positions and efforts read from (written to) a recording;
-//!   [`csv_log`] the same as plain CSV;
+//!   [`crate::recordings::joint_log_csv`] the same as plain CSV;
 //! - [`signals`]: filtering, the noise floor and the nominal model's effort;
 //! - [`candidates`]: each candidate effect's signature from the model itself;
 //! - [`stats`]: bounded fits, effective sample size, chi-square tails;
@@ -35,7 +35,7 @@ pub mod registration;
 pub mod repeat;
 pub mod report;
 pub mod separation;
-pub mod run;
+pub mod from_file;
 mod scoring;
 pub mod signals;
 pub mod stats;

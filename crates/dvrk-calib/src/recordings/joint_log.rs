@@ -1,6 +1,6 @@
 //! A joint log with efforts: what the discrepancy workflow reads from a recording (the arm's
 //! `setpoint_js` and `measured_js`, positions and efforts), and what `dvrk synth hidden-effect`
-//! writes. The MCAP reader of [`crate::mcap_io`] keeps positions only; this one keeps efforts.
+//! writes. The MCAP reader of [`crate::recordings::mcap_io`] keeps positions only; this one keeps efforts.
 
 use crate::error::{CalibError, Result};
 use crate::ros_msgs::{self, Header, JointState};

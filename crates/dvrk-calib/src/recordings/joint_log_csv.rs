@@ -1,5 +1,5 @@
 //! The plain CSV joint log of `dvrk discrepancy --format csv` (the conventions of
-//! [`crate::plain_csv`]: a header row naming every column, `#` comment lines):
+//! [`crate::recordings::plain_csv`]: a header row naming every column, `#` comment lines):
 //!
 //! ```text
 //! # lines starting with '#' are comments

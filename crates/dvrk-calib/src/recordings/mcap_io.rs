@@ -1,6 +1,6 @@
 //! MCAP recordings and ROS 1 bags: PoseStamped, TFMessage and JointState (ROS 2 `cdr` or ROS 1
 //! serialization), and Foxglove PoseInFrame / FrameTransform(s) in JSON or protobuf; read into a
-//! [`Recording`] (through [`crate::message_file`]), and written by the synthetic tracker.
+//! [`Recording`] (through [`crate::recordings::message_file`]), and written by the synthetic tracker.
 
 use crate::error::{CalibError, Result};
 use crate::recordings::foxglove::{self, FoxglovePose};

@@ -627,7 +627,7 @@ fn a_recording_without_efforts_runs_the_kinematic_channel_alone() {
     let model = dvrk_kin::load("psm", None).unwrap();
     let (log, notes) = dvrk_calib::recordings::read_log(&path, "auto", &model, "PSM1").unwrap();
     assert!(!log.has_efforts() && notes.iter().any(|n| n.contains("/PSM1/measured_js carries no efforts")), "{notes:?}");
-    let e = dvrk_calib::discrepancy::run::run(&path, "auto", &model, "PSM1", None, &Options::default(), 1).err().unwrap().to_string();
+    let e = dvrk_calib::discrepancy::from_file::run(&path, "auto", &model, "PSM1", None, &Options::default(), 1).err().unwrap().to_string();
     assert!(e.contains("no-efforts.mcap") && e.contains("carries no efforts and no tracked marker was given") && !e.contains('\n'), "{e}");
     h.log.markers = None;
     let scene = dvrk_sim::Scene::load("psm").unwrap();

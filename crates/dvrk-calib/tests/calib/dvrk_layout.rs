@@ -9,7 +9,7 @@
 
 use dvrk_calib::discrepancy::{discrepancy, scene_for_arm, Options};
 use dvrk_calib::recordings::joint_log;
-use dvrk_calib::identify::{run, IdentifyOptions};
+use dvrk_calib::identify::{summary, IdentifyOptions};
 use dvrk_calib::recordings::torque_log::read_joint_recording;
 use dvrk_calib::recordings::mcap_io::McapOptions;
 use dvrk_calib::{pivot_calibration, read_recording, PivotOptions};
@@ -75,7 +75,7 @@ fn identify_and_discrepancy_agree_across_layouts_and_containers() {
     let options = IdentifyOptions::for_recording(&psm, "mcap");
     let summary = |name: &str| {
         let (rec, _) = read_joint_recording(&file(dir, name), "auto", &psm, "PSM1").unwrap();
-        run::run(&psm, &prior, &rec, None, &options, "r", "mcap").unwrap().summary
+        summary::run(&psm, &prior, &rec, None, &options, "r", "mcap").unwrap().summary
     };
     let (a, b) = (summary("one_topic.mcap"), summary("dvrk_lz4.bag"));
     assert_eq!(a["relative_error"], b["relative_error"]);

@@ -189,7 +189,7 @@ fn gamage_lasenby_bias_correction_removes_the_noise_bias() {
     // the raw markers of the back link, seen from the tracker while q2 sweeps 15 degrees (q1 = 0,
     // so axis 3 is fixed in the tracker frame). 1 mm of marker noise makes the bias of the
     // uncompensated fit large against its spread.
-    use dvrk_calib::axis::gamage_lasenby_points;
+    use dvrk_calib::axis_fit::gamage_lasenby_points;
     use dvrk_calib::synth::SynthOptions;
     let model = psm();
     let s = dvrk_calib::synth::Scenario::new(
