@@ -1,7 +1,6 @@
 //! Command-line flags (clap). Raw flags only: `commands` validates and converts them.
 
-use clap::{Args, Parser, Subcommand};
-use std::path::PathBuf;
+use clap::{Parser, Subcommand};
 
 /// Closed-loop models of the da Vinci Research Kit manipulators.
 ///
@@ -50,15 +49,5 @@ pub enum Command {
         #[command(subcommand)]
         command: crate::commands::synth::SynthCommand,
     },
-}
-
-/// A model and an optional tool.
-#[derive(Debug, Args)]
-pub struct ModelArgs {
-    /// Built-in name or file.
-    pub model: String,
-    /// dVRK tool file (JSON) for models with a tool (psm, psm-serial, PSM.json).
-    #[arg(long)]
-    pub tool: Option<PathBuf>,
 }
 

@@ -20,7 +20,7 @@ pub struct ExportArgs {
     /// MODEL (urdf, sdf); for mjcf a scene (psm, ecm, 2psm-ecm, 3psm, full, or a scene file),
     /// else a model.
     #[command(flatten)]
-    pub model: crate::cli::ModelArgs,
+    pub model: super::ModelArgs,
     /// Output file (written whole or not at all).
     #[arg(short, long)]
     pub output: PathBuf,

@@ -9,7 +9,7 @@ use serde_json::json;
 #[derive(Debug, Args)]
 pub struct FkArgs {
     #[command(flatten)]
-    pub model: crate::cli::ModelArgs,
+    pub model: super::ModelArgs,
     /// Joint positions, comma-separated (rad, m); the model's home when absent.
     #[arg(long, allow_hyphen_values = true)]
     pub q: Option<String>,

@@ -9,7 +9,7 @@ use serde_json::json;
 #[derive(Debug, Args)]
 pub struct IkArgs {
     #[command(flatten)]
-    pub model: crate::cli::ModelArgs,
+    pub model: super::ModelArgs,
     /// Target pose of the tip in the model's base frame: x,y,z (m), qx,qy,qz,qw.
     #[arg(long, allow_hyphen_values = true)]
     pub pose: String,

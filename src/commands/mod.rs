@@ -11,10 +11,20 @@ pub mod serve;
 pub mod sim;
 pub mod synth;
 
-use crate::cli::{Cli, Command, ModelArgs};
+use crate::cli::{Cli, Command};
 use model::ModelCommand;
 use anyhow::Result;
 use dvrk_kin::{FrameRef, Model};
+
+/// A model and an optional tool.
+#[derive(Debug, clap::Args)]
+pub struct ModelArgs {
+    /// Built-in name or file.
+    pub model: String,
+    /// dVRK tool file (JSON) for models with a tool (psm, psm-serial, PSM.json).
+    #[arg(long)]
+    pub tool: Option<std::path::PathBuf>,
+}
 
 /// Run a parsed command line.
 pub fn run(cli: Cli) -> Result<()> {

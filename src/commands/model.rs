@@ -1,6 +1,6 @@
 //! `dvrk model list|show|check`.
 
-use crate::cli::ModelArgs;
+use super::ModelArgs;
 use clap::{Args, Subcommand};
 use anyhow::Result;
 use dvrk_kin::expr::Affine;
