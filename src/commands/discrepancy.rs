@@ -79,7 +79,6 @@ pub fn run(a: &DiscrepancyArgs) -> Result<()> {
         &[("--recording", &a.recording), ("--model", model_path)],
         &[("--report", Some(&a.report)), ("-o", a.output.as_deref()), ("--plot", a.plot.as_deref())],
     )?;
-    let model = dvrk_kin::load(&a.model, None)?;
     let mut options = Options { tracking: !a.no_tracking, ..Default::default() };
     if let Some(text) = &a.inertia_prior {
         let v: Vec<f64> =
@@ -89,6 +88,7 @@ pub fn run(a: &DiscrepancyArgs) -> Result<()> {
         }
         options.inertia_prior = dvrk_calib::discrepancy::InertiaPrior::relative(v[0], v.get(1).copied().unwrap_or(options.inertia_prior.mass));
     }
+    let model = dvrk_kin::load(&a.model, None)?;
     let marker = a.marker_topic.as_ref().zip(a.marker_link.as_ref()).map(|(topic, link)| dvrk_calib::discrepancy::from_file::MarkerSource { topic: topic.clone(), link: link.clone() });
     let spinner = crate::progress::Progress::spinner("", crate::progress::Progress::wanted(false));
     let out = dvrk_calib::discrepancy::from_file::run_with(&a.recording, &a.format, &model, &a.arm, marker.as_ref(), &options, a.max_rounds as usize, &mut |stage| spinner.set_message(stage))?;

@@ -124,6 +124,21 @@ pub fn run(args: &SimArgs) -> Result<()> {
     inputs.extend(replay.map(|p| ("--trajectory replay:", p)));
     inputs.extend(args.model.iter().filter_map(|m| m.split_once('=')).map(|(_, f)| ("--model", std::path::Path::new(f))));
     crate::io::check_outputs(&inputs, &[("--out", args.out.as_deref()), ("--plot", args.plot.as_deref())])?;
+    if !(args.rate.is_finite() && args.rate > 0.0) {
+        bail!("--rate {}: must be a positive number of samples per second", args.rate);
+    }
+    if !(args.plot_rate.is_finite() && args.plot_rate > 0.0) {
+        bail!("--plot-rate {}: must be a positive number of samples per second", args.plot_rate);
+    }
+    if let Some(p) = &args.plot {
+        match p.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
+            Some("png" | "svg") => {}
+            _ => bail!("--plot {}: unknown image format; valid: .png, .svg", p.display()),
+        }
+    }
+    if !matches!(args.trajectory.as_str(), "sine" | "hold") && !args.trajectory.starts_with("replay:") {
+        bail!("--trajectory {}: unknown (valid: sine, hold, replay:FILE)", args.trajectory);
+    }
     // The scene error names the file and field: one line, the flag in front.
     let mut scene = Scene::load(&args.scene).map_err(|e| anyhow::anyhow!("--scene: {e}"))?;
     for n in &scene.notes {
@@ -157,18 +172,6 @@ pub fn run(args: &SimArgs) -> Result<()> {
             ..Default::default()
         },
     };
-    if !(args.rate.is_finite() && args.rate > 0.0) {
-        bail!("--rate {}: must be a positive number of samples per second", args.rate);
-    }
-    if !(args.plot_rate.is_finite() && args.plot_rate > 0.0) {
-        bail!("--plot-rate {}: must be a positive number of samples per second", args.plot_rate);
-    }
-    if let Some(p) = &args.plot {
-        match p.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
-            Some("png" | "svg") => {}
-            _ => bail!("--plot {}: unknown image format; valid: .png, .svg", p.display()),
-        }
-    }
     let record = args.out.as_ref().map(|p| dvrk_sim::RecordOptions { path: p.clone(), rate: args.rate });
     let trace_rate = args.plot.as_ref().map(|_| args.plot_rate);
     if let Some(d) = &args.frames_dir {
