@@ -1,11 +1,12 @@
-//! The rapier world of a scene: one rigid body per dvrk-kin body, the frame tree as one
-//! reduced-coordinate multibody per arm, each loop closed by a spherical impulse joint at the
-//! closure point (c1, c2) between two links of that multibody, and passive joints outside any loop (the PSM counterweight, the second
-//! jaw blade) tied to their driving joint by a DoF coupling, the way a cable loads its drive.
+//! A running simulation ([`Sim`]): one API over both engines (setpoints, modes, gains, efforts,
+//! the measured and link-side joints, stepping, energy and closure checks). The rapier engine's
+//! world is built by `rapier_build.rs` and lives in `rapier_world.rs` (one rigid body per
+//! dvrk-kin body, the frame tree as one multibody per arm, each loop closed by a spherical
+//! impulse joint, passive joints outside any loop tied to their driver by a cable); the reduced
+//! engine is [`crate::reduced`]. The control layer both share is `arm_state.rs`.
 //!
 //! Every tree joint's rapier coordinate equals the dvrk-kin frame variable (`theta` or `d`, an
 //! affine map of `q`), so joint values read back directly.
-
 
 use crate::control::{Actuator, Gains, Mode, POSITION_DAMPING, POSITION_STIFFNESS};
 use crate::error::{Result, SimError};
