@@ -77,6 +77,10 @@ impl CalibError {
     pub fn context(what: impl Into<String>, source: impl std::error::Error + Send + Sync + 'static) -> Self {
         CalibError::Context { what: what.into(), source: Box::new(source) }
     }
+    /// A simulation's error (a sim the analysis runs itself), kept as the cause.
+    pub fn simulation(e: dvrk_sim::SimError) -> Self {
+        CalibError::context("simulation", e)
+    }
 }
 
 /// Result alias of this crate.

@@ -408,10 +408,6 @@ pub fn payload_frame(model: &Model) -> &'static str {
     }
 }
 
-fn sim_error(e: dvrk_sim::SimError) -> CalibError {
-    CalibError::data("simulation", e.to_string())
-}
-
 /// The largest |effort| per joint (N·m, N) the predictor needs to follow `x` over one period,
 /// sampled at 100 Hz.
 fn peak_efforts(x: &MultiSine, predictor: &mut super::signals::Predictor) -> Result<Vec<f64>> {
@@ -432,11 +428,11 @@ pub fn simulate(scene: &Scene, excitation: &MultiSine, duration: f64, rate: f64)
     let nq = scene.arms[0].model.nq();
     let (mut q, mut qd) = (vec![0.0; nq], vec![0.0; nq]);
     excitation.sample(0.0, &mut q, &mut qd);
-    scene.set_start(0, &q).map_err(sim_error)?;
+    scene.set_start(0, &q).map_err(CalibError::simulation)?;
     // Explicit Coriolis: rapier's implicit one reads late in a recording (the yaw's by half a
     // truth step), an apparent latency of the truth's integrator.
     let options = SimOptions { coriolis: dvrk_sim::Coriolis::Explicit, ..SimOptions::default() };
-    let mut sim = Sim::new(&scene, &options).map_err(sim_error)?;
+    let mut sim = Sim::new(&scene, &options).map_err(CalibError::simulation)?;
     let dt = sim.dt;
     let stride = ((1.0 / (rate * dt)).round() as usize).max(1);
     let steps = (duration / dt).round() as usize;
@@ -450,7 +446,7 @@ pub fn simulate(scene: &Scene, excitation: &MultiSine, duration: f64, rate: f64)
         let t = s as f64 * dt;
         excitation.sample(t, &mut q, &mut qd);
         for i in 0..nq {
-            sim.set_target(i, q[i], qd[i]).map_err(sim_error)?;
+            sim.set_target(i, q[i], qd[i]).map_err(CalibError::simulation)?;
         }
         let sampled = s % stride == 0;
         if sampled {
@@ -493,7 +489,7 @@ pub fn hidden_effect(scene_name: &str, o: &HiddenOptions) -> Result<HiddenRecord
     if !(o.position_noise.is_finite() && o.position_noise >= 0.0) {
         return Err(CalibError::field("position noise", format!("{}: must be >= 0", o.position_noise)));
     }
-    let mut scene = Scene::load(scene_name).map_err(sim_error)?;
+    let mut scene = Scene::load(scene_name).map_err(CalibError::simulation)?;
     scene.dt = o.truth_dt;
     let nominal = scene.arms[0].model.clone();
     let nq = nominal.nq();
@@ -544,7 +540,7 @@ pub fn hidden_effect(scene_name: &str, o: &HiddenOptions) -> Result<HiddenRecord
     };
     let run = |specs: &[EffectSpec], keep: &[usize]| -> Result<(JointLog, Vec<Vec<f64>>)> {
         let mut truth = scene.clone();
-        truth.set_model(0, truth_model(specs, keep)?).map_err(sim_error)?;
+        truth.set_model(0, truth_model(specs, keep)?).map_err(CalibError::simulation)?;
         simulate(&truth, &excitation, o.duration, o.rate)
     };
     let all: Vec<usize> = (0..kinds.len()).collect();

@@ -8,16 +8,12 @@ use crate::error::{CalibError, Result};
 use dvrk_sim::trajectory::Trajectory;
 use dvrk_sim::{Scene, Sim, SimOptions};
 
-fn sim_error(e: dvrk_sim::SimError) -> CalibError {
-    CalibError::data("simulation", e.to_string())
-}
-
 /// RMS per joint of recorded minus replayed encoder positions (rad, m), past the first 2 s.
 fn replay(scene: &Scene, arm: usize, log: &JointLog) -> Result<Vec<f64>> {
     let nq = log.names.len();
     let traj = Trajectory::samples("recording", &log.t, log.setpoint.clone(), nq).map_err(|e| CalibError::data("replay", e))?;
     let mut scene = scene.clone();
-    scene.set_start_recorded(arm, &log.setpoint[0], dvrk_sim::scene::RECORDED_START_SLACK).map_err(sim_error)?;
+    scene.set_start_recorded(arm, &log.setpoint[0], dvrk_sim::scene::RECORDED_START_SLACK).map_err(CalibError::simulation)?;
     // A named drive compliance can be stiffer than the scene's step resolves: the replay takes
     // the largest step, an integer fraction of the scene's, that holds its motor's mode.
     let stable = scene.max_stable_dt();
@@ -27,7 +23,7 @@ fn replay(scene: &Scene, arm: usize, log: &JointLog) -> Result<Vec<f64>> {
     // The reduced engine: exact loops, ten times rapier's speed; the hidden-effect truth is
     // rapier's (`generate`), so no table grades an engine against itself.
     let options = SimOptions { engine: Some(dvrk_sim::Engine::Reduced), ..SimOptions::default() };
-    let mut sim = Sim::new(&scene, &options).map_err(sim_error)?;
+    let mut sim = Sim::new(&scene, &options).map_err(CalibError::simulation)?;
     let off = sim.arms[arm].q_offset;
     let (mut q, mut qd) = (vec![0.0; nq], vec![0.0; nq]);
     let t0 = log.t[0];
@@ -38,7 +34,7 @@ fn replay(scene: &Scene, arm: usize, log: &JointLog) -> Result<Vec<f64>> {
         let t = sim.time + sim.dt;
         traj.sample(t, &mut q, &mut qd);
         for k in 0..nq {
-            sim.set_target(off + k, q[k], qd[k]).map_err(sim_error)?;
+            sim.set_target(off + k, q[k], qd[k]).map_err(CalibError::simulation)?;
         }
         sim.step();
         // Compare at the recorded samples the step reached.
@@ -60,7 +56,7 @@ fn replay(scene: &Scene, arm: usize, log: &JointLog) -> Result<Vec<f64>> {
 pub fn compare(scene: &Scene, arm: usize, log: &JointLog, before: &dvrk_kin::Model, after: Option<&dvrk_kin::Model>) -> Result<TrackingReport> {
     let with = |m: &dvrk_kin::Model| -> Result<Vec<f64>> {
         let mut s = scene.clone();
-        s.set_model(arm, m.clone()).map_err(sim_error)?;
+        s.set_model(arm, m.clone()).map_err(CalibError::simulation)?;
         replay(&s, arm, log)
     };
     Ok(TrackingReport { joints: log.names.clone(), rms_before: with(before)?, rms_after: after.map(with).transpose()? })

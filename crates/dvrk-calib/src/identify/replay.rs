@@ -73,7 +73,7 @@ pub fn torque_replay(scene: &Scene, arm: usize, rec: &TorqueRecording, feedback:
         let a = ((t - rec.t[i]) / (rec.t[i + 1] - rec.t[i])).clamp(0.0, 1.0);
         for k in 0..n {
             let lerp = |v: &Vec<Vec<f64>>| v[i][k] + a * (v[i + 1][k] - v[i][k]);
-            let err = |e: dvrk_sim::SimError| CalibError::data("torque replay", e.to_string());
+            let err = |e: dvrk_sim::SimError| CalibError::context("torque replay", e);
             sim.set_target(off + k, lerp(&q), lerp(&qd)).map_err(err)?;
             sim.set_feedforward(off + k, lerp(&tau)).map_err(err)?;
         }
