@@ -5,7 +5,7 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use dvrk_sim::ros2::Ros2Options;
 use dvrk_sim::serve::ServeOptions;
-use dvrk_sim::{Engine, Scene, SimOptions};
+use dvrk_sim::{Engine, SimOptions};
 
 #[derive(Debug, Args)]
 pub struct ServeArgs {
@@ -51,10 +51,7 @@ pub fn run(args: &ServeArgs) -> Result<()> {
         e => bail!("--engine {e}: unknown (valid: reduced, rapier)"),
     };
     crate::io::check_outputs(&[("--scene", std::path::Path::new(&args.scene))], &[("--out", args.out.as_deref())])?;
-    let scene = Scene::load(&args.scene).map_err(|e| anyhow::anyhow!("--scene: {e}"))?;
-    for n in &scene.notes {
-        eprintln!("note: {n}");
-    }
+    let scene = super::sim::load_scene(&args.scene)?;
     let domain = match args.domain {
         Some(d) => d,
         None => Ros2Options::domain_from_env()?,

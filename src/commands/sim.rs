@@ -108,6 +108,16 @@ pub fn start_live(address: &str, scene: &str) -> Result<dvrk_sim::Live> {
     Ok(live)
 }
 
+/// Load `--scene` (its error names the file and field: one line, the flag in front) and print
+/// what loading noted on stderr.
+pub fn load_scene(scene: &str) -> Result<Scene> {
+    let scene = Scene::load(scene).map_err(|e| anyhow::anyhow!("--scene: {e}"))?;
+    for n in &scene.notes {
+        eprintln!("note: {n}");
+    }
+    Ok(scene)
+}
+
 pub fn run(args: &SimArgs) -> Result<()> {
     if !(args.duration.is_finite() && args.duration > 0.0) {
         bail!("--duration {}: must be a positive number of seconds", args.duration);
@@ -136,28 +146,27 @@ pub fn run(args: &SimArgs) -> Result<()> {
             _ => bail!("--plot {}: unknown image format; valid: .png, .svg", p.display()),
         }
     }
-    if !matches!(args.trajectory.as_str(), "sine" | "hold") && !args.trajectory.starts_with("replay:") {
-        bail!("--trajectory {}: unknown (valid: sine, hold, replay:FILE)", args.trajectory);
+    // The trajectory's kind now; a replay's file is read against the scene below.
+    enum TrajectoryArg<'a> {
+        Kind(TrajectoryKind),
+        Replay(&'a std::path::Path),
     }
-    // The scene error names the file and field: one line, the flag in front.
-    let mut scene = Scene::load(&args.scene).map_err(|e| anyhow::anyhow!("--scene: {e}"))?;
-    for n in &scene.notes {
-        eprintln!("note: {n}");
-    }
+    let trajectory_arg = match (args.trajectory.as_str(), replay) {
+        ("sine", _) => TrajectoryArg::Kind(TrajectoryKind::Sine),
+        ("hold", _) => TrajectoryArg::Kind(TrajectoryKind::Hold),
+        (_, Some(path)) => TrajectoryArg::Replay(path),
+        (t, None) => bail!("--trajectory {t}: unknown (valid: sine, hold, replay:FILE)"),
+    };
+    let mut scene = load_scene(&args.scene)?;
     for m in &args.model {
         let Some((arm, file)) = m.split_once('=') else { bail!("--model {m}: expected ARM=MODEL (a built-in model or a file), e.g. PSM1=my-psm.toml") };
         let a = scene.arm_index(arm).with_context(|| format!("--model {m}"))?;
         let model = dvrk_kin::load(file, None).with_context(|| format!("--model {m}"))?;
         scene.set_model(a, model).with_context(|| format!("--model {m}"))?;
     }
-    let trajectory = match args.trajectory.as_str() {
-        "sine" => TrajectoryKind::Sine,
-        "hold" => TrajectoryKind::Hold,
-        t if t.starts_with("replay:") => {
-            let path = std::path::Path::new(&t["replay:".len()..]);
-            TrajectoryKind::Replay(dvrk_calib::replay::read_replay(path, &scene).map_err(|e| anyhow::anyhow!("--trajectory {t}: {e}"))?)
-        }
-        t => bail!("--trajectory {t}: unknown (valid: sine, hold, replay:FILE)"),
+    let trajectory = match trajectory_arg {
+        TrajectoryArg::Kind(kind) => kind,
+        TrajectoryArg::Replay(path) => TrajectoryKind::Replay(dvrk_calib::replay::read_replay(path, &scene).map_err(|e| anyhow::anyhow!("--trajectory {}: {e}", args.trajectory))?),
     };
     let loops = if args.loops == "dof-coupling" { LoopMode::DofCoupling } else { LoopMode::ImpulseJoints };
     let options = RunOptions {
