@@ -14,9 +14,10 @@
 //! into one dvrk-kin model ([`dvrk_kin::compose::merge`]), so the setup joints feel the arm they
 //! carry exactly, as in rapier's shared multibody.
 
-use crate::arm_state::ArmState;
+use crate::arm_state::{ArmPhysics, ArmState, GravityCompensation};
 use crate::control::{POSITION_DAMPING, POSITION_STIFFNESS};
 use crate::error::{Result, SimError};
+use crate::options::{Colliders, SimOptions};
 use dvrk_kin::{DynamicsData, DynamicsModel, Model, Pose};
 use nalgebra::{DMatrix, DVector, Vector3};
 
@@ -327,9 +328,7 @@ fn tree_joints(model: &Model, part: &dvrk_kin::Part) -> Vec<DVector<f64>> {
 /// The arms of `scene` for the reduced engine, one tree per arm on the world with the arms it
 /// carries (no contacts); per scene arm its tree and place in that tree's arm list; the scene's
 /// number of joints.
-pub(crate) fn build(scene: &crate::scene::Scene, options: &crate::options::SimOptions) -> Result<(Vec<ArmState>, Vec<ReducedTree>, Vec<(usize, usize)>, usize)> {
-    use crate::arm_state::{ArmPhysics, ArmState, GravityCompensation};
-    use crate::options::Colliders;
+pub(crate) fn build(scene: &crate::scene::Scene, options: &SimOptions) -> Result<(Vec<ArmState>, Vec<ReducedTree>, Vec<(usize, usize)>, usize)> {
     if options.colliders == Colliders::Contacts {
         return Err(SimError::Build("the reduced engine has no contacts: use the rapier engine for --contacts".into()));
     }

@@ -46,28 +46,20 @@ pub struct Sim {
 }
 
 impl Sim {
-    /// Build the rapier world of `scene` with every joint at its home position, in PID mode
-    /// holding home.
+    /// Build `scene` on the engine `options` (or the scene) choose, rapier by default, with every
+    /// joint at its home position, in PID mode holding home.
     pub fn new(scene: &Scene, options: &SimOptions) -> Result<Sim> {
-        let mut sim = if options.engine.or(scene.engine) == Some(Engine::Reduced) {
+        // Each engine's builder returns its parts: the rapier worlds, or the reduced trees with
+        // each scene arm's place in them.
+        let (arms, worlds, reduced, reduced_place, nq) = if options.engine.or(scene.engine) == Some(Engine::Reduced) {
             let (arms, trees, place, nq) = crate::reduced::build(scene, options)?;
-            let mut sim = Sim::assemble(scene, options, arms, Vec::new(), nq);
-            sim.reduced = trees;
-            sim.reduced_place = place;
-            sim
+            (arms, Vec::new(), trees, place, nq)
         } else {
             let (arms, worlds, nq) = crate::rapier_build::build(scene, options)?;
-            Sim::assemble(scene, options, arms, worlds, nq)
+            (arms, worlds, Vec::new(), Vec::new(), nq)
         };
-        sim.read_state();
-        sim.apply_modes(scene)?;
-        Ok(sim)
-    }
-
-    /// The sim of built `arms` (`nq` joints in all) on `worlds` (none for the reduced engine).
-    pub(crate) fn assemble(scene: &Scene, options: &SimOptions, arms: Vec<ArmState>, worlds: Vec<World>, nq: usize) -> Sim {
         let g = if options.no_gravity { [0.0; 3] } else { scene.gravity };
-        Sim {
+        let mut sim = Sim {
             scene_name: scene.name.clone(),
             dt: scene.dt,
             time: 0.0,
@@ -79,9 +71,12 @@ impl Sim {
             qd: vec![0.0; nq],
             q_link: vec![0.0; nq],
             qd_link: vec![0.0; nq],
-            reduced: Vec::new(),
-            reduced_place: Vec::new(),
-        }
+            reduced,
+            reduced_place,
+        };
+        sim.read_state();
+        sim.apply_modes(scene)?;
+        Ok(sim)
     }
 
     /// Each arm's drives in the mode its scene entry asks for.
