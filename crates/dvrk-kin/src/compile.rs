@@ -5,9 +5,8 @@
 
 use crate::error::{KinError, Result};
 use crate::expr::{parse_affine, Affine, Scope};
-use crate::model::{pose_from_rows, Eval, Frame, Joint, Model, Motion, Pose, Rcm};
+use crate::model::{pose_from_rows, rx, rz, tx, tz, Eval, Frame, Joint, Model, Motion, Pose, Rcm};
 use crate::spec::{Convention, EffectSpec, FrameJoint, FrameRef, ModelSpec, Value};
-use nalgebra::{Rotation3, Translation3, Vector3};
 use std::collections::BTreeMap;
 
 impl Model {
@@ -354,17 +353,4 @@ fn frame_order(spec: &ModelSpec) -> Result<Vec<(usize, Option<usize>)>> {
         return Err(KinError::field("frames", format!("frames {} form a cycle (none reaches the base)", missing.join(", "))));
     }
     Ok(order)
-}
-
-fn rx(alpha: f64) -> Pose {
-    Pose::from_parts(Translation3::identity(), Rotation3::from_axis_angle(&Vector3::x_axis(), alpha))
-}
-fn rz(theta: f64) -> Pose {
-    Pose::from_parts(Translation3::identity(), Rotation3::from_axis_angle(&Vector3::z_axis(), theta))
-}
-fn tx(a: f64) -> Pose {
-    Pose::from_parts(Translation3::new(a, 0.0, 0.0), Rotation3::identity())
-}
-fn tz(d: f64) -> Pose {
-    Pose::from_parts(Translation3::new(0.0, 0.0, d), Rotation3::identity())
 }

@@ -231,6 +231,20 @@ pub fn sample_configurations(joints: &[Joint], count: usize) -> Vec<Vec<f64>> {
         .collect()
 }
 
+/// Elementary DH poses: rotations about x and z (rad), translations along x and z (m).
+pub(crate) fn rx(alpha: f64) -> Pose {
+    Pose::from_parts(Translation3::identity(), Rotation3::from_axis_angle(&Vector3::x_axis(), alpha))
+}
+pub(crate) fn rz(theta: f64) -> Pose {
+    Pose::from_parts(Translation3::identity(), Rotation3::from_axis_angle(&Vector3::z_axis(), theta))
+}
+pub(crate) fn tx(a: f64) -> Pose {
+    Pose::from_parts(Translation3::new(a, 0.0, 0.0), Rotation3::identity())
+}
+pub(crate) fn tz(d: f64) -> Pose {
+    Pose::from_parts(Translation3::new(0.0, 0.0, d), Rotation3::identity())
+}
+
 /// A pose from a row-major 4x4 matrix; the rotation must be orthonormal.
 pub fn pose_from_rows(m: &[[f64; 4]; 4], field: &str) -> Result<Pose> {
     if m.iter().flatten().any(|x| !x.is_finite()) {

@@ -18,7 +18,7 @@
 
 use crate::error::{KinError, Result};
 use crate::expr::Affine;
-use crate::model::{Frame, Joint, Model, Motion, Pose};
+use crate::model::{rz, tz, Frame, Joint, Model, Motion, Pose};
 use crate::spec::{FrameJoint, JointType, ModelSpec};
 use nalgebra::{Rotation3, Translation3, Unit, Vector3};
 use std::collections::{BTreeMap, BTreeSet};
@@ -601,13 +601,6 @@ fn align_z(axis: &Vector3<f64>) -> Rotation3<f64> {
 
 // ---------------------------------------------------------------------------------------------
 // Shared with the SDF writer
-
-pub(crate) fn rz(theta: f64) -> Pose {
-    Pose::from_parts(Translation3::identity(), Rotation3::from_axis_angle(&Vector3::z_axis(), theta))
-}
-pub(crate) fn tz(d: f64) -> Pose {
-    Pose::from_parts(Translation3::new(0.0, 0.0, d), Rotation3::identity())
-}
 
 /// Roll, pitch, yaw (rad) with `R = Rz(yaw) Ry(pitch) Rx(roll)` (URDF and SDF). Computed so it
 /// stays exact to rounding at pitch = ±π/2 (the DH frames hit it): pitch from atan2, roll from

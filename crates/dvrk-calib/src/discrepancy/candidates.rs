@@ -129,9 +129,9 @@ fn diff(a: &Table, b: &Table, h: f64) -> Table {
     a.iter().zip(b).map(|(x, y)| x.iter().zip(y).map(|(u, v)| (u - v) / h).collect()).collect()
 }
 
-/// RMS over samples of column `j` of a table.
+/// RMS over samples of column `j` of a table ([`super::signals::rms`] over every sample).
 fn rms_joint(t: &Table, j: usize) -> f64 {
-    (t.iter().map(|r| r[j] * r[j]).sum::<f64>() / t.len().max(1) as f64).sqrt()
+    super::signals::rms(t, j, 0..t.len())
 }
 
 /// The Coulomb smoothing velocities tried (rad/s, m/s).

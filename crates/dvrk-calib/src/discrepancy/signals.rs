@@ -431,6 +431,7 @@ pub(super) fn raw_rms(prep: &Prepared, pred: &Table, range: std::ops::Range<usiz
     (range.flat_map(|i| prep.active.iter().map(move |&k| (i, k))).map(|(i, k)| (r[i][k] / prep.noise[k]).powi(2)).sum::<f64>() / n).sqrt()
 }
 
+/// RMS of column `k` of `r` (N·m, N) over the samples `range`.
 pub(super) fn rms(r: &Table, k: usize, range: std::ops::Range<usize>) -> f64 {
     let n = range.len().max(1) as f64;
     (range.map(|i| r[i][k] * r[i][k]).sum::<f64>() / n).sqrt()
