@@ -23,7 +23,7 @@ SHARED = os.path.normpath(os.path.join(HERE, "..", "..", "shared", "data", "exte
 WPI = os.path.join(SHARED, "wpi-dvrk-dynamics")
 
 # Keys whose values are wall-clock measurements.
-TIMING_KEYS = {"real_time_factor", "wall_time", "wall_time_s", "elapsed_s"}
+TIMING_KEYS = {"real_time_factor", "wall_time"}
 
 
 def strip_timing(value):
