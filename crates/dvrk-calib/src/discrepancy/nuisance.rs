@@ -226,8 +226,9 @@ impl Nuisance {
 
 /// The Cholesky factor of `N_train^T N_train + lambda I` (`train` rows).
 fn factor(n: &DMatrix<f64>, train: usize, lambda: f64) -> Result<Cholesky<f64, Dyn>> {
+    // `tr_mul`: no transposed copy of the rows (as large as `N` itself on a long recording).
     let nt = n.rows(0, train);
-    let mut p = nt.transpose() * nt;
+    let mut p = nt.tr_mul(&nt);
     for d in 0..p.nrows() {
         p[(d, d)] += lambda;
     }

@@ -20,33 +20,42 @@ use dvrk_kin::effects::EffectKind;
 use dvrk_kin::{DynamicsData, DynamicsModel, Model};
 use nalgebra::{DMatrix, DVector, Vector3};
 
-/// Each body's regressor columns over the analysed samples (N·m or N per kg, kg m, kg m^2).
-pub struct BodyColumns {
-    /// `[body][parameter]`, each `[sample][joint]`.
-    pub columns: Vec<Vec<Table>>,
+/// Each body's regressor columns over the analysed samples (N·m or N per kg, kg m, kg m^2),
+/// computed one body at a time ([`BodyColumns::of`]): all of them at once are ten tables per
+/// body, 300 MB on a 5-minute recording.
+pub struct BodyColumns<'a> {
+    pub model: &'a Model,
+    pub dynamics: &'a DynamicsModel,
+    /// m/s^2
+    pub gravity: &'a Vector3<f64>,
+    pub prep: &'a Prepared,
+    /// Applied to each column (the model's latency, as every other signature).
+    pub shift: &'a dyn Fn(Table) -> Table,
 }
 
-impl BodyColumns {
-    /// dvrk-kin's regressor at every analysed sample, each column through `shift` (the model's
-    /// latency, as every other signature).
-    pub fn new(model: &Model, dm: &DynamicsModel, gravity: &Vector3<f64>, prep: &Prepared, shift: &dyn Fn(Table) -> Table) -> Result<BodyColumns> {
+impl BodyColumns<'_> {
+    /// Moving bodies.
+    pub fn bodies(&self) -> usize {
+        self.dynamics.inertias().len()
+    }
+
+    /// Body `b`'s ten columns, each `[sample][joint]`: dvrk-kin's regressor at every analysed
+    /// sample, through `shift`.
+    pub fn of(&self, b: usize) -> Result<Vec<Table>> {
+        let (model, prep) = (self.model, self.prep);
         let nq = model.nq();
-        let nb = dm.inertias().len();
         let mut data = DynamicsData::new(model);
-        let mut y = DMatrix::zeros(nq, nb * PARAMETERS_PER_BODY);
-        let mut columns = vec![vec![vec![vec![0.0; nq]; prep.t.len()]; PARAMETERS_PER_BODY]; nb];
+        let mut y = DMatrix::zeros(nq, self.bodies() * PARAMETERS_PER_BODY);
+        let mut columns = vec![vec![vec![0.0; nq]; prep.t.len()]; PARAMETERS_PER_BODY];
         for i in 0..prep.t.len() {
-            dvrk_kin::regressor(model, dm, &mut data, &prep.q[i], &prep.qd[i], &prep.qdd[i], gravity, &mut y)?;
-            for (b, body) in columns.iter_mut().enumerate() {
-                for (k, col) in body.iter_mut().enumerate() {
-                    for j in 0..nq {
-                        col[i][j] = y[(j, b * PARAMETERS_PER_BODY + k)];
-                    }
+            dvrk_kin::regressor(model, self.dynamics, &mut data, &prep.q[i], &prep.qd[i], &prep.qdd[i], self.gravity, &mut y)?;
+            for (k, col) in columns.iter_mut().enumerate() {
+                for j in 0..nq {
+                    col[i][j] = y[(j, b * PARAMETERS_PER_BODY + k)];
                 }
             }
         }
-        let columns = columns.into_iter().map(|body| body.into_iter().map(shift).collect()).collect();
-        Ok(BodyColumns { columns })
+        Ok(columns.into_iter().map(self.shift).collect())
     }
 }
 
@@ -147,7 +156,9 @@ pub fn candidates(model: &Model, bodies: &BodyColumns, fit: &Fitter, r: &Table, 
     let y = train.vector(r);
     let mut out = Vec::new();
     let mut normals = std::collections::BTreeMap::new();
-    for (b, cols) in bodies.columns.iter().enumerate() {
+    for b in 0..bodies.bodies() {
+        let cols = bodies.of(b)?;
+        let cols = &cols;
         let a = train.matrix(cols);
         if a.column(0).amax() < 1e-12 {
             continue;

@@ -33,11 +33,9 @@ pub(super) struct Score {
     /// change would) the last part alone can hold too little. `None` for a profile.
     pub(super) cv_p: Option<f64>,
     pub(super) effect_to_noise: f64,
-    /// The fitted effect's effort `[sample][joint]` over the whole analysed span (with the
-    /// inertia nuisance refitted with it).
-    pub(super) effect: Table,
-    /// The same without the nuisance's share: the effect's own signature.
-    pub(super) own: Table,
+    /// A profile's best grid point, where its signature is taken ([`Scored::efforts`]); `None`
+    /// for a linear candidate.
+    pub(super) signature_at: Option<f64>,
     /// The squared (scaled) residual one unit of chi-square is for a linear candidate's fit
     /// (its variance over the effective fraction); 0 for a profile.
     pub(super) chi2_unit: f64,
@@ -72,6 +70,65 @@ pub(super) struct Scored<'a> {
     pub(super) joint: Option<usize>,
     /// A kinematic-channel-only candidate: its effect and intervals as that channel gives them.
     pub(super) kinematic: Option<(EffectSpec, BTreeMap<String, [f64; 2]>)>,
+    /// Where its fitted effort comes from ([`Scored::efforts`]).
+    pub(super) effort: Effort<'a>,
+}
+
+/// Where a scored effect's fitted effort comes from. Only the few a report shows need it: holding
+/// every candidate's (two tables each, with and without the nuisance's share) took 220 MB on a
+/// 5-minute recording, so it is rebuilt from the fit instead, with the same arithmetic.
+pub(super) enum Effort<'a> {
+    /// A linear candidate's: its columns (at its profiled value) times its fit.
+    Linear,
+    /// A profile's: its signature at the best grid point ([`Score::signature_at`]).
+    Profile(Box<dyn Fn(f64) -> Table + 'a>),
+    /// Taken when scored (latency, whose fit had a nuisance of its own: with it, and without).
+    Held(Table, Table),
+    /// None: a kinematic-channel-only candidate changes no predicted effort.
+    Zero,
+}
+
+impl Scored<'_> {
+    /// The fitted effect's effort `[sample][joint]` over the whole analysed span with the inertia
+    /// nuisance refitted with it (`fit`, residual `r`), and without it (its own signature).
+    pub(super) fn efforts(&self, fit: &Fitter, r: &Table) -> (Table, Table) {
+        let prep = fit.prep;
+        match (&self.effort, self.candidate, self.score.signature_at) {
+            (Effort::Linear, Some(c), _) => {
+                let columns = fitted_columns(c, self.score.profiled);
+                let train = Rows::train(prep);
+                let x = DVector::from_column_slice(&self.score.x);
+                let e1 = train.vector(r) - train.matrix(columns) * &x;
+                let own: Table = (0..prep.t.len()).map(|i| (0..r[0].len()).map(|k| columns.iter().zip(x.iter()).map(|(col, v)| col[i][k] * v).sum()).collect()).collect();
+                let mut effect = own.clone();
+                add(&mut effect, &fit.nuisance_effort(&e1));
+                (effect, own)
+            }
+            (Effort::Profile(make), _, Some(value)) => profile_efforts(fit, r, &make(value)),
+            (Effort::Held(effect, own), _, _) => (effect.clone(), own.clone()),
+            _ => {
+                let zero = vec![vec![0.0; r.first().map_or(0, Vec::len)]; prep.t.len()];
+                (zero.clone(), zero)
+            }
+        }
+    }
+}
+
+/// A linear candidate's columns at its profiled value (`None`: its own).
+pub(super) fn fitted_columns(c: &Candidate, profiled: Option<f64>) -> &[Table] {
+    match (&c.profile, profiled) {
+        (Some((_, grid)), Some(v)) => grid.iter().find(|g| g.0 == v).map_or(&c.columns[..], |g| &g.1[..]),
+        _ => &c.columns,
+    }
+}
+
+/// A profile's fitted effort with the nuisance refitted to what its signature `sig` leaves of
+/// residual `r`, and `sig` itself.
+pub(super) fn profile_efforts(fit: &Fitter, r: &Table, sig: &Table) -> (Table, Table) {
+    let own = sig.clone();
+    let mut effect = sig.clone();
+    add(&mut effect, &fit.nuisance_effort(&Rows::train(fit.prep).vector(&sub(r, sig))));
+    (effect, own)
 }
 
 pub(super) fn lr(n_eff: f64, rss0: f64, rss1: f64) -> f64 {
@@ -176,10 +233,9 @@ pub(super) fn score_linear(c: &Candidate, fit: &Fitter, r: &Table, o: &Options, 
     let eh1 = fit.held_out(&e1, &(&yh - &ah * &x));
     let heldout_p = chi2_sf(per_joint_ratio(&hold, &eh0, &eh1).0, p);
     let cv_p = Some(chi2_sf(fit.cross_validated(r, columns, &bounds)?.0, p));
-    let mut effect: Table = (0..prep.t.len()).map(|i| (0..r[0].len()).map(|k| columns.iter().zip(x.iter()).map(|(col, v)| col[i][k] * v).sum()).collect()).collect();
-    let size = (effect[..prep.split].iter().map(|e| e[c.focus].powi(2)).sum::<f64>() / prep.split as f64).sqrt() / prep.noise[c.focus];
-    let own = effect.clone();
-    add(&mut effect, &fit.nuisance_effort(&e1));
+    // The effect's own effort on its focus joint over the training rows.
+    let at_focus = |i: usize| -> f64 { columns.iter().zip(x.iter()).map(|(col, v)| col[i][c.focus] * v).sum() };
+    let size = ((0..prep.split).map(|i| at_focus(i).powi(2)).sum::<f64>() / prep.split as f64).sqrt() / prep.noise[c.focus];
     // Held at zero change is the effect's absence (friction's lower bound): the bootstrap's case.
     // A payload's mass at its upper bound is not an implausible fit but an unfixed one: the mass
     // trades with its distance from the axis, gravity fixing their product (reported with an
@@ -200,8 +256,7 @@ pub(super) fn score_linear(c: &Candidate, fit: &Fitter, r: &Table, o: &Options, 
         heldout_p,
         cv_p,
         effect_to_noise: size,
-        effect,
-        own,
+        signature_at: None,
         chi2_unit: chi2_unit(&train, &a, &white),
         profiled,
         at_edge,
@@ -369,9 +424,6 @@ pub(super) fn score_profile(fit: &Fitter, r: &Table, grid: &[f64], make: &dyn Fn
         Some(k) => size_at(k),
         None => prep.active.iter().map(|&k| size_at(k)).fold(0.0, f64::max),
     };
-    let own = sig.clone();
-    let mut effect = sig;
-    add(&mut effect, &fit.nuisance_effort(&e1));
     let p_value = if stat > 0.0 { chi2_sf(stat, 1) } else { 1.0 };
     Score {
         // The vertex, not the best grid point: the grid's last refinement is still 1/64 of its
@@ -384,8 +436,7 @@ pub(super) fn score_profile(fit: &Fitter, r: &Table, grid: &[f64], make: &dyn Fn
         heldout_p: chi2_sf(per_joint_ratio(&hold, &eh0, &eh1).0, 1),
         cv_p: None,
         effect_to_noise: size,
-        effect,
-        own,
+        signature_at: Some(value),
         chi2_unit: 0.0,
         profiled: None,
         at_edge: value <= grid[0] || value >= grid[grid.len() - 1],
@@ -420,11 +471,7 @@ pub(super) fn pair_choice(scored: &[Scored], winners: &[usize], fit: &Fitter, r:
         .iter()
         .filter_map(|&i| {
             let c = scored[i].candidate.filter(|c| c.kind != EffectKind::CouplingError)?;
-            let cols: &[Table] = match (&c.profile, scored[i].score.profiled) {
-                (Some((_, grid)), Some(v)) => &grid.iter().find(|g| g.0 == v)?.1,
-                _ => &c.columns,
-            };
-            Some((i, c, train.matrix(cols)))
+            Some((i, c, train.matrix(fitted_columns(c, scored[i].score.profiled))))
         })
         .take(PAIR_POOL)
         .collect();

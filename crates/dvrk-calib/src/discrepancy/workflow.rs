@@ -21,7 +21,7 @@ use dvrk_sim::Scene;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use std::collections::BTreeMap;
-use super::scoring::{geometric, overlap, pair_choice, score_linear, score_profile, Score, Scored, RIVAL_OVERLAP};
+use super::scoring::{geometric, overlap, pair_choice, profile_efforts, score_linear, score_profile, Effort, Score, Scored, RIVAL_OVERLAP};
 use super::explain::{mimicked_note, unexplained_guess};
 
 /// Whether two effects are the same one: a kind on one joint, link or actuator (a coupling error, on
@@ -68,7 +68,7 @@ const DRIVE_PASSES: usize = 2;
 /// fit (an offset, latency, a drive's compliance or play) gets their combined likelihood ratio at
 /// the precision-weighted value (so a torque fit the tracker contradicts loses its support); a
 /// candidate only the tracker sees (a DH length, an offset gravity does not load) is added.
-fn with_kinematic(scored: &mut Vec<Scored>, kc: &super::kinematic::KinematicChannel, model: &Model, samples: usize, nq: usize) {
+fn with_kinematic(scored: &mut Vec<Scored>, kc: &super::kinematic::KinematicChannel, model: &Model) {
     use super::kinematic::{combine, Evidence};
     let mut used = vec![false; kc.candidates.len()];
     for s in scored.iter_mut() {
@@ -109,8 +109,7 @@ fn with_kinematic(scored: &mut Vec<Scored>, kc: &super::kinematic::KinematicChan
                 cv_p: None,
                 effect_to_noise: k.effect_to_noise,
                 // No change of the predicted effort.
-                effect: vec![vec![0.0; nq]; samples],
-                own: vec![vec![0.0; nq]; samples],
+                signature_at: None,
                 chi2_unit: 0.0,
                 profiled: None,
                 at_edge: false,
@@ -118,6 +117,7 @@ fn with_kinematic(scored: &mut Vec<Scored>, kc: &super::kinematic::KinematicChan
             },
             joint: k.joint,
             kinematic: Some((spec, ci)),
+            effort: Effort::Zero,
         });
     }
 }
@@ -238,6 +238,28 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
     // on the wrist's yaw link named on its pitch link next to the pitch's unnamed friction).
     let payload = EffectKind::PayloadMass.name();
     let wanted = |spec: &EffectSpec| o.only.as_ref().is_none_or(|t| same_effect(spec, t) || (t.name == payload && spec.name == payload));
+    // Latency: the prediction shifted later, 0-60 ms. Scored before the candidates are built:
+    // its second profile needs a second nuisance (as large as the first), and the candidates'
+    // columns are then not yet in memory.
+    let latency = match wanted(&profiled_spec(&arm.model, EffectKind::Latency, None, 0.0)) {
+        true => {
+            let shift = |tau: f64| sub(&shifted(&base, prep.dt, tau), &base);
+            let lat_grid: Vec<f64> = (0..=60).map(|i| i as f64 * 1e-3).collect();
+            let score = score_profile(&fit, &r, &lat_grid, &shift, None);
+            // Profiled again with the nuisance moved by the estimate: near it, the profile is
+            // then the one a nuisance on the right timeline gives (the null's is not, by the
+            // nuisance's misfit over the estimate's shift: nothing next to a latency's evidence).
+            let moved = retimed(lag + score.x[0])?;
+            let fitter = match &moved {
+                Some(m) => Fitter { prep: &prep, nuisance: Some(m) },
+                None => Fitter { prep: &prep, nuisance: fit.nuisance },
+            };
+            let score = if moved.is_some() { score_profile(&fitter, &r, &lat_grid, &shift, None) } else { score };
+            let (effect, own) = profile_efforts(&fitter, &r, &shift(score.signature_at.unwrap_or(0.0)));
+            Some((score, Effort::Held(effect, own)))
+        }
+        false => None,
+    };
     let delay_columns = |c: &mut Candidate| {
         let grids = c.profile.iter_mut().flat_map(|(_, g)| g.iter_mut().flat_map(|(_, cols)| cols.iter_mut()));
         for col in c.columns.iter_mut().chain(grids) {
@@ -264,7 +286,7 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
     }
     // Payloads on every moving body, each at the place that explains most (the regressor's
     // own columns: exact for a point mass anywhere).
-    let body_columns = super::payload::BodyColumns::new(&arm.model, predictor.dynamics(), &gravity, &prep, &delayed)?;
+    let body_columns = super::payload::BodyColumns { model: &arm.model, dynamics: predictor.dynamics(), gravity: &gravity, prep: &prep, shift: &delayed };
     let (payloads, payload_normals) = super::payload::candidates(&arm.model, &body_columns, &fit, &r, &prep)?;
     for c in payloads {
         if wanted(&c.spec(&arm.model, &[0.0; 4], None, "")) {
@@ -276,19 +298,9 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
     let mut scored: Vec<Scored> = Vec::new();
     for c in &cands {
         let s = score_linear(c, &fit, &r, o, &mut rng)?;
-        scored.push(Scored { candidate: Some(c), kind: c.kind, label: c.label(&arm.model), score: s, joint: c.joint, kinematic: None });
+        scored.push(Scored { candidate: Some(c), kind: c.kind, label: c.label(&arm.model), score: s, joint: c.joint, kinematic: None, effort: Effort::Linear });
     }
-    // Latency: the prediction shifted later, 0-60 ms.
-    let shift = |tau: f64| sub(&shifted(&base, prep.dt, tau), &base);
-    let lat_grid: Vec<f64> = (0..=60).map(|i| i as f64 * 1e-3).collect();
-    if wanted(&profiled_spec(&arm.model, EffectKind::Latency, None, 0.0)) {
-        let mut score = score_profile(&fit, &r, &lat_grid, &shift, None);
-        // Profiled again with the nuisance moved by the estimate: near it, the profile is
-        // then the one a nuisance on the right timeline gives (the null's is not, by the
-        // nuisance's misfit over the estimate's shift: nothing next to a latency's evidence).
-        if let Some(moved) = retimed(lag + score.x[0])? {
-            score = score_profile(&Fitter { prep: &prep, nuisance: Some(&moved) }, &r, &lat_grid, &shift, None);
-        }
+    if let Some((score, effort)) = latency {
         scored.push(Scored {
             candidate: None,
             kind: EffectKind::Latency,
@@ -296,12 +308,14 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
             score,
             joint: None,
             kinematic: None,
+            effort,
         });
     }
     // The drives: compliance and play per moving joint, each a profile of its own simulation;
     // where one shows, profiled again with the link's load, inertia and stiffness as the fit's
     // nuisance inertias correct them ([`DRIVE_PASSES`]).
-    let drive_profile = |jl: &super::drive::JointLoad, law: &dyn Fn(f64) -> super::drive::Law, grid: &[f64]| -> Result<Score> {
+    // The score, and the load its signature was last taken with (for its effort, rebuilt).
+    let drive_profile = |jl: &super::drive::JointLoad, law: fn(f64) -> super::drive::Law, grid: &[f64]| -> Result<(Score, super::drive::JointLoad)> {
         let profile = |jl: &super::drive::JointLoad| score_profile(&fit, &r, grid, &|v| delayed(super::drive::signature(&prep, jl, law(v), nq)), Some(jl.joint));
         let mut s = profile(jl);
         let mut current = jl.clone();
@@ -316,7 +330,12 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
             current = jl.corrected(&super::drive::LoadChange::of(&arm.model, predictor.dynamics(), &gravity, jl.joint, &dpi, (&prep.q, &prep.qd, &prep.qdd))?);
             s = profile(&current);
         }
-        Ok(s)
+        Ok((s, current))
+    };
+    let delayed_ref = &delayed;
+    let drive_effort = |jl: super::drive::JointLoad, law: fn(f64) -> super::drive::Law| -> Effort {
+        let prep = &prep;
+        Effort::Profile(Box::new(move |v| delayed_ref(super::drive::signature(prep, &jl, law(v), nq))))
     };
     for &j in &prep.active {
         let Some(jl) = joint_load(j, &undelayed) else {
@@ -324,12 +343,14 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
         };
         let name = &arm.model.joints[j].name;
         if wanted(&profiled_spec(&arm.model, EffectKind::JointCompliance, Some(j), 0.0)) {
-            let s = drive_profile(&jl, &super::drive::Law::Compliance, &geometric(1.0, 1e5, 26))?;
-            scored.push(Scored { candidate: None, kind: EffectKind::JointCompliance, label: format!("joint_compliance on {name}"), score: s, joint: Some(j), kinematic: None });
+            let law = super::drive::Law::Compliance;
+            let (s, at) = drive_profile(&jl, law, &geometric(1.0, 1e5, 26))?;
+            scored.push(Scored { candidate: None, kind: EffectKind::JointCompliance, label: format!("joint_compliance on {name}"), score: s, joint: Some(j), kinematic: None, effort: drive_effort(at, law) });
         }
         if wanted(&profiled_spec(&arm.model, EffectKind::Backlash, Some(j), 0.0)) {
-            let s = drive_profile(&jl, &|half| super::drive::Law::Backlash { half }, &geometric(2.5e-4, 0.04, 21))?;
-            scored.push(Scored { candidate: None, kind: EffectKind::Backlash, label: format!("backlash on {name}"), score: s, joint: Some(j), kinematic: None });
+            let law = |half| super::drive::Law::Backlash { half };
+            let (s, at) = drive_profile(&jl, law, &geometric(2.5e-4, 0.04, 21))?;
+            scored.push(Scored { candidate: None, kind: EffectKind::Backlash, label: format!("backlash on {name}"), score: s, joint: Some(j), kinematic: None, effort: drive_effort(at, law) });
         }
     }
     let kin = match &log.markers {
@@ -337,7 +358,7 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
         None => None,
     };
     if let Some(kc) = &kin {
-        with_kinematic(&mut scored, kc, &arm.model, prep.t.len(), nq);
+        with_kinematic(&mut scored, kc, &arm.model);
     }
     scored.sort_by(|x, y| y.score.delta_bic.total_cmp(&x.score.delta_bic));
     // Strong evidence, confirmed on held-out data, large enough to matter (delta BIC, p-value,
@@ -464,7 +485,7 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
             delta_bic: s.delta_bic,
             p_value: s.p_value,
             payload,
-            explained: if e.kinematic.is_some() { Vec::new() } else { explained(&s.effect) },
+            explained: if e.kinematic.is_some() { Vec::new() } else { explained(&e.efforts(&fit, &r).0) },
         };
         (spec, report)
     };
@@ -489,6 +510,7 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
     let mut after = before.clone();
     if let Some(&b) = winners.first() {
         let best = &scored[b];
+        let (best_effect, best_own) = best.efforts(&fit, &r);
         // Another effect, or the same kind elsewhere (two links' lengths a tracker sees alike).
         // Not a payload on another body (the recording cannot tell them apart: the report gives
         // them as equivalent placements), nor an effect whose effort shares nothing with the best
@@ -497,7 +519,7 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
             s.label != best.label
                 && (best.score.delta_bic - s.score.delta_bic).abs() < o.ambiguity_bic
                 && !(best.kind == EffectKind::PayloadMass && s.kind == EffectKind::PayloadMass)
-                && overlap(&prep, &best.score.own, &s.score.own) > RIVAL_OVERLAP
+                && overlap(&prep, &best_own, &s.efforts(&fit, &r).1) > RIVAL_OVERLAP
         });
         if let Some(rv) = rival {
             verdict = "ambiguous";
@@ -507,7 +529,7 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
             let (spec, report) = report_of(best);
             effects.push(report);
             after = base.clone();
-            add(&mut after, &best.score.effect);
+            add(&mut after, &best_effect);
             named = Some(spec);
         }
     }
