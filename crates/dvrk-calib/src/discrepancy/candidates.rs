@@ -6,6 +6,7 @@
 //! prediction shifted in time) is scanned in [`super::workflow`].
 
 use super::signals::{Predictor, Prepared, COULOMB_SMOOTHING_DEFAULT};
+use super::signature::Signature;
 use super::stats::Bounds;
 use crate::error::Result;
 use dvrk_kin::effects::{EffectKind, EffectSpec};
@@ -25,7 +26,7 @@ pub struct Candidate {
     pub actuator: Option<usize>,
     /// Fitted parameters (their names), each with its signature column.
     pub names: Vec<String>,
-    pub columns: Vec<Table>,
+    pub columns: Vec<Signature>,
     /// The model's own value of each parameter (0: the effect is absent): a fit is a change
     /// from it, reported as the new value. A payload's: 0 and the place (m) its columns are
     /// linearised at ([`payload_at`]).
@@ -37,7 +38,7 @@ pub struct Candidate {
     pub focus: usize,
     /// A nonlinear parameter profiled on a grid: its name and, per grid value, the columns that
     /// replace [`Candidate::columns`] (the fit keeps the best).
-    pub profile: Option<(&'static str, Vec<(f64, Vec<Table>)>)>,
+    pub profile: Option<(&'static str, Vec<(f64, Vec<Signature>)>)>,
 }
 
 impl Candidate {
@@ -115,24 +116,14 @@ fn names(n: &[&str]) -> Vec<String> {
 }
 
 /// A joint-local column: `f(sample)` on joint `j`, 0 elsewhere.
-fn local(prep: &Prepared, nq: usize, j: usize, f: impl Fn(usize) -> f64) -> Table {
-    (0..prep.t.len())
-        .map(|i| {
-            let mut r = vec![0.0; nq];
-            r[j] = f(i);
-            r
-        })
-        .collect()
+fn local(prep: &Prepared, nq: usize, j: usize, f: impl Fn(usize) -> f64) -> Signature {
+    Signature::on_joint(nq, j, (0..prep.t.len()).map(f).collect())
 }
 
 fn diff(a: &Table, b: &Table, h: f64) -> Table {
     a.iter().zip(b).map(|(x, y)| x.iter().zip(y).map(|(u, v)| (u - v) / h).collect()).collect()
 }
 
-/// RMS over samples of column `j` of a table ([`super::signals::rms`] over every sample).
-fn rms_joint(t: &Table, j: usize) -> f64 {
-    super::signals::rms(t, j, 0..t.len())
-}
 
 /// The Coulomb smoothing velocities tried (rad/s, m/s).
 pub const COULOMB_SMOOTHING: [f64; 6] = [5e-4, 1e-3, 2e-3, 4e-3, 8e-3, 1.6e-2];
@@ -142,7 +133,7 @@ pub const COULOMB_SMOOTHING: [f64; 6] = [5e-4, 1e-3, 2e-3, 4e-3, 8e-3, 1.6e-2];
 /// on the band-limited velocity gives another signal: its sign flips sharply where this one is
 /// spread over the band's impulse response (a Coulomb friction named by one round and evaluated
 /// that way by the next left 3.3x the floor where the fit had left 1.07; seed 7013).
-pub fn friction_sign(prep: &Prepared, nq: usize, j: usize, v: f64) -> Table {
+pub fn friction_sign(prep: &Prepared, nq: usize, j: usize, v: f64) -> Signature {
     let s = prep.band(&prep.fast_qd[j].iter().map(|x| (x / v).tanh()).collect::<Vec<_>>());
     local(prep, nq, j, |i| s[i])
 }
@@ -150,23 +141,19 @@ pub fn friction_sign(prep: &Prepared, nq: usize, j: usize, v: f64) -> Table {
 /// An actuator's Coulomb signature: `tanh(a' / v)` of its velocity `a' = w . q'` (`w`: its
 /// [`dvrk_kin::effects::Effect::transmission`]) band-limited as [`friction_sign`], reaching joint
 /// `j` as `w_j` times that.
-pub fn actuator_friction_sign(prep: &Prepared, nq: usize, w: &[(usize, f64)], v: f64) -> Table {
+pub fn actuator_friction_sign(prep: &Prepared, nq: usize, w: &[(usize, f64)], v: f64) -> Signature {
     let raw = prep.fast_qd.first().map_or(0, Vec::len);
     let a: Vec<f64> = (0..raw).map(|i| (w.iter().map(|(j, c)| c * prep.fast_qd[*j][i]).sum::<f64>() / v).tanh()).collect();
     spread(nq, w, &prep.band(&a))
 }
 
 /// A per-actuator signal `a(sample)` as joint efforts: `w_j a` on each joint of `w`.
-fn spread(nq: usize, w: &[(usize, f64)], a: &[f64]) -> Table {
-    a.iter()
-        .map(|x| {
-            let mut r = vec![0.0; nq];
-            for (j, c) in w {
-                r[*j] = c * x;
-            }
-            r
-        })
-        .collect()
+fn spread(nq: usize, w: &[(usize, f64)], a: &[f64]) -> Signature {
+    let mut out = Signature::on_joints(nq, a.len());
+    for (j, c) in w {
+        out.set(*j, a.iter().map(|x| c * x).collect());
+    }
+    out
 }
 
 /// The actuator candidates of `model`: friction (Coulomb, its smoothing profiled; viscous),
@@ -184,8 +171,8 @@ fn actuators(model: &dvrk_kin::Model, prep: &Prepared) -> Vec<Candidate> {
         let at = |x: &dyn Fn(&[f64]) -> f64, rows: &[Vec<f64>]| -> Vec<f64> { rows.iter().map(|r| x(r)).collect() };
         let dot = |r: &[f64]| w.iter().map(|(j, c)| c * r[*j]).sum::<f64>();
         let sign = |v: f64| vec![actuator_friction_sign(prep, nq, &w, v)];
-        let grid: Vec<(f64, Vec<Table>)> = COULOMB_SMOOTHING.iter().map(|&v| (v, sign(v))).collect();
-        let one = |kind, n: &[&str], columns: Vec<Table>, profile| {
+        let grid: Vec<(f64, Vec<Signature>)> = COULOMB_SMOOTHING.iter().map(|&v| (v, sign(v))).collect();
+        let one = |kind, n: &[&str], columns: Vec<Signature>, profile| {
             let focus = focus_of(prep, &columns[0]);
             Candidate { kind, joint: None, link: None, actuator: Some(a), names: names(n), columns, at: vec![0.0; n.len()], range: None, focus, profile }
         };
@@ -232,7 +219,7 @@ pub fn offset_sensitivities(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, g
         };
         let shifted = Predictor::new(&model.with_effect(&spec)?, arm, gravity)?.series(prep)?;
         let d = diff(&shifted, base, h);
-        if rms_joint(&d, j) > 1e-6 {
+        if super::signals::rms(&d, j, 0..d.len()) > 1e-6 {
             out.push((j, d));
         }
     }
@@ -266,7 +253,7 @@ pub fn build(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f64; 3
     for &j in &prep.active {
         // Its smoothing (how soon the force saturates: stick, a Stribeck hump) profiled.
         let sign = |v: f64| vec![friction_sign(prep, nq, j, v)];
-        let grid: Vec<(f64, Vec<Table>)> = COULOMB_SMOOTHING.iter().map(|&v| (v, sign(v))).collect();
+        let grid: Vec<(f64, Vec<Signature>)> = COULOMB_SMOOTHING.iter().map(|&v| (v, sign(v))).collect();
         out.push(Candidate {
             kind: EffectKind::CoulombFriction,
             joint: Some(j),
@@ -311,7 +298,7 @@ pub fn build(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f64; 3
                 link: None,
                 actuator: None,
                 names: names(&["offset"]),
-                columns: vec![d.clone()],
+                columns: vec![Signature::from_table(d, nq)],
                 at: vec![0.0],
                 // A prismatic joint's in m, not the revolute +-pi.
                 range: (model.joints[j].kind == dvrk_kin::JointType::Prismatic).then(|| EffectKind::JointOffset.range_on("offset", true).into_iter().collect()),
@@ -332,8 +319,8 @@ fn model_effect(kind: EffectKind, parameters: BTreeMap<String, f64>) -> EffectSp
 }
 
 /// The joint whose effort `column` moves most against its noise.
-pub(crate) fn focus_of(prep: &Prepared, column: &Table) -> usize {
-    prep.active.iter().copied().max_by(|a, b| (rms_joint(column, *a) / prep.noise[*a]).total_cmp(&(rms_joint(column, *b) / prep.noise[*b]))).unwrap_or(0)
+pub(crate) fn focus_of(prep: &Prepared, column: &Signature) -> usize {
+    prep.active.iter().copied().max_by(|a, b| (column.rms(*a) / prep.noise[*a]).total_cmp(&(column.rms(*b) / prep.noise[*b]))).unwrap_or(0)
 }
 
 /// The signature of `effect` with parameters `at + h e_k` against `base`, per unit of each.
@@ -345,13 +332,14 @@ fn finite_differences(
     base: &Table,
     effect: &EffectSpec,
     steps: &[(String, f64)],
-) -> Result<Vec<Table>> {
+) -> Result<Vec<Signature>> {
+    let nq = predictor.model.nq();
     steps
         .iter()
         .map(|(name, h)| {
             let mut e = effect.clone();
             *e.parameters.entry(name.clone()).or_insert(0.0) += h;
-            Ok(diff(&Predictor::new(&predictor.model.with_effect(&e)?, arm, gravity)?.series(prep)?, base, *h))
+            Ok(Signature::from_table(&diff(&Predictor::new(&predictor.model.with_effect(&e)?, arm, gravity)?.series(prep)?, base, *h), nq))
         })
         .collect()
 }
@@ -407,7 +395,7 @@ fn coupling(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f64; 3]
         let name = dvrk_kin::effects::coupling_entry_name(r, k);
         let at: f64 = model.effects.iter().filter(|e| e.kind == kind).map(|e| e.get(&name)).sum();
         let columns = finite_differences(predictor, arm, gravity, prep, base, &model_effect(kind, BTreeMap::new()), &[(name.clone(), 1e-3 * c[(r, k)].abs())])?;
-        if columns[0].iter().flatten().all(|x| x.abs() < 1e-12) {
+        if columns[0].is_below(1e-12) {
             continue;
         }
         let focus = focus_of(prep, &columns[0]);

@@ -4,6 +4,7 @@
 use super::candidates::Table;
 use super::nuisance::{fold_rows, Nuisance, FOLDS};
 use super::signals::Prepared;
+use super::signature::Series;
 use super::stats::{bounded_least_squares, solve_normal_equations, Bounds};
 use crate::error::Result;
 use nalgebra::{DMatrix, DVector};
@@ -27,11 +28,11 @@ impl<'a> Rows<'a> {
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }
-    pub fn vector(&self, t: &Table) -> DVector<f64> {
+    pub fn vector<S: Series>(&self, t: &S) -> DVector<f64> {
         let p = self.prep;
-        DVector::from_iterator(self.len(), self.range.clone().flat_map(|i| p.active.iter().map(move |&k| t[i][k] / p.floor[k])))
+        DVector::from_iterator(self.len(), self.range.clone().flat_map(|i| p.active.iter().map(move |&k| t.at(i, k) / p.floor[k])))
     }
-    pub fn matrix(&self, columns: &[Table]) -> DMatrix<f64> {
+    pub fn matrix<S: Series>(&self, columns: &[S]) -> DMatrix<f64> {
         DMatrix::from_columns(&columns.iter().map(|c| self.vector(c)).collect::<Vec<_>>())
     }
     /// The per-joint time series of a row vector (for the autocorrelation).
@@ -156,7 +157,7 @@ impl Fitter<'_> {
     /// The held-out likelihood-ratio statistic over the whole recording: each of
     /// [`FOLDS`] contiguous parts predicted from the others, without and with `columns`
     /// (bounded by `bounds`), the nuisance refitted each time; and the total effective sample size.
-    pub fn cross_validated(&self, r: &Table, columns: &[Table], bounds: &[Bounds]) -> Result<(f64, f64)> {
+    pub fn cross_validated<S: Series>(&self, r: &Table, columns: &[S], bounds: &[Bounds]) -> Result<(f64, f64)> {
         let all = Rows { prep: self.prep, range: 0..self.prep.t.len() };
         let (y, c) = (all.vector(r), all.matrix(columns));
         let (e0, e1) = match self.nuisance {

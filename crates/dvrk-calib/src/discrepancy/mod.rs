@@ -38,6 +38,7 @@ pub mod separation;
 pub mod from_file;
 mod scoring;
 pub mod signals;
+pub mod signature;
 pub mod stats;
 pub mod tracking;
 pub mod workflow;

@@ -14,6 +14,7 @@
 use super::candidates::{focus_of, Candidate, Table};
 use super::fit::{Fitter, Rows};
 use super::signals::Prepared;
+use super::signature::Signature;
 use crate::error::Result;
 use dvrk_kin::dynamics::PARAMETERS_PER_BODY;
 use dvrk_kin::effects::EffectKind;
@@ -76,9 +77,16 @@ fn dphi(p: &[f64; 3], k: usize) -> [f64; PARAMETERS_PER_BODY] {
 }
 
 /// The effort of parameter weights `w` over a body's columns.
-fn combine(columns: &[Table], w: &[f64; PARAMETERS_PER_BODY]) -> Table {
+fn combine(columns: &[Table], w: &[f64; PARAMETERS_PER_BODY]) -> Signature {
     let (n, nq) = (columns[0].len(), columns[0].first().map_or(0, |r| r.len()));
-    (0..n).map(|i| (0..nq).map(|j| columns.iter().zip(w).map(|(c, wk)| c[i][j] * wk).sum()).collect()).collect()
+    let mut out = Signature::on_joints(nq, n);
+    for j in 0..nq {
+        let series: Vec<f64> = (0..n).map(|i| columns.iter().zip(w).map(|(c, wk)| c[i][j] * wk).sum()).collect();
+        if series.iter().any(|x| *x != 0.0) {
+            out.set(j, series);
+        }
+    }
+    out
 }
 
 /// Half-width (m) of the box a payload's place is searched in: the vocabulary's +-1 m less the

@@ -8,6 +8,7 @@ use super::options::Options;
 use super::consistency;
 use super::fit::{per_joint_ratio, Fitter, Rows};
 use super::signals::{add, rms, sub, Prepared};
+use super::signature::{Series, Signature};
 use super::stats::{chi2_sf, effective_fraction};
 use crate::error::Result;
 use dvrk_kin::effects::{EffectKind, EffectSpec};
@@ -81,7 +82,7 @@ pub(super) enum Effort<'a> {
     /// A linear candidate's: its columns (at its profiled value) times its fit.
     Linear,
     /// A profile's: its signature at the best grid point ([`Score::signature_at`]).
-    Profile(Box<dyn Fn(f64) -> Table + 'a>),
+    Profile(Box<dyn Fn(f64) -> Result<Table> + 'a>),
     /// Taken when scored (latency, whose fit had a nuisance of its own: with it, and without).
     Held(Table, Table),
     /// None: a kinematic-channel-only candidate changes no predicted effort.
@@ -91,7 +92,7 @@ pub(super) enum Effort<'a> {
 impl Scored<'_> {
     /// The fitted effect's effort `[sample][joint]` over the whole analysed span with the inertia
     /// nuisance refitted with it (`fit`, residual `r`), and without it (its own signature).
-    pub(super) fn efforts(&self, fit: &Fitter, r: &Table) -> (Table, Table) {
+    pub(super) fn efforts(&self, fit: &Fitter, r: &Table) -> Result<(Table, Table)> {
         let prep = fit.prep;
         match (&self.effort, self.candidate, self.score.signature_at) {
             (Effort::Linear, Some(c), _) => {
@@ -99,23 +100,23 @@ impl Scored<'_> {
                 let train = Rows::train(prep);
                 let x = DVector::from_column_slice(&self.score.x);
                 let e1 = train.vector(r) - train.matrix(columns) * &x;
-                let own: Table = (0..prep.t.len()).map(|i| (0..r[0].len()).map(|k| columns.iter().zip(x.iter()).map(|(col, v)| col[i][k] * v).sum()).collect()).collect();
+                let own: Table = (0..prep.t.len()).map(|i| (0..r[0].len()).map(|k| columns.iter().zip(x.iter()).map(|(col, v)| col.at(i, k) * v).sum()).collect()).collect();
                 let mut effect = own.clone();
                 add(&mut effect, &fit.nuisance_effort(&e1));
-                (effect, own)
+                Ok((effect, own))
             }
-            (Effort::Profile(make), _, Some(value)) => profile_efforts(fit, r, &make(value)),
-            (Effort::Held(effect, own), _, _) => (effect.clone(), own.clone()),
+            (Effort::Profile(make), _, Some(value)) => Ok(profile_efforts(fit, r, &make(value)?)),
+            (Effort::Held(effect, own), _, _) => Ok((effect.clone(), own.clone())),
             _ => {
                 let zero = vec![vec![0.0; r.first().map_or(0, Vec::len)]; prep.t.len()];
-                (zero.clone(), zero)
+                Ok((zero.clone(), zero))
             }
         }
     }
 }
 
 /// A linear candidate's columns at its profiled value (`None`: its own).
-pub(super) fn fitted_columns(c: &Candidate, profiled: Option<f64>) -> &[Table] {
+pub(super) fn fitted_columns(c: &Candidate, profiled: Option<f64>) -> &[Signature] {
     match (&c.profile, profiled) {
         (Some((_, grid)), Some(v)) => grid.iter().find(|g| g.0 == v).map_or(&c.columns[..], |g| &g.1[..]),
         _ => &c.columns,
@@ -234,7 +235,7 @@ pub(super) fn score_linear(c: &Candidate, fit: &Fitter, r: &Table, o: &Options, 
     let heldout_p = chi2_sf(per_joint_ratio(&hold, &eh0, &eh1).0, p);
     let cv_p = Some(chi2_sf(fit.cross_validated(r, columns, &bounds)?.0, p));
     // The effect's own effort on its focus joint over the training rows.
-    let at_focus = |i: usize| -> f64 { columns.iter().zip(x.iter()).map(|(col, v)| col[i][c.focus] * v).sum() };
+    let at_focus = |i: usize| -> f64 { columns.iter().zip(x.iter()).map(|(col, v)| col.at(i, c.focus) * v).sum() };
     let size = ((0..prep.split).map(|i| at_focus(i).powi(2)).sum::<f64>() / prep.split as f64).sqrt() / prep.noise[c.focus];
     // Held at zero change is the effect's absence (friction's lower bound): the bootstrap's case.
     // A payload's mass at its upper bound is not an implausible fit but an unfixed one: the mass

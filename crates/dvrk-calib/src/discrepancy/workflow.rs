@@ -12,6 +12,7 @@ use crate::recordings::joint_log::JointLog;
 use super::nuisance::Nuisance;
 use super::plot::Residuals;
 use super::report::{CandidateReport, EffectReport, JointExplained, JointRms, Report};
+use super::signature::{Series, Signature};
 use super::signals::{add, normalised_rms, prepare, raw_rms, residual, rms, shifted, sub, Predictor, Prepared, COULOMB_SMOOTHING_DEFAULT};
 use super::stats::chi2_sf;
 use crate::error::{CalibError, Result};
@@ -131,12 +132,12 @@ fn coulomb_as_fitted(base: &mut Table, model: &Model, prep: &Prepared) {
     let smoothing = |e: &dvrk_kin::effects::Effect| if e.get("smoothing") > 0.0 { e.get("smoothing") } else { COULOMB_SMOOTHING_DEFAULT };
     for e in model.effects.iter().filter(|e| e.kind == EffectKind::ActuatorCoulombFriction) {
         let sign = candidates::actuator_friction_sign(prep, nq, &e.transmission, smoothing(e));
-        for ((row, s), (q, qd)) in base.iter_mut().zip(&sign).zip(prep.q.iter().zip(&prep.qd)) {
+        for (i, (row, (q, qd))) in base.iter_mut().zip(prep.q.iter().zip(&prep.qd)).enumerate() {
             kin.fill(0.0);
             dvrk_kin::effects::effort(std::slice::from_ref(e), q, qd, COULOMB_SMOOTHING_DEFAULT, &mut kin);
             // The offset reaches the joints as the friction does: w_j offset.
             for (j, w) in &e.transmission {
-                row[*j] += kin[*j] + e.get("fc") * s[*j] + w * e.get("offset");
+                row[*j] += kin[*j] + e.get("fc") * sign.at(i, *j) + w * e.get("offset");
             }
         }
     }
@@ -144,11 +145,11 @@ fn coulomb_as_fitted(base: &mut Table, model: &Model, prep: &Prepared) {
         let Some(j) = e.joint else { continue };
         let v = if e.get("smoothing") > 0.0 { e.get("smoothing") } else { COULOMB_SMOOTHING_DEFAULT };
         let sign = candidates::friction_sign(prep, nq, j, v);
-        for ((row, s), (q, qd)) in base.iter_mut().zip(&sign).zip(prep.q.iter().zip(&prep.qd)) {
+        for (i, (row, (q, qd))) in base.iter_mut().zip(prep.q.iter().zip(&prep.qd)).enumerate() {
             // dvrk-kin's term (`effort` writes the joint's force on the link: its negative).
             kin[j] = 0.0;
             dvrk_kin::effects::effort(std::slice::from_ref(e), q, qd, COULOMB_SMOOTHING_DEFAULT, &mut kin);
-            row[j] += kin[j] + e.get("fc") * s[j] + e.get("offset");
+            row[j] += kin[j] + e.get("fc") * sign.at(i, j) + e.get("offset");
         }
     }
 }
@@ -263,7 +264,9 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
     let delay_columns = |c: &mut Candidate| {
         let grids = c.profile.iter_mut().flat_map(|(_, g)| g.iter_mut().flat_map(|(_, cols)| cols.iter_mut()));
         for col in c.columns.iter_mut().chain(grids) {
-            *col = delayed(std::mem::take(col));
+            if lag > 0.0 {
+                *col = Signature::from_table(&delayed(col.to_table()), nq);
+            }
         }
     };
     let mut cands = candidates::build(&predictor, arm, scene.gravity, &prep, &rigid, &offsets)?;
@@ -295,6 +298,10 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
     }
     let cands = cands;
     let mut rng = ChaCha8Rng::seed_from_u64(o.seed);
+    // The load `jl` corrected by the nuisance's inertial parameters' change `dpi`.
+    let corrected = |jl: &super::drive::JointLoad, dpi: &nalgebra::DVector<f64>| -> Result<super::drive::JointLoad> {
+        Ok(jl.corrected(&super::drive::LoadChange::of(&arm.model, predictor.dynamics(), &gravity, jl.joint, dpi, (&prep.q, &prep.qd, &prep.qdd))?))
+    };
     let mut scored: Vec<Scored> = Vec::new();
     for c in &cands {
         let s = score_linear(c, &fit, &r, o, &mut rng)?;
@@ -314,11 +321,13 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
     // The drives: compliance and play per moving joint, each a profile of its own simulation;
     // where one shows, profiled again with the link's load, inertia and stiffness as the fit's
     // nuisance inertias correct them ([`DRIVE_PASSES`]).
-    // The score, and the load its signature was last taken with (for its effort, rebuilt).
-    let drive_profile = |jl: &super::drive::JointLoad, law: fn(f64) -> super::drive::Law, grid: &[f64]| -> Result<(Score, super::drive::JointLoad)> {
+    // The score, and the inertial change its load was last corrected by (its effort is rebuilt
+    // from it: a load is three tables, held for every drive 100 MB on a 5-minute recording).
+    let drive_profile = |jl: &super::drive::JointLoad, law: fn(f64) -> super::drive::Law, grid: &[f64]| -> Result<(Score, Option<nalgebra::DVector<f64>>)> {
         let profile = |jl: &super::drive::JointLoad| score_profile(&fit, &r, grid, &|v| delayed(super::drive::signature(&prep, jl, law(v), nq)), Some(jl.joint));
         let mut s = profile(jl);
         let mut current = jl.clone();
+        let mut change = None;
         for _ in 0..DRIVE_PASSES {
             if s.delta_bic <= o.min_delta_bic {
                 break;
@@ -327,15 +336,23 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
             let Some(dpi) = fit.nuisance_parameters(&e1) else {
                 break;
             };
-            current = jl.corrected(&super::drive::LoadChange::of(&arm.model, predictor.dynamics(), &gravity, jl.joint, &dpi, (&prep.q, &prep.qd, &prep.qdd))?);
+            current = corrected(jl, &dpi)?;
+            change = Some(dpi);
             s = profile(&current);
         }
-        Ok((s, current))
+        Ok((s, change))
     };
-    let delayed_ref = &delayed;
-    let drive_effort = |jl: super::drive::JointLoad, law: fn(f64) -> super::drive::Law| -> Effort {
+    let (delayed_ref, joint_load_ref, corrected_ref, undelayed_ref) = (&delayed, &joint_load, &corrected, &undelayed);
+    let drive_effort = |j: usize, law: fn(f64) -> super::drive::Law, change: Option<nalgebra::DVector<f64>>| -> Effort {
         let prep = &prep;
-        Effort::Profile(Box::new(move |v| delayed_ref(super::drive::signature(prep, &jl, law(v), nq))))
+        Effort::Profile(Box::new(move |v| {
+            let jl = joint_load_ref(j, undelayed_ref).ok_or_else(|| CalibError::data("drive", "its joint's load is gone"))?;
+            let jl = match &change {
+                Some(dpi) => corrected_ref(&jl, dpi)?,
+                None => jl,
+            };
+            Ok(delayed_ref(super::drive::signature(prep, &jl, law(v), nq)))
+        }))
     };
     for &j in &prep.active {
         let Some(jl) = joint_load(j, &undelayed) else {
@@ -345,12 +362,12 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
         if wanted(&profiled_spec(&arm.model, EffectKind::JointCompliance, Some(j), 0.0)) {
             let law = super::drive::Law::Compliance;
             let (s, at) = drive_profile(&jl, law, &geometric(1.0, 1e5, 26))?;
-            scored.push(Scored { candidate: None, kind: EffectKind::JointCompliance, label: format!("joint_compliance on {name}"), score: s, joint: Some(j), kinematic: None, effort: drive_effort(at, law) });
+            scored.push(Scored { candidate: None, kind: EffectKind::JointCompliance, label: format!("joint_compliance on {name}"), score: s, joint: Some(j), kinematic: None, effort: drive_effort(j, law, at) });
         }
         if wanted(&profiled_spec(&arm.model, EffectKind::Backlash, Some(j), 0.0)) {
             let law = |half| super::drive::Law::Backlash { half };
             let (s, at) = drive_profile(&jl, law, &geometric(2.5e-4, 0.04, 21))?;
-            scored.push(Scored { candidate: None, kind: EffectKind::Backlash, label: format!("backlash on {name}"), score: s, joint: Some(j), kinematic: None, effort: drive_effort(at, law) });
+            scored.push(Scored { candidate: None, kind: EffectKind::Backlash, label: format!("backlash on {name}"), score: s, joint: Some(j), kinematic: None, effort: drive_effort(j, law, at) });
         }
     }
     let kin = match &log.markers {
@@ -448,7 +465,7 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
             .collect()
     };
     // A scored candidate as a model-file effect and as the report's entry.
-    let report_of = |e: &Scored| -> (EffectSpec, EffectReport) {
+    let report_of = |e: &Scored| -> Result<(EffectSpec, EffectReport)> {
         let s = &e.score;
         let (mut spec, ci95) = match &e.kinematic {
             Some((spec, ci)) => (spec.clone(), ci.clone()),
@@ -485,9 +502,9 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
             delta_bic: s.delta_bic,
             p_value: s.p_value,
             payload,
-            explained: if e.kinematic.is_some() { Vec::new() } else { explained(&e.efforts(&fit, &r).0) },
+            explained: if e.kinematic.is_some() { Vec::new() } else { explained(&e.efforts(&fit, &r)?.0) },
         };
-        (spec, report)
+        Ok((spec, report))
     };
     let mut winners: Vec<usize> = (0..scored.len()).filter(|&i| supported(&scored[i])).collect();
     if let Some(k) = pair_choice(&scored, &winners, &fit, &r, o)? {
@@ -510,23 +527,28 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
     let mut after = before.clone();
     if let Some(&b) = winners.first() {
         let best = &scored[b];
-        let (best_effect, best_own) = best.efforts(&fit, &r);
+        let (best_effect, best_own) = best.efforts(&fit, &r)?;
         // Another effect, or the same kind elsewhere (two links' lengths a tracker sees alike).
         // Not a payload on another body (the recording cannot tell them apart: the report gives
         // them as equivalent placements), nor an effect whose effort shares nothing with the best
         // one's (a jaw's friction beside a payload on the arm: both real, named in turn).
-        let rival = winners.iter().skip(1).map(|&i| &scored[i]).find(|s| {
-            s.label != best.label
+        let mut rival = None;
+        for s in winners.iter().skip(1).map(|&i| &scored[i]) {
+            if s.label != best.label
                 && (best.score.delta_bic - s.score.delta_bic).abs() < o.ambiguity_bic
                 && !(best.kind == EffectKind::PayloadMass && s.kind == EffectKind::PayloadMass)
-                && overlap(&prep, &best_own, &s.efforts(&fit, &r).1) > RIVAL_OVERLAP
-        });
+                && overlap(&prep, &best_own, &s.efforts(&fit, &r)?.1) > RIVAL_OVERLAP
+            {
+                rival = Some(s);
+                break;
+            }
+        }
         if let Some(rv) = rival {
             verdict = "ambiguous";
             experiment = Some(separating_experiment(best.kind, rv.kind));
         } else {
             verdict = "named";
-            let (spec, report) = report_of(best);
+            let (spec, report) = report_of(best)?;
             effects.push(report);
             after = base.clone();
             add(&mut after, &best_effect);
@@ -536,16 +558,18 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
     let candidates: Vec<CandidateReport> = scored
         .iter()
         .take(12)
-        .map(|entry| CandidateReport {
-            label: entry.label.clone(),
-            effect: report_of(entry).1,
-            heldout_p_value: entry.score.heldout_p,
-            heldout_cv_p_value: entry.score.cv_p,
-            effect_to_noise: entry.score.effect_to_noise,
-            supported: supported(entry),
-            nuisance_correlation: entry.score.nuisance_correlation,
+        .map(|entry| {
+            Ok(CandidateReport {
+                label: entry.label.clone(),
+                effect: report_of(entry)?.1,
+                heldout_p_value: entry.score.heldout_p,
+                heldout_cv_p_value: entry.score.cv_p,
+                effect_to_noise: entry.score.effect_to_noise,
+                supported: supported(entry),
+                nuisance_correlation: entry.score.nuisance_correlation,
+            })
         })
-        .collect();
+        .collect::<Result<_>>()?;
     let f1 = residual(&prep, &after, true);
     let ho = prep.split..prep.t.len();
     let insertion = arm.model.joints.iter().position(|j| j.kind == dvrk_kin::JointType::Prismatic);
