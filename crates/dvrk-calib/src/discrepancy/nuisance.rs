@@ -119,37 +119,51 @@ impl Nuisance {
             None if prior.is_off() => return Ok(None),
             None => DMatrix::from_diagonal(&DVector::from_iterator(np, dm.inertias().iter().flat_map(|b| prior.stds(b)))),
         };
+        // `N` is the regressor rows (each over its joint's floor) times `scale`, reduced to the
+        // directions the recording sees. Built in two passes over the samples, never whole at
+        // the regressor's width (a 5-minute recording's is 190 MB, several copies 430 MB): the
+        // first sums the rows' Gram matrix, the second writes the reduced rows.
         let mut data = DynamicsData::new(model);
         let nq = model.nq();
         let mut y = DMatrix::zeros(nq, np);
         let na = prep.active.len();
-        let mut full = DMatrix::zeros(prep.t.len() * na, np);
-        for i in 0..prep.t.len() {
+        let mut rows = DMatrix::zeros(na, np);
+        let mut regressor_rows = |i: usize, rows: &mut DMatrix<f64>| -> Result<()> {
             dvrk_kin::regressor(model, dm, &mut data, &prep.q[i], &prep.qd[i], &prep.qdd[i], gravity, &mut y)?;
             for (a, &k) in prep.active.iter().enumerate() {
                 for c in 0..np {
-                    full[(i * na + a, c)] = y[(k, c)] / prep.floor[k];
+                    rows[(a, c)] = y[(k, c)] / prep.floor[k];
                 }
             }
+            Ok(())
+        };
+        let mut gram_full = DMatrix::zeros(np, np);
+        for i in 0..prep.t.len() {
+            regressor_rows(i, &mut rows)?;
+            gram_full += rows.tr_mul(&rows);
         }
-        let n = full * &scale;
+        let gram_scaled = scale.tr_mul(&(&gram_full * &scale));
         // Only directions that change some effort and have room to move.
-        let keep: Vec<usize> = (0..n.ncols()).filter(|&c| n.column(c).amax() > 0.0).collect();
+        let keep: Vec<usize> = (0..np).filter(|&c| gram_scaled[(c, c)] > 0.0).collect();
         if keep.is_empty() {
             return Ok(None);
         }
-        let (n, scale) = (n.select_columns(&keep), scale.select_columns(&keep));
+        let scale = scale.select_columns(&keep);
         // Only the directions the recording sees matter (`N = U S V^T`: `W` is `U S`'s, the
         // parameters `scale V theta'`): a full model's 130 columns fall to their numerical rank,
         // and every fit's projection costs that much less. The Gram matrix's eigenvectors give
         // `V`; directions with `s^2` under 1e-9 of the prior's weight change no fit.
-        let eig = nalgebra::SymmetricEigen::new(n.tr_mul(&n));
+        let eig = nalgebra::SymmetricEigen::new(gram_scaled.select_rows(&keep).select_columns(&keep));
         let seen: Vec<usize> = (0..eig.eigenvalues.len()).filter(|&i| eig.eigenvalues[i] > 1e-9 * lambda).collect();
         if seen.is_empty() {
             return Ok(None);
         }
-        let v = eig.eigenvectors.select_columns(&seen);
-        let (n, scale) = (&n * &v, &scale * &v);
+        let scale = &scale * eig.eigenvectors.select_columns(&seen);
+        let mut n = DMatrix::zeros(prep.t.len() * na, scale.ncols());
+        for i in 0..prep.t.len() {
+            regressor_rows(i, &mut rows)?;
+            n.rows_mut(i * na, na).copy_from(&(&rows * &scale));
+        }
         let train = prep.split * na;
         let chol = factor(&n, train, lambda)?;
         let (gram, fold_grams) = grams(&n, na);
