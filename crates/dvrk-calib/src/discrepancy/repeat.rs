@@ -13,7 +13,8 @@ use crate::recordings::joint_log::JointLog;
 use super::plot::Residuals;
 use super::report::{Report, StepReport};
 use super::options::Options;
-use super::workflow::{discrepancy, same_effect};
+use super::signals::{prepare, Prepared};
+use super::workflow::{discrepancy, discrepancy_prepared, same_effect, same_joints};
 use crate::error::Result;
 use dvrk_kin::effects::EffectSpec;
 use dvrk_kin::Model;
@@ -66,6 +67,30 @@ pub fn discrepancy_repeated(model: &Model, scene: &Scene, arm: &str, log: &Joint
 
 /// [`discrepancy_repeated`], telling `progress` what it is doing (for a progress display).
 pub fn discrepancy_repeated_with(model: &Model, scene: &Scene, arm: &str, log: &JointLog, o: &Options, max_rounds: usize, progress: &mut dyn FnMut(&str)) -> Result<Repeated> {
+    // Prepared once for every round (the torque channel; without efforts each round reads `log`).
+    let mut prep = match log.has_efforts() {
+        true => {
+            same_joints(model, log)?;
+            Some(prepare(log, &o.processing)?)
+        }
+        false => None,
+    };
+    repeated(model, scene, arm, log, prep.as_mut(), o, max_rounds, progress)
+}
+
+/// [`discrepancy_repeated_with`] on a recording with measured efforts already prepared (`prep`:
+/// [`prepare`] with `o.processing`): of `log` only what [`discrepancy_prepared`] reads.
+#[allow(clippy::too_many_arguments)]
+pub fn discrepancy_repeated_prepared(model: &Model, scene: &Scene, arm: &str, log: &JointLog, prep: &mut Prepared, o: &Options, max_rounds: usize, progress: &mut dyn FnMut(&str)) -> Result<Repeated> {
+    repeated(model, scene, arm, log, Some(prep), o, max_rounds, progress)
+}
+
+#[allow(clippy::too_many_arguments)]
+fn repeated(model: &Model, scene: &Scene, arm: &str, log: &JointLog, mut prep: Option<&mut Prepared>, o: &Options, max_rounds: usize, progress: &mut dyn FnMut(&str)) -> Result<Repeated> {
+    let mut discrepancy = |m: &Model, scene: &Scene, arm: &str, log: &JointLog, o: &Options| match prep.as_deref_mut() {
+        Some(p) => discrepancy_prepared(m, scene, arm, log, p, o),
+        None => discrepancy(m, scene, arm, log, o),
+    };
     let mut current = model.clone();
     let mut named: Vec<EffectSpec> = Vec::new();
     let mut report: Option<Report> = None;

@@ -157,20 +157,45 @@ fn coulomb_as_fitted(base: &mut Table, model: &Model, prep: &Prepared) {
 /// Run the workflow: `model` against `log`, for arm `arm` of `scene` (whose inertials, drive and
 /// gains are the rest of the model).
 pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog, o: &Options) -> Result<Outcome> {
-    let a = scene.arm_index(arm_name).map_err(|e| CalibError::field("--arm", e.to_string()))?;
+    same_joints(model, log)?;
+    if !log.has_efforts() {
+        return super::kinematic_only::discrepancy(model, scene, arm_name, log, o);
+    }
+    let mut prep = prepare(log, &o.processing)?;
+    discrepancy_prepared(model, scene, arm_name, log, &mut prep, o)
+}
+
+/// The recording's joints are the model's.
+pub(super) fn same_joints(model: &Model, log: &JointLog) -> Result<()> {
     let names: Vec<String> = model.joints.iter().map(|j| j.name.clone()).collect();
     if log.names != names {
         return Err(CalibError::data("recording", format!("joints {:?} are not the model's {:?}", log.names, names)));
     }
-    if !log.has_efforts() {
-        return super::kinematic_only::discrepancy(model, &scene, arm_name, log, o);
-    }
+    Ok(())
+}
+
+/// [`discrepancy`] on a recording with measured efforts already prepared (`prep`: [`prepare`]
+/// with `o.processing`), so that rounds share one preparation and a long recording's samples
+/// need not stay in memory: of `log` only its joint names, its markers (the kinematic channel)
+/// and, with `o.tracking`, its setpoints and positions are read. `prep` is given back as it came
+/// (its noise floor is raised for the model's encoder noise during the run).
+pub fn discrepancy_prepared(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog, prep: &mut Prepared, o: &Options) -> Result<Outcome> {
+    let floor = prep.floor.clone();
+    let out = analyse(model, scene, arm_name, log, prep, o);
+    prep.floor = floor;
+    out
+}
+
+fn analyse(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog, prep: &mut Prepared, o: &Options) -> Result<Outcome> {
+    let a = scene.arm_index(arm_name).map_err(|e| CalibError::field("--arm", e.to_string()))?;
+    same_joints(model, log)?;
+    let names: Vec<String> = model.joints.iter().map(|j| j.name.clone()).collect();
     let mut scene = scene.clone();
     scene.set_model(a, model.clone()).map_err(|e| CalibError::context("model", e))?;
     let arm = &scene.arms[a];
-    let mut prep = prepare(log, &o.processing)?;
     let mut predictor = Predictor::new(&arm.model, arm, scene.gravity)?;
     prep.include_encoder_noise(&mut predictor)?;
+    let prep: &Prepared = prep;
     let rigid = predictor.series(&prep)?;
     let offsets = candidates::offset_sensitivities(&predictor, arm, scene.gravity, &prep, &rigid)?;
     let link_m = super::drive::link_inertias(&arm.model, predictor.dynamics(), &prep)?;
@@ -261,6 +286,65 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
         }
         false => None,
     };
+    // The load `jl` corrected by the nuisance's inertial parameters' change `dpi`.
+    let corrected = |jl: &super::drive::JointLoad, dpi: &nalgebra::DVector<f64>| -> Result<super::drive::JointLoad> {
+        Ok(jl.corrected(&super::drive::LoadChange::of(&arm.model, predictor.dynamics(), &gravity, jl.joint, dpi, (&prep.q, &prep.qd, &prep.qdd))?))
+    };
+    // The drives: compliance and play per moving joint, each a profile of its own simulation;
+    // where one shows, profiled again with the link's load, inertia and stiffness as the fit's
+    // nuisance inertias correct them ([`DRIVE_PASSES`]). Scored before the candidates are built,
+    // as latency is (their simulations need room, and the candidates' columns are not yet in
+    // memory), and listed after them.
+    // Each profile's score, and the inertial change its load was last corrected by (its effort
+    // is rebuilt from it: a load is three tables, held for every drive 100 MB on 5 minutes).
+    let drive_profile = |jl: &super::drive::JointLoad, law: fn(f64) -> super::drive::Law, grid: &[f64]| -> Result<(Score, Option<nalgebra::DVector<f64>>)> {
+        let profile = |jl: &super::drive::JointLoad| score_profile(&fit, &r, grid, &|v| delayed(super::drive::signature(&prep, jl, law(v), nq)), Some(jl.joint));
+        let mut s = profile(jl);
+        let mut current = jl.clone();
+        let mut change = None;
+        for _ in 0..DRIVE_PASSES {
+            if s.delta_bic <= o.min_delta_bic {
+                break;
+            }
+            let e1 = Rows::train(&prep).vector(&sub(&r, &delayed(super::drive::signature(&prep, &current, law(s.x[0]), nq))));
+            let Some(dpi) = fit.nuisance_parameters(&e1) else {
+                break;
+            };
+            current = corrected(jl, &dpi)?;
+            change = Some(dpi);
+            s = profile(&current);
+        }
+        Ok((s, change))
+    };
+    let (delayed_ref, joint_load_ref, corrected_ref, undelayed_ref) = (&delayed, &joint_load, &corrected, &undelayed);
+    let drive_effort = |j: usize, law: fn(f64) -> super::drive::Law, change: Option<nalgebra::DVector<f64>>| -> Effort {
+        let prep = &prep;
+        Effort::Profile(Box::new(move |v| {
+            let jl = joint_load_ref(j, undelayed_ref).ok_or_else(|| CalibError::data("drive", "its joint's load is gone"))?;
+            let jl = match &change {
+                Some(dpi) => corrected_ref(&jl, dpi)?,
+                None => jl,
+            };
+            Ok(delayed_ref(super::drive::signature(prep, &jl, law(v), nq)))
+        }))
+    };
+    let mut drives: Vec<Scored> = Vec::new();
+    for &j in &prep.active {
+        let Some(jl) = joint_load(j, &undelayed) else {
+            continue;
+        };
+        let name = &arm.model.joints[j].name;
+        if wanted(&profiled_spec(&arm.model, EffectKind::JointCompliance, Some(j), 0.0)) {
+            let law = super::drive::Law::Compliance;
+            let (s, at) = drive_profile(&jl, law, &geometric(1.0, 1e5, 26))?;
+            drives.push(Scored { candidate: None, kind: EffectKind::JointCompliance, label: format!("joint_compliance on {name}"), score: s, joint: Some(j), kinematic: None, effort: drive_effort(j, law, at) });
+        }
+        if wanted(&profiled_spec(&arm.model, EffectKind::Backlash, Some(j), 0.0)) {
+            let law = |half| super::drive::Law::Backlash { half };
+            let (s, at) = drive_profile(&jl, law, &geometric(2.5e-4, 0.04, 21))?;
+            drives.push(Scored { candidate: None, kind: EffectKind::Backlash, label: format!("backlash on {name}"), score: s, joint: Some(j), kinematic: None, effort: drive_effort(j, law, at) });
+        }
+    }
     let delay_columns = |c: &mut Candidate| {
         let grids = c.profile.iter_mut().flat_map(|(_, g)| g.iter_mut().flat_map(|(_, cols)| cols.iter_mut()));
         for col in c.columns.iter_mut().chain(grids) {
@@ -298,10 +382,6 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
     }
     let cands = cands;
     let mut rng = ChaCha8Rng::seed_from_u64(o.seed);
-    // The load `jl` corrected by the nuisance's inertial parameters' change `dpi`.
-    let corrected = |jl: &super::drive::JointLoad, dpi: &nalgebra::DVector<f64>| -> Result<super::drive::JointLoad> {
-        Ok(jl.corrected(&super::drive::LoadChange::of(&arm.model, predictor.dynamics(), &gravity, jl.joint, dpi, (&prep.q, &prep.qd, &prep.qdd))?))
-    };
     let mut scored: Vec<Scored> = Vec::new();
     for c in &cands {
         let s = score_linear(c, &fit, &r, o, &mut rng)?;
@@ -318,58 +398,7 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
             effort,
         });
     }
-    // The drives: compliance and play per moving joint, each a profile of its own simulation;
-    // where one shows, profiled again with the link's load, inertia and stiffness as the fit's
-    // nuisance inertias correct them ([`DRIVE_PASSES`]).
-    // The score, and the inertial change its load was last corrected by (its effort is rebuilt
-    // from it: a load is three tables, held for every drive 100 MB on a 5-minute recording).
-    let drive_profile = |jl: &super::drive::JointLoad, law: fn(f64) -> super::drive::Law, grid: &[f64]| -> Result<(Score, Option<nalgebra::DVector<f64>>)> {
-        let profile = |jl: &super::drive::JointLoad| score_profile(&fit, &r, grid, &|v| delayed(super::drive::signature(&prep, jl, law(v), nq)), Some(jl.joint));
-        let mut s = profile(jl);
-        let mut current = jl.clone();
-        let mut change = None;
-        for _ in 0..DRIVE_PASSES {
-            if s.delta_bic <= o.min_delta_bic {
-                break;
-            }
-            let e1 = Rows::train(&prep).vector(&sub(&r, &delayed(super::drive::signature(&prep, &current, law(s.x[0]), nq))));
-            let Some(dpi) = fit.nuisance_parameters(&e1) else {
-                break;
-            };
-            current = corrected(jl, &dpi)?;
-            change = Some(dpi);
-            s = profile(&current);
-        }
-        Ok((s, change))
-    };
-    let (delayed_ref, joint_load_ref, corrected_ref, undelayed_ref) = (&delayed, &joint_load, &corrected, &undelayed);
-    let drive_effort = |j: usize, law: fn(f64) -> super::drive::Law, change: Option<nalgebra::DVector<f64>>| -> Effort {
-        let prep = &prep;
-        Effort::Profile(Box::new(move |v| {
-            let jl = joint_load_ref(j, undelayed_ref).ok_or_else(|| CalibError::data("drive", "its joint's load is gone"))?;
-            let jl = match &change {
-                Some(dpi) => corrected_ref(&jl, dpi)?,
-                None => jl,
-            };
-            Ok(delayed_ref(super::drive::signature(prep, &jl, law(v), nq)))
-        }))
-    };
-    for &j in &prep.active {
-        let Some(jl) = joint_load(j, &undelayed) else {
-            continue;
-        };
-        let name = &arm.model.joints[j].name;
-        if wanted(&profiled_spec(&arm.model, EffectKind::JointCompliance, Some(j), 0.0)) {
-            let law = super::drive::Law::Compliance;
-            let (s, at) = drive_profile(&jl, law, &geometric(1.0, 1e5, 26))?;
-            scored.push(Scored { candidate: None, kind: EffectKind::JointCompliance, label: format!("joint_compliance on {name}"), score: s, joint: Some(j), kinematic: None, effort: drive_effort(j, law, at) });
-        }
-        if wanted(&profiled_spec(&arm.model, EffectKind::Backlash, Some(j), 0.0)) {
-            let law = |half| super::drive::Law::Backlash { half };
-            let (s, at) = drive_profile(&jl, law, &geometric(2.5e-4, 0.04, 21))?;
-            scored.push(Scored { candidate: None, kind: EffectKind::Backlash, label: format!("backlash on {name}"), score: s, joint: Some(j), kinematic: None, effort: drive_effort(j, law, at) });
-        }
-    }
+    scored.extend(drives);
     let kin = match &log.markers {
         Some(mk) => Some(super::kinematic::analyse(&super::kinematic::Inputs { model: &arm.model, log, markers: mk, prep: &prep, armature: &motor })?),
         None => None,

@@ -120,7 +120,7 @@ pub fn read_mcap(path: &Path, arm: &str) -> Result<(JointLog, Vec<String>)> {
     let (set_kind, meas_kind) = ("setpoint_js", "measured_js");
     let mut states = crate::recordings::joint_states::read_arm(path, arm, &[set_kind, meas_kind])?;
     let meas_topic = format!("/{arm}/{meas_kind}");
-    let Some(meas) = states.kinds.remove(meas_kind) else {
+    let Some(mut meas) = states.kinds.remove(meas_kind) else {
         return Err(CalibError::file(path, format!("no topic {meas_topic}; topics: {}", states.listing())));
     };
     let mut notes = std::mem::take(&mut states.notes);
@@ -135,7 +135,8 @@ pub fn read_mcap(path: &Path, arm: &str) -> Result<(JointLog, Vec<String>)> {
         }
     };
     let nq = meas.names.len();
-    let mut log = JointLog { names: meas.names, ..Default::default() };
+    meas.velocity = Vec::new();
+    let mut log = JointLog { names: std::mem::take(&mut meas.names), ..Default::default() };
     let mut j = 0;
     // Encoders alone (no message carries efforts): the kinematic channel can still run.
     let without_efforts = meas.effort.iter().all(Vec::is_empty);
@@ -157,8 +158,9 @@ pub fn read_mcap(path: &Path, arm: &str) -> Result<(JointLog, Vec<String>)> {
         }
         log.t.push(*t);
         log.setpoint.push(set.position[j].clone());
-        log.position.push(meas.position[i].clone());
-        log.effort.push(meas.effort[i].clone());
+        // Moved, not copied: a 5-minute recording's samples are held once.
+        log.position.push(std::mem::take(&mut meas.position[i]));
+        log.effort.push(std::mem::take(&mut meas.effort[i]));
     }
     if log.len() < 100 {
         return Err(CalibError::file(path, format!("{} usable samples on {meas_topic} (need at least 100)", log.len())));
