@@ -98,6 +98,15 @@ impl Candidate {
         p
     }
 
+    /// Lets its signature columns go (the profile's grid too), keeping what it is: a candidate
+    /// the report will not show needs only its fit.
+    pub fn drop_columns(&mut self) {
+        self.columns = Vec::new();
+        if let Some((_, grid)) = &mut self.profile {
+            grid.iter_mut().for_each(|g| g.1 = Vec::new());
+        }
+    }
+
     /// The effect as a model file writes it.
     pub fn spec(&self, model: &dvrk_kin::Model, x: &[f64], profiled: Option<f64>, source: &str) -> EffectSpec {
         EffectSpec {

@@ -14,7 +14,7 @@
 use super::candidates::{focus_of, Candidate, Table};
 use super::fit::{Fitter, Rows};
 use super::signals::Prepared;
-use super::signature::Signature;
+use super::signature::{Series, Signature};
 use crate::error::Result;
 use dvrk_kin::dynamics::PARAMETERS_PER_BODY;
 use dvrk_kin::effects::EffectKind;
@@ -30,8 +30,8 @@ pub struct BodyColumns<'a> {
     /// m/s^2
     pub gravity: &'a Vector3<f64>,
     pub prep: &'a Prepared,
-    /// Applied to each column (the model's latency, as every other signature).
-    pub shift: &'a dyn Fn(Table) -> Table,
+    /// Applied to each column where the model has a latency (as to every other signature).
+    pub shift: Option<&'a dyn Fn(Table) -> Table>,
 }
 
 impl BodyColumns<'_> {
@@ -40,23 +40,37 @@ impl BodyColumns<'_> {
         self.dynamics.inertias().len()
     }
 
-    /// Body `b`'s ten columns, each `[sample][joint]`: dvrk-kin's regressor at every analysed
-    /// sample, through `shift`.
-    pub fn of(&self, b: usize) -> Result<Vec<Table>> {
+    /// Body `b`'s ten columns: dvrk-kin's regressor at every analysed sample, through `shift`.
+    pub fn of(&self, b: usize) -> Result<Vec<Signature>> {
         let (model, prep) = (self.model, self.prep);
-        let nq = model.nq();
+        let (nq, n) = (model.nq(), prep.t.len());
         let mut data = DynamicsData::new(model);
         let mut y = DMatrix::zeros(nq, self.bodies() * PARAMETERS_PER_BODY);
-        let mut columns = vec![vec![vec![0.0; nq]; prep.t.len()]; PARAMETERS_PER_BODY];
-        for i in 0..prep.t.len() {
+        // `[parameter][joint]`, each a series over the samples.
+        let mut series = vec![vec![vec![0.0; n]; nq]; PARAMETERS_PER_BODY];
+        for i in 0..n {
             dvrk_kin::regressor(model, self.dynamics, &mut data, &prep.q[i], &prep.qd[i], &prep.qdd[i], self.gravity, &mut y)?;
-            for (k, col) in columns.iter_mut().enumerate() {
-                for j in 0..nq {
-                    col[i][j] = y[(j, b * PARAMETERS_PER_BODY + k)];
+            for (k, joints) in series.iter_mut().enumerate() {
+                for (j, s) in joints.iter_mut().enumerate() {
+                    s[i] = y[(j, b * PARAMETERS_PER_BODY + k)];
                 }
             }
         }
-        Ok(columns.into_iter().map(self.shift).collect())
+        Ok(series
+            .into_iter()
+            .map(|joints| {
+                let mut column = Signature::on_joints(nq, n);
+                for (j, s) in joints.into_iter().enumerate() {
+                    if s.iter().any(|x| *x != 0.0) {
+                        column.set(j, s);
+                    }
+                }
+                match self.shift {
+                    Some(shift) => Signature::from_table(&shift(column.to_table()), nq),
+                    None => column,
+                }
+            })
+            .collect())
     }
 }
 
@@ -76,12 +90,12 @@ fn dphi(p: &[f64; 3], k: usize) -> [f64; PARAMETERS_PER_BODY] {
     }
 }
 
-/// The effort of parameter weights `w` over a body's columns.
-fn combine(columns: &[Table], w: &[f64; PARAMETERS_PER_BODY]) -> Signature {
-    let (n, nq) = (columns[0].len(), columns[0].first().map_or(0, |r| r.len()));
+/// The effort of parameter weights `w` over a body's columns (`nq` joints).
+fn combine(columns: &[Signature], w: &[f64; PARAMETERS_PER_BODY], nq: usize) -> Signature {
+    let n = columns[0].samples();
     let mut out = Signature::on_joints(nq, n);
     for j in 0..nq {
-        let series: Vec<f64> = (0..n).map(|i| columns.iter().zip(w).map(|(c, wk)| c[i][j] * wk).sum()).collect();
+        let series: Vec<f64> = (0..n).map(|i| columns.iter().zip(w).map(|(c, wk)| c.at(i, j) * wk).sum()).collect();
         if series.iter().any(|x| *x != 0.0) {
             out.set(j, series);
         }
@@ -173,8 +187,8 @@ pub fn candidates(model: &Model, bodies: &BodyColumns, fit: &Fitter, r: &Table, 
         }
         let (g, bv) = fit.normal_equations(&a, &y);
         let at = best_place(&g, &bv).map_or([0.0; 3], |(p, _)| p);
-        let mut columns = vec![combine(cols, &phi(&at))];
-        columns.extend((0..3).map(|k| combine(cols, &dphi(&at, k))));
+        let mut columns = vec![combine(cols, &phi(&at), model.nq())];
+        columns.extend((0..3).map(|k| combine(cols, &dphi(&at, k), model.nq())));
         let focus = focus_of(prep, &columns[0]);
         let link = model.frames[model.bodies[b].frames[0]].name.clone();
         normals.insert(link.clone(), (g, bv));

@@ -65,6 +65,9 @@ const SECANT_PASSES: usize = 2;
 /// uncorrected; -0.13%, +0.05% with two passes, held-out 1.041 and 1.075 of the floor).
 const DRIVE_PASSES: usize = 2;
 
+/// Candidates the report lists (the strongest first).
+const REPORTED: usize = 12;
+
 /// The kinematic channel's evidence joined to the torque channel's: a candidate both channels
 /// fit (an offset, latency, a drive's compliance or play) gets their combined likelihood ratio at
 /// the precision-weighted value (so a torque fit the tracker contradicts loses its support); a
@@ -353,6 +356,12 @@ fn analyse(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog, prep: &
             }
         }
     };
+    // Payloads on every moving body, each at the place that explains most (the regressor's
+    // own columns: exact for a point mass anywhere). Built first, while the other candidates'
+    // columns are not yet in memory (each body's ten are, one body at a time); listed last.
+    let body_columns = super::payload::BodyColumns { model: &arm.model, dynamics: predictor.dynamics(), gravity: &gravity, prep: &prep, shift: (lag > 0.0).then_some(&delayed) };
+    let (payloads, payload_normals) = super::payload::candidates(&arm.model, &body_columns, &fit, &r, &prep)?;
+    let payloads: Vec<Candidate> = payloads.into_iter().filter(|c| wanted(&c.spec(&arm.model, &[0.0; 4], None, ""))).collect();
     let mut cands = candidates::build(&predictor, arm, scene.gravity, &prep, &rigid, &offsets)?;
     cands.retain(|c| wanted(&c.spec(&arm.model, &vec![0.0; c.names.len()], None, "")));
     cands.iter_mut().for_each(delay_columns);
@@ -371,22 +380,31 @@ fn analyse(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog, prep: &
             delay_columns(c);
         }
     }
-    // Payloads on every moving body, each at the place that explains most (the regressor's
-    // own columns: exact for a point mass anywhere).
-    let body_columns = super::payload::BodyColumns { model: &arm.model, dynamics: predictor.dynamics(), gravity: &gravity, prep: &prep, shift: &delayed };
-    let (payloads, payload_normals) = super::payload::candidates(&arm.model, &body_columns, &fit, &r, &prep)?;
-    for c in payloads {
-        if wanted(&c.spec(&arm.model, &[0.0; 4], None, "")) {
-            cands.push(c);
+    cands.extend(payloads);
+    // Strong evidence, confirmed on held-out data, large enough to matter (delta BIC, p-value,
+    // held-out p-value, effect-to-noise ratio).
+    let strong_at = |gate: f64| move |delta_bic: f64, p: f64, heldout_p: f64, size: f64| delta_bic > o.min_delta_bic && p < o.max_p_value && heldout_p < 0.01 && size >= gate;
+    let (strong, strong_kinematic) = (strong_at(o.min_effect_to_noise), strong_at(o.min_kinematic_effect_to_noise));
+    let mut rng = ChaCha8Rng::seed_from_u64(o.seed);
+    let linear: Vec<Score> = cands.iter().map(|c| score_linear(c, &fit, &r, o, &mut rng)).collect::<Result<_>>()?;
+    // Only a candidate the report can show keeps its columns (its effort and a pair's refit
+    // need them): one of the linear candidates' best [`REPORTED`], or one supported. Without a
+    // kinematic channel, whose evidence can still reorder them.
+    if log.markers.is_none() {
+        for (c, s) in cands.iter_mut().zip(&linear) {
+            let above = linear.iter().filter(|t| t.delta_bic > s.delta_bic).count();
+            let supported = !s.at_edge && strong(s.delta_bic, s.p_value, s.confirmed_p(), s.effect_to_noise);
+            if above >= REPORTED && !supported {
+                c.drop_columns();
+            }
         }
     }
     let cands = cands;
-    let mut rng = ChaCha8Rng::seed_from_u64(o.seed);
-    let mut scored: Vec<Scored> = Vec::new();
-    for c in &cands {
-        let s = score_linear(c, &fit, &r, o, &mut rng)?;
-        scored.push(Scored { candidate: Some(c), kind: c.kind, label: c.label(&arm.model), score: s, joint: c.joint, kinematic: None, effort: Effort::Linear });
-    }
+    let mut scored: Vec<Scored> = cands
+        .iter()
+        .zip(linear)
+        .map(|(c, s)| Scored { candidate: Some(c), kind: c.kind, label: c.label(&arm.model), score: s, joint: c.joint, kinematic: None, effort: Effort::Linear })
+        .collect();
     if let Some((score, effort)) = latency {
         scored.push(Scored {
             candidate: None,
@@ -407,10 +425,6 @@ fn analyse(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog, prep: &
         with_kinematic(&mut scored, kc, &arm.model);
     }
     scored.sort_by(|x, y| y.score.delta_bic.total_cmp(&x.score.delta_bic));
-    // Strong evidence, confirmed on held-out data, large enough to matter (delta BIC, p-value,
-    // held-out p-value, effect-to-noise ratio).
-    let strong_at = |gate: f64| move |delta_bic: f64, p: f64, heldout_p: f64, size: f64| delta_bic > o.min_delta_bic && p < o.max_p_value && heldout_p < 0.01 && size >= gate;
-    let (strong, strong_kinematic) = (strong_at(o.min_effect_to_noise), strong_at(o.min_kinematic_effect_to_noise));
     let supported = |e: &Scored| {
         let s = &e.score;
         let strong: &dyn Fn(f64, f64, f64, f64) -> bool = if e.kinematic.is_some() { &strong_kinematic } else { &strong };
@@ -586,7 +600,7 @@ fn analyse(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog, prep: &
     }
     let candidates: Vec<CandidateReport> = scored
         .iter()
-        .take(12)
+        .take(REPORTED)
         .map(|entry| {
             Ok(CandidateReport {
                 label: entry.label.clone(),

@@ -112,8 +112,11 @@ fn encoding(name: &str) -> Encoding {
 pub fn for_each(path: &Path, visit: impl FnMut(&Message) -> Result<()>) -> Result<usize> {
     match container(path)? {
         Some(Container::Mcap) => {
-            let bytes = std::fs::read(path).map_err(|e| CalibError::file(path, format!("cannot read: {e}")))?;
-            for_each_mcap(&bytes, path, visit)
+            // Read as the reader asks, not whole: a 5-minute recording's file is 60 MB.
+            let cannot = |e: std::io::Error| CalibError::file(path, format!("cannot read: {e}"));
+            let file = std::fs::File::open(path).map_err(cannot)?;
+            let len = file.metadata().map_err(cannot)?.len();
+            for_each_mcap_from(file, usize::try_from(len).unwrap_or(usize::MAX), path, visit)
         }
         Some(Container::Bag) => for_each_bag(path, visit),
         None if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("bag")) => Err(CalibError::file(path, "not a ROS 1 bag (it does not start with `#ROSBAG V2.0`)")),
@@ -126,15 +129,22 @@ pub fn for_each(path: &Path, visit: impl FnMut(&Message) -> Result<()>) -> Resul
 /// `MessageStream` has none, and a damaged record inside a chunk (found by the fuzz target
 /// `tests/fuzz.rs::mcap_joint_states`) made it reserve 3.5e18 bytes and abort the process.
 /// Returns the number of messages.
-pub fn for_each_mcap(bytes: &[u8], path: &Path, mut visit: impl FnMut(&Message) -> Result<()>) -> Result<usize> {
+pub fn for_each_mcap(bytes: &[u8], path: &Path, visit: impl FnMut(&Message) -> Result<()>) -> Result<usize> {
+    for_each_mcap_from(bytes, bytes.len(), path, visit)
+}
+
+/// [`for_each_mcap`] on the `len` bytes `source` reads, read as the reader asks for them.
+fn for_each_mcap_from(mut source: impl std::io::Read, len: usize, path: &Path, mut visit: impl FnMut(&Message) -> Result<()>) -> Result<usize> {
     use mcap::records::Record;
     use mcap::sans_io::linear_reader::{LinearReadEvent, LinearReader, LinearReaderOptions};
-    let options = LinearReaderOptions::default().with_record_length_limit(record_length_limit(bytes.len()));
+    let options = LinearReaderOptions::default().with_record_length_limit(record_length_limit(len));
     let mut reader = LinearReader::new_with_options(options);
+    // The file's first bytes (whether it is an MCAP at all, for the error).
+    let mut head: Vec<u8> = Vec::with_capacity(MCAP_MAGIC.len());
     let mut fed = 0usize;
     let mut count = 0usize;
-    let damaged = |count: usize, e: &dyn std::fmt::Display| {
-        if bytes.starts_with(MCAP_MAGIC) {
+    let damaged = |count: usize, head: &[u8], e: &dyn std::fmt::Display| {
+        if head.starts_with(MCAP_MAGIC) {
             CalibError::file(path, format!("truncated or damaged after {count} message(s): {e}; nothing was fitted (recover the file with `mcap recover`)"))
         } else {
             CalibError::file(path, "not an MCAP file (it does not start with the MCAP magic bytes)")
@@ -147,10 +157,10 @@ pub fn for_each_mcap(bytes: &[u8], path: &Path, mut visit: impl FnMut(&Message) 
     loop {
         let want = match reader.next_event() {
             None => break,
-            Some(Err(e)) => return Err(damaged(count, &e)),
+            Some(Err(e)) => return Err(damaged(count, &head, &e)),
             Some(Ok(LinearReadEvent::ReadRequest(n))) => n,
             Some(Ok(LinearReadEvent::Record { data, opcode })) => {
-                match mcap::parse_record(opcode, data).map_err(|e| damaged(count, &e))? {
+                match mcap::parse_record(opcode, data).map_err(|e| damaged(count, &head, &e))? {
                     Record::Schema { header, .. } => {
                         schemas.insert(header.id, header.name);
                     }
@@ -160,7 +170,7 @@ pub fn for_each_mcap(bytes: &[u8], path: &Path, mut visit: impl FnMut(&Message) 
                     Record::Message { header, data } => {
                         count += 1;
                         let Some((topic, enc, schema_id)) = channels.get(&header.channel_id) else {
-                            return Err(damaged(count - 1, &format!("message {count} is on channel {}, which the file never declares", header.channel_id)));
+                            return Err(damaged(count - 1, &head, &format!("message {count} is on channel {}, which the file never declares", header.channel_id)));
                         };
                         let schema = names.entry(header.channel_id).or_insert_with(|| {
                             let s = schemas.get(schema_id).map_or("", |s| s.as_str());
@@ -177,12 +187,29 @@ pub fn for_each_mcap(bytes: &[u8], path: &Path, mut visit: impl FnMut(&Message) 
                 continue;
             }
         };
-        let n = want.min(bytes.len() - fed);
-        reader.insert(n).copy_from_slice(&bytes[fed..fed + n]);
+        // Never more than the file has left (a damaged length asks for more).
+        let buf = reader.insert(want.min(len.saturating_sub(fed)));
+        let n = read_up_to(&mut source, buf).map_err(|e| CalibError::file(path, format!("cannot read: {e}")))?;
+        let missing = (MCAP_MAGIC.len() - head.len()).min(n);
+        head.extend_from_slice(&buf[..missing]);
         reader.notify_read(n);
         fed += n;
     }
     Ok(count)
+}
+
+/// Fill `buf` from `source` as far as it goes (less only at its end); the bytes read.
+fn read_up_to(source: &mut impl std::io::Read, buf: &mut [u8]) -> std::io::Result<usize> {
+    let mut n = 0;
+    while n < buf.len() {
+        match source.read(&mut buf[n..]) {
+            Ok(0) => break,
+            Ok(k) => n += k,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(n)
 }
 
 /// The longest record (bytes) an MCAP of `file_len` bytes may hold, inside a chunk or not: 64 MiB
