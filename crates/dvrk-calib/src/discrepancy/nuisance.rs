@@ -177,19 +177,23 @@ impl Nuisance {
     /// latency estimate absorbs the difference (`tau` times the error's share of the effort's
     /// rate: 3% inertia errors moved 12 ms estimates by up to 80 us).
     pub fn retimed(&self, shift: &dyn Fn(&Table) -> Table) -> Result<Nuisance> {
+        Nuisance { n: self.n.clone(), chol: self.chol.clone(), scale: self.scale.clone(), gram: self.gram.clone(), fold_grams: self.fold_grams.clone(), ..*self }.into_retimed(shift)
+    }
+
+    /// [`Nuisance::retimed`] in place: on a long recording a copy would hold the nuisance twice.
+    pub fn into_retimed(mut self, shift: &dyn Fn(&Table) -> Table) -> Result<Nuisance> {
         let (na, samples) = (self.na, self.n.nrows() / self.na.max(1));
-        let mut n = DMatrix::zeros(self.n.nrows(), self.n.ncols());
-        for c in 0..n.ncols() {
+        for c in 0..self.n.ncols() {
             let series: Table = (0..samples).map(|i| (0..na).map(|a| self.n[(i * na + a, c)]).collect()).collect();
             for (i, row) in shift(&series).iter().enumerate() {
                 for (a, x) in row.iter().enumerate() {
-                    n[(i * na + a, c)] = *x;
+                    self.n[(i * na + a, c)] = *x;
                 }
             }
         }
-        let chol = factor(&n, self.train, self.lambda)?;
-        let (gram, fold_grams) = grams(&n, na);
-        Ok(Nuisance { n, chol, scale: self.scale.clone(), gram, fold_grams, ..*self })
+        self.chol = factor(&self.n, self.train, self.lambda)?;
+        (self.gram, self.fold_grams) = grams(&self.n, na);
+        Ok(self)
     }
 
     /// `L^-1 N_train^T v` for a training-row vector `v`.

@@ -251,16 +251,12 @@ fn analyse(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog, prep: &
     let r = residual(&prep, &base, true);
     let gravity = nalgebra::Vector3::from(scene.gravity);
     // The nuisance on the prediction's timeline (see [`Nuisance::retimed`]).
-    let measured_time = Nuisance::new(&arm.model, predictor.dynamics(), &gravity, &prep, &o.inertia_prior, 1.0 / prep.noise_fraction)?;
-    let retimed = |tau: f64| -> Result<Option<Nuisance>> {
-        match &measured_time {
-            Some(n) if tau > 0.0 => Ok(Some(n.retimed(&|t| shifted(t, prep.dt, tau))?)),
-            _ => Ok(None),
-        }
+    let new_nuisance = || Nuisance::new(&arm.model, predictor.dynamics(), &gravity, &prep, &o.inertia_prior, 1.0 / prep.noise_fraction);
+    let mut measured_time = new_nuisance()?;
+    let lagged = match &measured_time {
+        Some(n) if lag > 0.0 => Some(n.retimed(&|t| shifted(t, prep.dt, lag))?),
+        _ => None,
     };
-    let lagged = retimed(lag)?;
-    let nuisance = lagged.as_ref().or(measured_time.as_ref());
-    let fit = Fitter { prep: &prep, nuisance };
     // Whether an effect is analysed (all of them, or [`Options::only`]'s).
     // A payload's refit may move it to another body: named beside an effect it partly stood in
     // for, its first body can be one that took up some of that effect too (seed 11: a payload
@@ -274,21 +270,37 @@ fn analyse(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog, prep: &
         true => {
             let shift = |tau: f64| sub(&shifted(&base, prep.dt, tau), &base);
             let lat_grid: Vec<f64> = (0..=60).map(|i| i as f64 * 1e-3).collect();
-            let score = score_profile(&fit, &r, &lat_grid, &shift, None);
+            let first = Fitter { prep: &prep, nuisance: lagged.as_ref().or(measured_time.as_ref()) };
+            let score = score_profile(&first, &r, &lat_grid, &shift, None);
             // Profiled again with the nuisance moved by the estimate: near it, the profile is
             // then the one a nuisance on the right timeline gives (the null's is not, by the
             // nuisance's misfit over the estimate's shift: nothing next to a latency's evidence).
-            let moved = retimed(lag + score.x[0])?;
-            let fitter = match &moved {
-                Some(m) => Fitter { prep: &prep, nuisance: Some(m) },
-                None => Fitter { prep: &prep, nuisance: fit.nuisance },
-            };
-            let score = if moved.is_some() { score_profile(&fitter, &r, &lat_grid, &shift, None) } else { score };
-            let (effect, own) = profile_efforts(&fitter, &r, &shift(score.signature_at.unwrap_or(0.0)));
-            Some((score, Effort::Held(effect, own)))
+            // Moved in place and built again after: a copy would hold the nuisance twice
+            // (64 MB more on a 5-minute recording).
+            let tau = lag + score.x[0];
+            match measured_time.take() {
+                Some(n) if tau > 0.0 => {
+                    let moved = n.into_retimed(&|t| shifted(t, prep.dt, tau))?;
+                    let fitter = Fitter { prep: &prep, nuisance: Some(&moved) };
+                    let score = score_profile(&fitter, &r, &lat_grid, &shift, None);
+                    let (effect, own) = profile_efforts(&fitter, &r, &shift(score.signature_at.unwrap_or(0.0)));
+                    drop(moved);
+                    measured_time = new_nuisance()?;
+                    Some((score, Effort::Held(effect, own)))
+                }
+                unmoved => {
+                    measured_time = unmoved;
+                    let fitter = Fitter { prep: &prep, nuisance: lagged.as_ref().or(measured_time.as_ref()) };
+                    let (effect, own) = profile_efforts(&fitter, &r, &shift(score.signature_at.unwrap_or(0.0)));
+                    Some((score, Effort::Held(effect, own)))
+                }
+            }
         }
         false => None,
     };
+    let measured_time = measured_time;
+    let nuisance = lagged.as_ref().or(measured_time.as_ref());
+    let fit = Fitter { prep: &prep, nuisance };
     // The load `jl` corrected by the nuisance's inertial parameters' change `dpi`.
     let corrected = |jl: &super::drive::JointLoad, dpi: &nalgebra::DVector<f64>| -> Result<super::drive::JointLoad> {
         Ok(jl.corrected(&super::drive::LoadChange::of(&arm.model, predictor.dynamics(), &gravity, jl.joint, dpi, (&prep.q, &prep.qd, &prep.qdd))?))
