@@ -213,7 +213,7 @@ pub fn payload_is_a_point_mass(at: &[f64], x: &[f64]) -> bool {
 /// Per moving joint where an offset shows (gravity or coupling load it), the change of every
 /// joint's effort per unit offset of that joint (the joint's true position is the reading plus
 /// the offset): the model's own sensitivity, by finite difference.
-pub fn offset_sensitivities(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f64; 3], prep: &Prepared, base: &Table) -> Result<Vec<(usize, Table)>> {
+pub fn offset_sensitivities(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f64; 3], prep: &Prepared, base: &Table) -> Result<Vec<(usize, Signature)>> {
     let model = &predictor.model;
     let mut out = Vec::new();
     for &j in &prep.active {
@@ -229,7 +229,7 @@ pub fn offset_sensitivities(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, g
         let shifted = Predictor::new(&model.with_effect(&spec)?, arm, gravity)?.series(prep)?;
         let d = diff(&shifted, base, h);
         if super::signals::rms(&d, j, 0..d.len()) > 1e-6 {
-            out.push((j, d));
+            out.push((j, Signature::from_table(&d, model.nq())));
         }
     }
     Ok(out)
@@ -238,13 +238,13 @@ pub fn offset_sensitivities(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, g
 /// For each joint in `joints`, the change of every joint's effort per unit velocity of that joint
 /// (N·m s/rad, N s/m; Coriolis, centrifugal and damping coupling), by finite difference on the
 /// model's prediction `base`: a drive's lag rate changes the other joints' load through it.
-pub fn rate_sensitivities(predictor: &mut Predictor, prep: &Prepared, base: &Table, joints: &[usize]) -> Result<Vec<(usize, Table)>> {
+pub fn rate_sensitivities(predictor: &mut Predictor, prep: &Prepared, base: &Table, joints: &[usize]) -> Result<Vec<(usize, Signature)>> {
     let h = 1e-4;
     let mut moved = prep.qd.clone();
     let mut out = Vec::with_capacity(joints.len());
     for &j in joints {
         moved.iter_mut().zip(&prep.qd).for_each(|(m, q)| m[j] = q[j] + h);
-        out.push((j, diff(&predictor.series_at(&prep.q, &moved, &prep.qdd)?, base, h)));
+        out.push((j, Signature::from_table(&diff(&predictor.series_at(&prep.q, &moved, &prep.qdd)?, base, h), base.first().map_or(0, Vec::len))));
         moved.iter_mut().zip(&prep.qd).for_each(|(m, q)| m[j] = q[j]);
     }
     Ok(out)
@@ -255,7 +255,7 @@ pub fn rate_sensitivities(predictor: &mut Predictor, prep: &Prepared, base: &Tab
 /// payloads are [`super::payload`]'s) for the joints `prep.active`,
 /// with `base` the nominal prediction and `offsets` from [`offset_sensitivities`]. The drives'
 /// compliance and play are profiles ([`super::drive`]), latency too.
-pub fn build(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f64; 3], prep: &Prepared, base: &Table, offsets: &[(usize, Table)]) -> Result<Vec<Candidate>> {
+pub fn build(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f64; 3], prep: &Prepared, base: &Table, offsets: &[(usize, Signature)]) -> Result<Vec<Candidate>> {
     let model = &predictor.model;
     let nq = model.nq();
     let mut out = Vec::new();
@@ -307,7 +307,7 @@ pub fn build(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f64; 3
                 link: None,
                 actuator: None,
                 names: names(&["offset"]),
-                columns: vec![Signature::from_table(d, nq)],
+                columns: vec![d.clone()],
                 at: vec![0.0],
                 // A prismatic joint's in m, not the revolute +-pi.
                 range: (model.joints[j].kind == dvrk_kin::JointType::Prismatic).then(|| EffectKind::JointOffset.range_on("offset", true).into_iter().collect()),

@@ -3,8 +3,11 @@
 //! left out. Most signatures act on one joint (a joint's friction, spring, offset) or on an
 //! actuator's few: as a [`Table`] (a heap row per sample over every joint) a 5-minute recording's
 //! candidates took 300 MB; joint by joint a one-joint signature is a seventh of a flat table.
+//! A joint's series is shared between copies (an offset's sensitivity is both a drive's load
+//! and the offset's candidate).
 
 use super::signals::Table;
+use std::sync::Arc;
 
 /// Values per analysed sample and joint: a [`Table`] or a [`Signature`].
 pub trait Series {
@@ -22,7 +25,7 @@ impl Series for Table {
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Signature {
     samples: usize,
-    joints: Vec<Option<Vec<f64>>>,
+    joints: Vec<Option<Arc<[f64]>>>,
 }
 
 impl Signature {
@@ -30,7 +33,7 @@ impl Signature {
     pub fn on_joint(nq: usize, j: usize, series: Vec<f64>) -> Signature {
         let samples = series.len();
         let mut joints = vec![None; nq];
-        joints[j] = Some(series);
+        joints[j] = Some(series.into());
         Signature { samples, joints }
     }
 
@@ -42,13 +45,13 @@ impl Signature {
     /// Joint `j`'s series (one value per sample).
     pub fn set(&mut self, j: usize, series: Vec<f64>) {
         debug_assert_eq!(series.len(), self.samples);
-        self.joints[j] = Some(series);
+        self.joints[j] = Some(series.into());
     }
 
     /// Each joint's series from a table `[sample][joint]` (`nq` joints; a joint that is exactly
     /// zero at every sample left out).
     pub fn from_table(t: &Table, nq: usize) -> Signature {
-        let joints = (0..nq).map(|k| t.iter().any(|r| r[k] != 0.0).then(|| t.iter().map(|r| r[k]).collect())).collect();
+        let joints = (0..nq).map(|k| t.iter().any(|r| r[k] != 0.0).then(|| t.iter().map(|r| r[k]).collect::<Vec<f64>>().into())).collect();
         Signature { samples: t.len(), joints }
     }
 
@@ -69,7 +72,7 @@ impl Signature {
 
     /// Whether every value is below `tol` in size.
     pub fn is_below(&self, tol: f64) -> bool {
-        self.joints.iter().flatten().flatten().all(|x| x.abs() < tol)
+        self.joints.iter().flatten().flat_map(|s| s.iter()).all(|x| x.abs() < tol)
     }
 
     /// RMS over every sample of joint `k` (0 where it is zero throughout).
