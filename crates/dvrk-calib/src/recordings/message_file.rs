@@ -160,6 +160,13 @@ fn for_each_mcap_from(mut source: impl std::io::Read, len: usize, path: &Path, m
             Some(Err(e)) => return Err(damaged(count, &head, &e)),
             Some(Ok(LinearReadEvent::ReadRequest(n))) => n,
             Some(Ok(LinearReadEvent::Record { data, opcode })) => {
+                // Only the records read here are parsed, and only once their strings fit.
+                if !matches!(opcode, mcap::records::op::SCHEMA | mcap::records::op::CHANNEL | mcap::records::op::MESSAGE) {
+                    continue;
+                }
+                if !strings_fit(opcode, data) {
+                    return Err(damaged(count, &head, &"a schema or channel record whose string lengths run past its end"));
+                }
                 match mcap::parse_record(opcode, data).map_err(|e| damaged(count, &head, &e))? {
                     Record::Schema { header, .. } => {
                         schemas.insert(header.id, header.name);
@@ -196,6 +203,39 @@ fn for_each_mcap_from(mut source: impl std::io::Read, len: usize, path: &Path, m
         fed += n;
     }
     Ok(count)
+}
+
+/// Whether every string of a schema or channel record `body` (and a channel's metadata map) fits
+/// inside it. The `mcap` crate reserves a string's declared length before reading it: a damaged
+/// length made it ask for 2.8 GB (`tests/fuzz.rs::mcap_joint_states`, libFuzzer).
+fn strings_fit(opcode: u8, body: &[u8]) -> bool {
+    let u32_at = |at: usize| body.get(at..at + 4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as usize);
+    // A string at `at`: where it ends, if inside `end`.
+    let string = |at: usize, end: usize| u32_at(at).and_then(|n| (at + 4).checked_add(n)).filter(|&e| e <= end);
+    let (mut at, strings) = match opcode {
+        // id; name, encoding (the data's length the crate checks).
+        mcap::records::op::SCHEMA => (2, 2),
+        // id, schema id; topic, message encoding; then the metadata map.
+        mcap::records::op::CHANNEL => (4, 2),
+        _ => return true,
+    };
+    for _ in 0..strings {
+        match string(at, body.len()) {
+            Some(e) => at = e,
+            None => return false,
+        }
+    }
+    if opcode == mcap::records::op::CHANNEL {
+        let Some(end) = u32_at(at).and_then(|n| (at + 4).checked_add(n)).filter(|&e| e <= body.len()) else { return false };
+        at += 4;
+        while at < end {
+            match string(at, end).and_then(|k| string(k, end)) {
+                Some(e) => at = e,
+                None => return false,
+            }
+        }
+    }
+    true
 }
 
 /// Fill `buf` from `source` as far as it goes (less only at its end); the bytes read.
