@@ -7,16 +7,9 @@
 //! mostly), never crash.
 //!
 //! In the test suite each target runs for [`SMOKE`] (about a minute in all, on bolero's random
-//! engine: stable Rust, no instrumentation). Longer and coverage-guided, with `cargo-bolero` on a
-//! nightly toolchain (see docs/fuzzing.md):
-//!
-//! ```sh
-//! cargo install cargo-bolero
-//! cargo +nightly bolero test fuzz::model_toml --test tests -T 10min
-//! ```
-//!
-//! or on stable, longer random runs: `BOLERO_RANDOM_TEST_TIME_MS=600000 cargo test --release --test
-//! tests fuzz::model_toml`.
+//! engine: stable Rust, no instrumentation). Longer on stable: `BOLERO_RANDOM_TEST_TIME_MS=600000
+//! cargo test --release --test tests fuzz::model_toml`; coverage-guided with libFuzzer (nightly,
+//! cargo-bolero, the instrumented binary run directly): docs/fuzzing.md.
 
 use bolero::check;
 use std::path::{Path, PathBuf};
