@@ -33,16 +33,10 @@ impl<'a> Rows<'a> {
         DVector::from_iterator(self.len(), self.range.clone().flat_map(|i| p.active.iter().map(move |&k| t.at(i, k) / p.floor[k])))
     }
     pub fn matrix<S: Series>(&self, columns: &[S]) -> DMatrix<f64> {
-        // Filled in place: the columns as vectors first would hold the matrix twice.
-        let p = self.prep;
-        let na = p.active.len();
+        // A column at a time: all of them as vectors first would hold the matrix twice.
         let mut m = DMatrix::zeros(self.len(), columns.len());
         for (c, col) in columns.iter().enumerate() {
-            for (r, i) in self.range.clone().enumerate() {
-                for (a, &k) in p.active.iter().enumerate() {
-                    m[(r * na + a, c)] = col.at(i, k) / p.floor[k];
-                }
-            }
+            m.set_column(c, &self.vector(col));
         }
         m
     }

@@ -2,7 +2,7 @@
 //! take the arm's built-in scene, run the repeated workflow.
 
 use crate::recordings::read_log;
-use super::repeat::{discrepancy_repeated_prepared, discrepancy_repeated_with, Repeated};
+use super::repeat::{discrepancy_repeated_prepared, discrepancy_repeated_with, prepare_rounds, Repeated};
 use crate::recordings::joint_log::JointLog;
 use super::options::Options;
 use crate::error::{CalibError, Result};
@@ -46,15 +46,16 @@ pub fn run_with(path: &Path, format: &str, model: &Model, arm: &str, marker: Opt
     let in_file = |e| CalibError::context(path.display().to_string(), e);
     // The torque channel alone reads the samples once, prepared: the recording's own (3 values
     // per joint and sample, 90 MB for 5 minutes at 1 kHz) are let go before the analysis.
-    let mut out = if log.has_efforts() && log.markers.is_none() && !options.tracking {
-        super::workflow::same_joints(model, &log).map_err(in_file)?;
-        let mut prep = super::signals::prepare(&log, &options.processing).map_err(in_file)?;
-        let names_only = JointLog { names: std::mem::take(&mut log.names), ..Default::default() };
-        drop(log);
-        discrepancy_repeated_prepared(model, &scene, arm, &names_only, &mut prep, options, max_rounds, progress).map_err(in_file)?
-    } else {
-        discrepancy_repeated_with(model, &scene, arm, &log, options, max_rounds, progress).map_err(in_file)?
-    };
+    let mut out = match prepare_rounds(model, &log, options).map_err(in_file)? {
+        Some(mut prep) if log.markers.is_none() && !options.tracking => {
+            let names_only = JointLog { names: std::mem::take(&mut log.names), ..Default::default() };
+            drop(log);
+            discrepancy_repeated_prepared(model, &scene, arm, &names_only, &mut prep, options, max_rounds, progress)
+        }
+        Some(mut prep) => discrepancy_repeated_prepared(model, &scene, arm, &log, &mut prep, options, max_rounds, progress),
+        None => discrepancy_repeated_with(model, &scene, arm, &log, options, max_rounds, progress),
+    }
+    .map_err(in_file)?;
     out.report.notes.splice(0..0, notes);
     Ok(out)
 }

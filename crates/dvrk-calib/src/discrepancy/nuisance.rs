@@ -67,6 +67,7 @@ impl InertiaPrior {
 }
 
 /// The nuisance of one analysis (see the module's text).
+#[derive(Clone)]
 pub struct Nuisance {
     /// Scaled regressor rows of every analysed sample (sample-major, the active joints).
     n: DMatrix<f64>,
@@ -177,7 +178,7 @@ impl Nuisance {
     /// latency estimate absorbs the difference (`tau` times the error's share of the effort's
     /// rate: 3% inertia errors moved 12 ms estimates by up to 80 us).
     pub fn retimed(&self, shift: &dyn Fn(&Table) -> Table) -> Result<Nuisance> {
-        Nuisance { n: self.n.clone(), chol: self.chol.clone(), scale: self.scale.clone(), gram: self.gram.clone(), fold_grams: self.fold_grams.clone(), ..*self }.into_retimed(shift)
+        self.clone().into_retimed(shift)
     }
 
     /// [`Nuisance::retimed`] in place: on a long recording a copy would hold the nuisance twice.

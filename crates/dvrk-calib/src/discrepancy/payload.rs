@@ -59,12 +59,7 @@ impl BodyColumns<'_> {
         Ok(series
             .into_iter()
             .map(|joints| {
-                let mut column = Signature::on_joints(nq, n);
-                for (j, s) in joints.into_iter().enumerate() {
-                    if s.iter().any(|x| *x != 0.0) {
-                        column.set(j, s);
-                    }
-                }
+                let column = Signature::from_joints(n, joints);
                 match self.shift {
                     Some(shift) => Signature::from_table(&shift(column.to_table()), nq),
                     None => column,
@@ -93,14 +88,7 @@ fn dphi(p: &[f64; 3], k: usize) -> [f64; PARAMETERS_PER_BODY] {
 /// The effort of parameter weights `w` over a body's columns (`nq` joints).
 fn combine(columns: &[Signature], w: &[f64; PARAMETERS_PER_BODY], nq: usize) -> Signature {
     let n = columns[0].samples();
-    let mut out = Signature::on_joints(nq, n);
-    for j in 0..nq {
-        let series: Vec<f64> = (0..n).map(|i| columns.iter().zip(w).map(|(c, wk)| c.at(i, j) * wk).sum()).collect();
-        if series.iter().any(|x| *x != 0.0) {
-            out.set(j, series);
-        }
-    }
-    out
+    Signature::from_joints(n, (0..nq).map(|j| (0..n).map(|i| columns.iter().zip(w).map(|(c, wk)| c.at(i, j) * wk).sum()).collect()))
 }
 
 /// Half-width (m) of the box a payload's place is searched in: the vocabulary's +-1 m less the

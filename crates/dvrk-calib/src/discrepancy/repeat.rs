@@ -67,15 +67,19 @@ pub fn discrepancy_repeated(model: &Model, scene: &Scene, arm: &str, log: &Joint
 
 /// [`discrepancy_repeated`], telling `progress` what it is doing (for a progress display).
 pub fn discrepancy_repeated_with(model: &Model, scene: &Scene, arm: &str, log: &JointLog, o: &Options, max_rounds: usize, progress: &mut dyn FnMut(&str)) -> Result<Repeated> {
-    // Prepared once for every round (the torque channel; without efforts each round reads `log`).
-    let mut prep = match log.has_efforts() {
-        true => {
-            same_joints(model, log)?;
-            Some(prepare(log, &o.processing)?)
-        }
-        false => None,
-    };
+    let mut prep = prepare_rounds(model, log, o)?;
     repeated(model, scene, arm, log, prep.as_mut(), o, max_rounds, progress)
+}
+
+/// `log` prepared once for every round ([`prepare`] with `o.processing`), its joints checked
+/// against `model`'s first; `None` without measured efforts (each round then reads `log`: the
+/// kinematic channel alone).
+pub fn prepare_rounds(model: &Model, log: &JointLog, o: &Options) -> Result<Option<Prepared>> {
+    if !log.has_efforts() {
+        return Ok(None);
+    }
+    same_joints(model, log)?;
+    Ok(Some(prepare(log, &o.processing)?))
 }
 
 /// [`discrepancy_repeated_with`] on a recording with measured efforts already prepared (`prep`:

@@ -10,7 +10,7 @@ use super::fit::{per_joint_ratio, Fitter, Rows};
 use super::signals::{add, rms, sub, Prepared};
 use super::signature::{Series, Signature};
 use super::stats::{chi2_sf, effective_fraction};
-use crate::error::Result;
+use crate::error::{CalibError, Result};
 use dvrk_kin::effects::{EffectKind, EffectSpec};
 use nalgebra::{DMatrix, DVector};
 use rand::Rng;
@@ -97,6 +97,10 @@ impl Scored<'_> {
         match (&self.effort, self.candidate, self.score.signature_at) {
             (Effort::Linear, Some(c), _) => {
                 let columns = fitted_columns(c, self.score.profiled);
+                // A candidate the report was not to show has let its columns go.
+                if columns.len() != self.score.x.len() {
+                    return Err(CalibError::data("discrepancy", format!("{}: its signature was let go once scored", self.label)));
+                }
                 let train = Rows::train(prep);
                 let x = DVector::from_column_slice(&self.score.x);
                 let e1 = train.vector(r) - train.matrix(columns) * &x;

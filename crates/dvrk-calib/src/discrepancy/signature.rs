@@ -48,11 +48,16 @@ impl Signature {
         self.joints[j] = Some(series.into());
     }
 
-    /// Each joint's series from a table `[sample][joint]` (`nq` joints; a joint that is exactly
-    /// zero at every sample left out).
+    /// Each joint's series in turn (one value per sample over `samples` samples); a joint that
+    /// is exactly zero at every sample is left out.
+    pub fn from_joints(samples: usize, series: impl IntoIterator<Item = Vec<f64>>) -> Signature {
+        let joints = series.into_iter().map(|s| s.iter().any(|x| *x != 0.0).then(|| s.into())).collect();
+        Signature { samples, joints }
+    }
+
+    /// Each joint's series from a table `[sample][joint]` (`nq` joints; [`Signature::from_joints`]).
     pub fn from_table(t: &Table, nq: usize) -> Signature {
-        let joints = (0..nq).map(|k| t.iter().any(|r| r[k] != 0.0).then(|| t.iter().map(|r| r[k]).collect::<Vec<f64>>().into())).collect();
-        Signature { samples: t.len(), joints }
+        Signature::from_joints(t.len(), (0..nq).map(|k| t.iter().map(|r| r[k]).collect()))
     }
 
     /// Analysed samples.

@@ -272,6 +272,10 @@ fn analyse(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog, prep: &
             let lat_grid: Vec<f64> = (0..=60).map(|i| i as f64 * 1e-3).collect();
             let first = Fitter { prep: &prep, nuisance: lagged.as_ref().or(measured_time.as_ref()) };
             let score = score_profile(&first, &r, &lat_grid, &shift, None);
+            let held = |fitter: &Fitter, score: &Score| {
+                let (effect, own) = profile_efforts(fitter, &r, &shift(score.signature_at.unwrap_or(0.0)));
+                Effort::Held(effect, own)
+            };
             // Profiled again with the nuisance moved by the estimate: near it, the profile is
             // then the one a nuisance on the right timeline gives (the null's is not, by the
             // nuisance's misfit over the estimate's shift: nothing next to a latency's evidence).
@@ -283,16 +287,15 @@ fn analyse(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog, prep: &
                     let moved = n.into_retimed(&|t| shifted(t, prep.dt, tau))?;
                     let fitter = Fitter { prep: &prep, nuisance: Some(&moved) };
                     let score = score_profile(&fitter, &r, &lat_grid, &shift, None);
-                    let (effect, own) = profile_efforts(&fitter, &r, &shift(score.signature_at.unwrap_or(0.0)));
+                    let effort = held(&fitter, &score);
                     drop(moved);
                     measured_time = new_nuisance()?;
-                    Some((score, Effort::Held(effect, own)))
+                    Some((score, effort))
                 }
                 unmoved => {
                     measured_time = unmoved;
-                    let fitter = Fitter { prep: &prep, nuisance: lagged.as_ref().or(measured_time.as_ref()) };
-                    let (effect, own) = profile_efforts(&fitter, &r, &shift(score.signature_at.unwrap_or(0.0)));
-                    Some((score, Effort::Held(effect, own)))
+                    let effort = held(&Fitter { prep: &prep, nuisance: lagged.as_ref().or(measured_time.as_ref()) }, &score);
+                    Some((score, effort))
                 }
             }
         }
@@ -520,7 +523,8 @@ fn analyse(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog, prep: &
             .collect()
     };
     // A scored candidate as a model-file effect and as the report's entry.
-    let report_of = |e: &Scored| -> Result<(EffectSpec, EffectReport)> {
+    // `effect`: its fitted effort where the caller has it already (else rebuilt).
+    let report_of = |e: &Scored, effect: Option<&Table>| -> Result<(EffectSpec, EffectReport)> {
         let s = &e.score;
         let (mut spec, ci95) = match &e.kinematic {
             Some((spec, ci)) => (spec.clone(), ci.clone()),
@@ -557,7 +561,11 @@ fn analyse(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog, prep: &
             delta_bic: s.delta_bic,
             p_value: s.p_value,
             payload,
-            explained: if e.kinematic.is_some() { Vec::new() } else { explained(&e.efforts(&fit, &r)?.0) },
+            explained: match (&e.kinematic, effect) {
+                (Some(_), _) => Vec::new(),
+                (None, Some(t)) => explained(t),
+                (None, None) => explained(&e.efforts(&fit, &r)?.0),
+            },
         };
         Ok((spec, report))
     };
@@ -578,6 +586,8 @@ fn analyse(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog, prep: &
     let mut experiment = None;
     let mut effects = Vec::new();
     let mut named = None;
+    // Where in `scored` the named effect is.
+    let mut named_at = None;
     // After: the model with the named effect, the inertias refitted with it.
     let mut after = before.clone();
     if let Some(&b) = winners.first() {
@@ -603,8 +613,9 @@ fn analyse(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog, prep: &
             experiment = Some(separating_experiment(best.kind, rv.kind));
         } else {
             verdict = "named";
-            let (spec, report) = report_of(best)?;
+            let (spec, report) = report_of(best, Some(&best_effect))?;
             effects.push(report);
+            named_at = Some(b);
             after = base.clone();
             add(&mut after, &best_effect);
             named = Some(spec);
@@ -613,10 +624,15 @@ fn analyse(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog, prep: &
     let candidates: Vec<CandidateReport> = scored
         .iter()
         .take(REPORTED)
-        .map(|entry| {
+        .enumerate()
+        .map(|(i, entry)| {
             Ok(CandidateReport {
                 label: entry.label.clone(),
-                effect: report_of(entry)?.1,
+                // The named one's entry is its effect's, made above.
+                effect: match named_at {
+                    Some(b) if b == i => effects[0].clone(),
+                    _ => report_of(entry, None)?.1,
+                },
                 heldout_p_value: entry.score.heldout_p,
                 heldout_cv_p_value: entry.score.cv_p,
                 effect_to_noise: entry.score.effect_to_noise,

@@ -226,7 +226,8 @@ fn strings_fit(opcode: u8, body: &[u8]) -> bool {
         }
     }
     if opcode == mcap::records::op::CHANNEL {
-        let Some(end) = u32_at(at).and_then(|n| (at + 4).checked_add(n)).filter(|&e| e <= body.len()) else { return false };
+        // The map: its length in bytes, then key and value strings.
+        let Some(end) = string(at, body.len()) else { return false };
         at += 4;
         while at < end {
             match string(at, end).and_then(|k| string(k, end)) {
