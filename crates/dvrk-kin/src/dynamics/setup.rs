@@ -32,9 +32,8 @@ pub struct DynamicsModel {
     pub(crate) kind: Vec<Kind>,
     /// Per frame: the non-zero coefficients `(joint, c)` of its variable `phi = c . q + b`.
     pub(crate) terms: Vec<Vec<(usize, f64)>>,
-    /// Per frame with a variable: itself and its ancestors that have one, nearest first (the
-    /// composite-rigid-body pass walks these, not every fixed frame up to the base).
-    pub(crate) moving_ancestors: Vec<Vec<usize>>,
+    /// The composite-rigid-body pass's frame pairs and where each lands in `M`, flattened once.
+    pub(crate) crba: super::crba::Plan,
 }
 
 impl DynamicsModel {
@@ -64,20 +63,8 @@ impl DynamicsModel {
             })
             .collect();
         let terms: Vec<Vec<(usize, f64)>> = model.frames.iter().map(|f| f.variable().map(|v| v.joints().collect()).unwrap_or_default()).collect();
-        let moving_ancestors = (0..nf)
-            .map(|i| {
-                let mut up = Vec::new();
-                let mut cur = Some(i);
-                while let Some(j) = cur {
-                    if !terms[i].is_empty() && !terms[j].is_empty() {
-                        up.push(j);
-                    }
-                    cur = model.frames[j].parent;
-                }
-                up
-            })
-            .collect();
-        Ok(DynamicsModel { model_name: model.name.clone(), nq: model.nq(), nframes: nf, inertias, carries, kind, terms, moving_ancestors })
+        let crba = super::crba::Plan::new(model, &terms);
+        Ok(DynamicsModel { model_name: model.name.clone(), nq: model.nq(), nframes: nf, inertias, carries, kind, terms, crba })
     }
 
     /// The body inertias, in [`Model::bodies`] order.
