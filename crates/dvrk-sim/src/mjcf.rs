@@ -19,6 +19,11 @@
 //!   `ctrlrange` = the effort limit; the PID runs outside MuJoCo, as `control.rs` runs it outside
 //!   rapier. Joints the scene holds in position mode (setup joints) are also held by an
 //!   `<equality joint>` at home (`polycoef` 0: MuJoCo counts joint equalities from `ref`).
+//! - an arm whose scene turns on the gravity feed-forward (`gravity_compensation`) has
+//!   `gravcomp="1"` on its bodies: MuJoCo then applies the opposite of each body's weight, whose
+//!   generalised force is the feed-forward `g(q)` the dVRK controller adds to the PID (the same
+//!   virtual work through the loops). One difference: our drive clamps PID plus feed-forward at
+//!   the effort limit, MuJoCo clamps the PID alone; no built-in scene's feed-forward comes near it.
 //! - `<custom>` numerics `dvrk:ARM/joint` carry per actuated joint the drive map, gains, limits
 //!   and tracking-test sine ([`DRIVE_FIELDS`]), so a controller needs nothing but the file.
 //!
@@ -82,6 +87,8 @@ struct MjBody {
     inertia: [[f64; 3]; 3],
     joint: Option<TreeJoint>,
     sites: Vec<(String, Vector3<f64>)>,
+    /// Its arm's controller cancels gravity (the scene's `gravity_compensation`).
+    gravcomp: bool,
 }
 
 /// Everything but the bodies, as XML lines.
@@ -198,7 +205,8 @@ fn write_children(out: &mut String, bodies: &[MjBody], parent: Option<usize>, pa
         if v.iter().any(|x| !x.is_finite()) {
             return Err(SimError::Build(format!("body {}: non-finite home pose", b.name)));
         }
-        let _ = writeln!(out, "{pad}<body name=\"{}\" pos=\"{}\" quat=\"{}\">", esc(&b.name), nums(&v[..3]), nums(&v[3..]));
+        let gravcomp = if b.gravcomp { " gravcomp=\"1\"" } else { "" };
+        let _ = writeln!(out, "{pad}<body name=\"{}\" pos=\"{}\" quat=\"{}\"{gravcomp}>", esc(&b.name), nums(&v[..3]), nums(&v[3..]));
         let i3 = &strict_triangle(&b.inertia);
         let _ = writeln!(
             out,
@@ -302,7 +310,7 @@ fn add_arm(scene: &Scene, arm: &Arm, arm_bodies: &[Vec<usize>], bodies: &mut Vec
                 range: None,
             })
         });
-        bodies.push(MjBody { name: named(&b.name), parent, pose: body_pose[bi], mass: ine.mass, com: ine.com, inertia: ine.inertia, joint, sites: Vec::new() });
+        bodies.push(MjBody { name: named(&b.name), parent, pose: body_pose[bi], mass: ine.mass, com: ine.com, inertia: ine.inertia, joint, sites: Vec::new(), gravcomp: arm.gravity_compensation });
     }
     // Drives: the first tree joint that depends on the actuated joint alone (as Sim::new).
     let mut drives: Vec<(usize, f64, f64)> = Vec::with_capacity(model.nq()); // (body, c, b)

@@ -202,8 +202,9 @@ fn loop_free_alternative_runs() {
     assert!(s.max_closure_error < 5e-3, "{}", s.max_closure_error);
 }
 
-/// Gravity feed-forward (scene `gravity_compensation`): the ECM holding home under its PID sags
-/// by centimetres without it; with dvrk-kin's gravity torque added it holds to micrometres.
+/// Gravity feed-forward (scene `gravity_compensation`, on in ecm.toml): the ECM holding home
+/// under its PID alone sags by millimetres (5.0e-3 in 3 s with the tuned gains, where the
+/// integral has not yet caught up); with dvrk-kin's gravity torque added it holds to 3e-5.
 #[test]
 fn gravity_compensation_holds_the_ecm() {
     let hold = |compensate: bool| {
@@ -214,7 +215,7 @@ fn gravity_compensation_holds_the_ecm() {
     };
     let (without, with) = (hold(false), hold(true));
     println!("ECM hold, 3 s: largest joint error {without:.3e} without gravity compensation, {with:.3e} with");
-    assert!(without > 1e-2 && with < 1e-4, "{without} {with}");
+    assert!(without > 2e-3 && with < 1e-4 && without > 100.0 * with, "{without} {with}");
 }
 
 /// A run's ten windows tile it, and their largest closure gap and RCM distance are the run's:

@@ -71,7 +71,21 @@ pub fn gravity_torque(model: &Model, dm: &DynamicsModel, data: &mut DynamicsData
     check_gravity(gravity)?;
     check_out(tau, model.nq())?;
     placements_and_axes(model, dm, data, q);
-    rnea(model, dm, data, Rates::Zero, Rates::Zero, gravity);
+    // At rest every body accelerates as the base does (-g): its force is the opposite of its
+    // weight at its centre of mass, so no inertia tensor enters (Newton-Euler with zero rates,
+    // at a third of its cost: a controller's feed-forward runs this every step).
+    for (i, f) in data.f.iter_mut().enumerate() {
+        *f = match dm.carries[i] {
+            Some(b) => {
+                let ine = &dm.inertias[b];
+                let pose = &data.kin.frames[i];
+                let lin = -gravity * ine.mass;
+                Spatial { ang: (pose.translation.vector + pose.rotation * ine.com).cross(&lin), lin }
+            }
+            None => Spatial::zero(),
+        };
+    }
+    transmit(model, data);
     project(dm, &data.tau_phi, tau);
     Ok(())
 }
@@ -177,6 +191,12 @@ fn rnea_keeping(model: &Model, dm: &DynamicsModel, data: &mut DynamicsData, qd: 
             }
         };
     }
+    transmit(model, data);
+}
+
+/// The backward pass: each frame's force summed over its subtree, and its generalised force
+/// `s_i . f_i` into `data.tau_phi`.
+fn transmit(model: &Model, data: &mut DynamicsData) {
     for (i, f) in model.frames.iter().enumerate().rev() {
         data.tau_phi[i] = data.axis[i].dot(&data.f[i]);
         if let Some(p) = f.parent {
