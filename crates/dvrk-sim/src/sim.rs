@@ -165,11 +165,14 @@ impl Sim {
         act.target = position.clamp(lower, upper);
         act.target_velocity = velocity;
         // A coupling error: every drive's true target moves with this one.
-        let coupled = self.arms[a].effects.coupling.is_some();
-        for m in 0..self.arms[a].actuators.len() {
-            if (m == k || coupled) && self.arms[a].actuators[m].mode == Mode::Position {
-                self.apply_position_motor(a, m);
+        if self.arms[a].effects.coupling.is_some() {
+            for m in 0..self.arms[a].actuators.len() {
+                if self.arms[a].actuators[m].mode == Mode::Position {
+                    self.apply_position_motor(a, m);
+                }
             }
+        } else if self.arms[a].actuators[k].mode == Mode::Position {
+            self.apply_position_motor(a, k);
         }
         Ok(())
     }
