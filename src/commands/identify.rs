@@ -97,7 +97,7 @@ pub fn run(args: &IdentifyArgs) -> Result<()> {
     let mut staged = Vec::new();
     if let Some(o) = &args.output {
         let recording = args.recording.display().to_string();
-        let identified = output::identified_model(&model, id, &options.processing, &rec.to_joint, &inertias, &recording)?;
+        let identified = output::identified_model(&model, id, &options.processing, &rec.joint_map(), &inertias, &recording)?;
         let text = output::output_toml(&identified, &recording)?;
         summary["not_expressed_as_effects"] = serde_json::json!(identified.not_expressed);
         staged.push(crate::io::stage(o, text.as_bytes()).with_context(|| format!("-o {}", o.display()))?);

@@ -5,7 +5,7 @@
 //! Prints the fit on `one`, the two-fold cross-validation within `one` (the figure settings are
 //! chosen by) and the held-out error on `two`.
 use dvrk_calib::identify::problem::EffectTerm;
-use dvrk_calib::identify::{identify, read_wpi_csv, IdentifyOptions, TorqueRecording};
+use dvrk_calib::identify::{identify, read_wpi_csv, IdentifyOptions, JointLog};
 use std::path::Path;
 
 fn list(var: &str) -> Option<Vec<f64>> {
@@ -74,7 +74,7 @@ fn main() {
     let (id, _) = identify(&model, &ine, &one, &o).unwrap();
     let (v, _) = id.validate(&model, &two, &o).unwrap();
     let h = one.len() / 2;
-    let halves: [(TorqueRecording, TorqueRecording); 2] = [(one.slice(0..h), one.slice(h..one.len())), (one.slice(h..one.len()), one.slice(0..h))];
+    let halves: [(JointLog, JointLog); 2] = [(one.slice(0..h), one.slice(h..one.len())), (one.slice(h..one.len()), one.slice(0..h))];
     let mut cv = [0.0; 7];
     for (a, b) in &halves {
         let (ida, _) = identify(&model, &ine, a, &o).unwrap();

@@ -16,7 +16,7 @@ fn main() {
     let options = IdentifyOptions::for_model(&model);
     let (id, _) = identify(&model, &prior, &one, &options).unwrap();
     let base = dvrk_sim::Scene::load("psm").unwrap();
-    let identified = identified_model(&model, &id, &options.processing, &one.to_joint, &prior, "one").unwrap();
+    let identified = identified_model(&model, &id, &options.processing, &one.joint_map(), &prior, "one").unwrap();
     let scene = identified_scene(&base, 0, &identified).unwrap();
     let mut cad_sweeps = base.clone();
     cad_sweeps.arms[0].pgs_iterations = Some(IDENTIFIED_PGS_ITERATIONS);

@@ -79,7 +79,7 @@ mod tests {
             setpoint: vec![q.clone(); n],
             position: vec![q.clone(); n],
             effort: vec![vec![0.0; q.len()]; n],
-            markers: None,
+            ..JointLog::default()
         }
     }
 

@@ -3,7 +3,7 @@
 //! and, when given, on a held-out one.
 
 use super::problem::{EffectTerm, Processing};
-use super::{identify, Identification, IdentifyOptions, TorqueRecording};
+use super::{identify, Identification, IdentifyOptions, JointLog};
 use crate::error::Result;
 use dvrk_kin::{BodyInertia, Model};
 use serde::Serialize;
@@ -89,8 +89,8 @@ pub fn steps(options: &IdentifyOptions) -> Vec<(String, IdentifyOptions)> {
 pub fn ablation(
     model: &Model,
     prior: &[BodyInertia],
-    rec: &TorqueRecording,
-    held_out: Option<&TorqueRecording>,
+    rec: &JointLog,
+    held_out: Option<&JointLog>,
     options: &IdentifyOptions,
     chosen: Option<&Identification>,
 ) -> Result<Vec<AblationRow>> {

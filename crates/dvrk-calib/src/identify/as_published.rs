@@ -9,7 +9,7 @@
 //! against their published 0.134. So a comparison with their numbers takes this protocol.
 
 use crate::filter::Butterworth;
-use super::TorqueRecording;
+use super::JointLog;
 use serde::Serialize;
 
 /// The protocol's settings.
@@ -51,13 +51,13 @@ pub struct AsPublished {
 
 /// The shortest lag (samples, at least one second and at most half the recording) at which the
 /// recorded positions repeat within `tolerance`: the first local minimum of the mismatch below it.
-pub fn fundamental_period(rec: &TorqueRecording, rate: f64, tolerance: f64) -> Option<usize> {
+pub fn fundamental_period(rec: &JointLog, rate: f64, tolerance: f64) -> Option<usize> {
     let n = rec.len();
-    let scaled: Vec<Vec<f64>> = (0..rec.channels.len())
+    let scaled: Vec<Vec<f64>> = (0..rec.names.len())
         .filter_map(|c| {
-            let mean = rec.q.iter().map(|q| q[c]).sum::<f64>() / n as f64;
-            let var = rec.q.iter().map(|q| (q[c] - mean).powi(2)).sum::<f64>() / n as f64;
-            (var > 1e-18).then(|| rec.q.iter().map(|q| (q[c] - mean) / var.sqrt()).collect())
+            let mean = rec.position.iter().map(|q| q[c]).sum::<f64>() / n as f64;
+            let var = rec.position.iter().map(|q| (q[c] - mean).powi(2)).sum::<f64>() / n as f64;
+            (var > 1e-18).then(|| rec.position.iter().map(|q| (q[c] - mean) / var.sqrt()).collect())
         })
         .collect();
     if scaled.is_empty() {
@@ -95,7 +95,7 @@ pub struct Window {
 /// The protocol's window on `rec` where predictions exist for samples `first..last` (the
 /// regression's rows); `None` when fewer than 10 samples are left or the cut-off is not below
 /// the Nyquist frequency.
-pub fn window(rec: &TorqueRecording, first: usize, last: usize, protocol: &Protocol) -> Option<Window> {
+pub fn window(rec: &JointLog, first: usize, last: usize, protocol: &Protocol) -> Option<Window> {
     let n = rec.len();
     let rate = rec.rate()?;
     let start = protocol.trim.max(first);
@@ -116,14 +116,14 @@ pub fn relative_error(tau: &[f64], pred: impl Fn(usize) -> f64, window: &Window,
 /// Per channel, [`relative_error`] of a regression's prediction `predicted` (`[channel][row]`,
 /// [`super::problem::Regression::predict`]) of `rec`, whose rows start `reg_trim` samples into
 /// the recording (`Processing::trim`).
-pub fn relative_errors(predicted: &[Vec<f64>], rec: &TorqueRecording, reg_trim: usize, protocol: &Protocol) -> Option<AsPublished> {
+pub fn relative_errors(predicted: &[Vec<f64>], rec: &JointLog, reg_trim: usize, protocol: &Protocol) -> Option<AsPublished> {
     let rows = predicted.first().map_or(0, |t| t.len());
     let w = window(rec, reg_trim, reg_trim + rows, protocol)?;
     let relative_error = predicted
         .iter()
         .enumerate()
         .map(|(c, pred)| {
-            let tau: Vec<f64> = rec.tau.iter().map(|t| t[c]).collect();
+            let tau: Vec<f64> = rec.effort.iter().map(|t| t[c]).collect();
             relative_error(&tau, |i| pred[i - reg_trim], &w, protocol)
         })
         .collect();
@@ -140,13 +140,12 @@ pub fn relative_errors(predicted: &[Vec<f64>], rec: &TorqueRecording, reg_trim: 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use nalgebra::DMatrix;
     use std::f64::consts::PI;
 
-    fn recording(q: impl Fn(f64) -> [f64; 2], seconds: f64) -> TorqueRecording {
+    fn recording(q: impl Fn(f64) -> [f64; 2], seconds: f64) -> JointLog {
         let t: Vec<f64> = (0..(seconds * 200.0) as usize).map(|i| i as f64 / 200.0).collect();
         let q: Vec<Vec<f64>> = t.iter().map(|&t| q(t).to_vec()).collect();
-        TorqueRecording { source: "test".into(), qd: q.clone(), tau: q.clone(), q, t, channels: vec!["a".into(), "b".into()], to_joint: DMatrix::identity(2, 2) }
+        JointLog { source: "test".into(), velocity: q.clone(), effort: q.clone(), position: q, t, names: vec!["a".into(), "b".into()], ..JointLog::default() }
     }
 
     /// A Fourier excitation of base frequency 0.25 Hz repeats every 4 s (800 samples), not at
@@ -174,7 +173,7 @@ mod tests {
         assert_eq!(window(&recording(|t| [t, t], 2.0), 0, 400, &p), None);
         // An efforts channel equal to its prediction (slow, well inside the pass band) has no error.
         let win = window(&rec, 0, 4000, &p).unwrap();
-        let tau: Vec<f64> = rec.q.iter().map(|q| q[0]).collect();
+        let tau: Vec<f64> = rec.position.iter().map(|q| q[0]).collect();
         assert!(relative_error(&tau, |i| tau[i], &win, &p) < 1e-4);
         assert!((relative_error(&tau, |i| 0.9 * tau[i], &win, &p) - 0.1).abs() < 1e-4);
     }

@@ -25,7 +25,7 @@ use dvrk_kin::dynamics::PARAMETERS_PER_BODY;
 use dvrk_kin::{BodyInertia, Model};
 use nalgebra::{DMatrix, DVector, SymmetricEigen};
 use problem::{EffectTerm, Layout, Param, Processing, Regression, Terms};
-pub use crate::recordings::{read_wpi_csv, TorqueRecording};
+pub use crate::recordings::{read_wpi_csv, JointLog};
 use serde::Serialize;
 
 /// What to identify and how.
@@ -301,11 +301,11 @@ fn residual_statistics(reg: &Regression, theta: &DVector<f64>) -> Result<Vec<(f6
 
 /// Identify `model`'s inertial parameters and effects from `rec`, starting from the CAD
 /// `prior` (one inertia per body, [`Model::bodies`] order).
-pub fn identify(model: &Model, prior: &[BodyInertia], rec: &TorqueRecording, options: &IdentifyOptions) -> Result<(Identification, Regression)> {
+pub fn identify(model: &Model, prior: &[BodyInertia], rec: &JointLog, options: &IdentifyOptions) -> Result<(Identification, Regression)> {
     if prior.len() != model.bodies.len() {
         return Err(CalibError::data("prior inertials", format!("{} bodies for model {}'s {}", prior.len(), model.name, model.bodies.len())));
     }
-    let nc = rec.channels.len();
+    let nc = rec.names.len();
     let layout = Layout::new(model, nc, &options.terms);
     let reg = problem::regression(model, rec, &layout, &options.processing)?;
     if reg.velocity_range.iter().all(|(lo, hi)| hi - lo < MIN_VELOCITY_RANGE) {
@@ -315,7 +315,7 @@ pub fn identify(model: &Model, prior: &[BodyInertia], rec: &TorqueRecording, opt
             format!("no excitation: no channel's velocity range exceeds {MIN_VELOCITY_RANGE} rad/s (m/s) (widest {widest:.2e}); nothing can be identified from a still arm"),
         ));
     }
-    let id = identify_regression(model, prior, &reg, layout, &rec.channels, options)?;
+    let id = identify_regression(model, prior, &reg, layout, &rec.names, options)?;
     Ok((id, reg))
 }
 
@@ -466,7 +466,7 @@ impl Identification {
 
     /// The regression of another recording of the same arm, built with the same processing, and
     /// this identification's prediction of it (`[channel][row]`, N·m, N).
-    pub fn predict(&self, model: &Model, rec: &TorqueRecording, options: &IdentifyOptions) -> Result<(Regression, Vec<Vec<f64>>)> {
+    pub fn predict(&self, model: &Model, rec: &JointLog, options: &IdentifyOptions) -> Result<(Regression, Vec<Vec<f64>>)> {
         let reg = problem::regression(model, rec, &self.layout, &options.processing)?;
         let predicted = reg.predict(&self.theta)?;
         Ok((reg, predicted))
@@ -475,14 +475,14 @@ impl Identification {
     /// Relative errors of this identification's parameters on another recording of the same
     /// arm (validation): against the efforts as recorded, and against them low-passed like the
     /// motion (the band the model is fitted in: the sensor noise above it not counted).
-    pub fn validate(&self, model: &Model, rec: &TorqueRecording, options: &IdentifyOptions) -> Result<(Vec<f64>, Vec<f64>)> {
+    pub fn validate(&self, model: &Model, rec: &JointLog, options: &IdentifyOptions) -> Result<(Vec<f64>, Vec<f64>)> {
         let (reg, predicted) = self.predict(model, rec, options)?;
         Ok((errors_against(&predicted, &reg.tau), errors_against(&predicted, &reg.tau_filtered)))
     }
 
     /// [`Identification::validate`], and the errors with the WPI authors' protocol
     /// ([`as_published`]; `None` for a recording too short for its window).
-    pub fn validate_all(&self, model: &Model, rec: &TorqueRecording, options: &IdentifyOptions) -> Result<(Vec<f64>, Vec<f64>, Option<as_published::AsPublished>)> {
+    pub fn validate_all(&self, model: &Model, rec: &JointLog, options: &IdentifyOptions) -> Result<(Vec<f64>, Vec<f64>, Option<as_published::AsPublished>)> {
         let (reg, predicted) = self.predict(model, rec, options)?;
         let published = as_published::relative_errors(&predicted, rec, options.processing.trim, &as_published::Protocol::default());
         Ok((errors_against(&predicted, &reg.tau), errors_against(&predicted, &reg.tau_filtered), published))

@@ -94,7 +94,7 @@ fn physical_body(id: &Identification, b: usize) -> Option<BodyInertia> {
 
 /// `model` with `id`'s inertials and effects. `prior` (one per body, [`Model::bodies`] order)
 /// fills in a degenerate body; `to_joint` is the recording's channel-to-joint map
-/// ([`super::TorqueRecording::to_joint`]); `recording` names the source.
+/// ([`super::JointLog::to_joint`]); `recording` names the source.
 pub fn identified_model(model: &Model, id: &Identification, processing: &Processing, to_joint: &DMatrix<f64>, prior: &[BodyInertia], recording: &str) -> Result<IdentifiedModel> {
     let (nq, nc) = (model.nq(), id.channels.len());
     if to_joint.nrows() != nq || to_joint.ncols() != nc || prior.len() != model.bodies.len() {

@@ -1,7 +1,7 @@
 //! `dvrk identify --plot`: per channel, the measured efforts (low-passed as the fit sees them)
 //! against the identified model's prediction over a recording (the validation one when given).
 
-use super::{Identification, IdentifyOptions, TorqueRecording};
+use super::{Identification, IdentifyOptions, JointLog};
 use crate::error::Result;
 use crate::plot::{file_label, Figure, Line, Panel, BLUE, ORANGE};
 use dvrk_kin::{JointType, Model};
@@ -10,7 +10,7 @@ use dvrk_kin::{JointType, Model};
 const MAX_POINTS: usize = 3000;
 
 /// The figure of `id`'s prediction of `rec` (named `source` in the title).
-pub fn figure(id: &Identification, model: &Model, rec: &TorqueRecording, options: &IdentifyOptions, source: &str) -> Result<Figure> {
+pub fn figure(id: &Identification, model: &Model, rec: &JointLog, options: &IdentifyOptions, source: &str) -> Result<Figure> {
     let (reg, predicted) = id.predict(model, rec, options)?;
     let in_band = super::errors_against(&predicted, &reg.tau_filtered);
     let trim = options.processing.trim;
@@ -21,7 +21,7 @@ pub fn figure(id: &Identification, model: &Model, rec: &TorqueRecording, options
         _ => "N·m",
     };
     let panels = rec
-        .channels
+        .names
         .iter()
         .enumerate()
         .map(|(c, name)| {

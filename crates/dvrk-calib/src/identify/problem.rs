@@ -3,7 +3,7 @@
 //! recording, built from dvrk-kin's closed-loop regressor mapped to the recorded channels.
 
 use crate::filter::{derivative, Butterworth2};
-use crate::recordings::torque_log::TorqueRecording;
+use crate::recordings::JointLog;
 use crate::error::{CalibError, Result};
 use dvrk_kin::dynamics::{PARAMETERS_PER_BODY, PARAMETER_NAMES};
 use dvrk_kin::{DynamicsData, DynamicsModel, Model};
@@ -412,8 +412,8 @@ impl RowSource {
 /// Build the regression of `rec` for `model`: filtered velocities, accelerations by
 /// differentiation, dvrk-kin's joint-space regressor mapped to the channels (`to_joint^T Y`),
 /// then the effect columns in channel coordinates.
-pub fn regression(model: &Model, rec: &TorqueRecording, layout: &Layout, processing: &Processing) -> Result<Regression> {
-    let nc = rec.channels.len();
+pub fn regression(model: &Model, rec: &JointLog, layout: &Layout, processing: &Processing) -> Result<Regression> {
+    let nc = rec.names.len();
     let n = rec.len();
     if n <= 2 * processing.trim + 10 {
         return Err(CalibError::data(&rec.source, format!("{n} samples; {} are trimmed at the ends for the filter", 2 * processing.trim)));
@@ -423,15 +423,15 @@ pub fn regression(model: &Model, rec: &TorqueRecording, layout: &Layout, process
     for c in 0..nc {
         let fc = processing.cutoff_of(c);
         if !(fc > 0.0 && fc < 0.45 * rate) {
-            return Err(CalibError::field("cutoff", format!("{fc} Hz (channel {}) is not in (0, {:.1}) Hz for a {rate:.1} Hz recording", rec.channels[c], 0.45 * rate)));
+            return Err(CalibError::field("cutoff", format!("{fc} Hz (channel {}) is not in (0, {:.1}) Hz for a {rate:.1} Hz recording", rec.names[c], 0.45 * rate)));
         }
         let vc = processing.coulomb_velocity_of(c);
         if !(vc > 0.0 && vc.is_finite()) {
-            return Err(CalibError::field("coulomb_velocity", format!("{vc} (channel {}) must be positive", rec.channels[c])));
+            return Err(CalibError::field("coulomb_velocity", format!("{vc} (channel {}) must be positive", rec.names[c])));
         }
         let sigma = processing.dahl_displacement_of(c);
         if !(sigma > 0.0 && sigma.is_finite()) {
-            return Err(CalibError::field("dahl_displacement", format!("{sigma} (channel {}) must be positive", rec.channels[c])));
+            return Err(CalibError::field("dahl_displacement", format!("{sigma} (channel {}) must be positive", rec.names[c])));
         }
     }
     // Each channel through its own cut-off: the insertion's effort carries real 10..20 Hz
@@ -441,19 +441,19 @@ pub fn regression(model: &Model, rec: &TorqueRecording, layout: &Layout, process
         let fc = processing.cutoff_of(c);
         Butterworth2::new(fc, rate).filtfilt(&column(m, c), (3.0 * rate / fc) as usize)
     };
-    let qd_f: Vec<Vec<f64>> = (0..nc).map(|c| filtered(&rec.qd, c)).collect();
+    let qd_f: Vec<Vec<f64>> = (0..nc).map(|c| filtered(&rec.velocity, c)).collect();
     let qdd_f: Vec<Vec<f64>> = qd_f.iter().map(|v| derivative(v, dt)).collect();
-    let tau_f: Vec<Vec<f64>> = (0..nc).map(|c| filtered(&rec.tau, c)).collect();
+    let tau_f: Vec<Vec<f64>> = (0..nc).map(|c| filtered(&rec.effort, c)).collect();
     // The presliding state along the recorded (unfiltered: encoder) positions, where asked for.
-    let dahl: Vec<Vec<f64>> = (0..nc).map(|c| if layout.params.contains(&Param::Effect { term: EffectTerm::Dahl, channel: c }) { dahl_state(&column(&rec.q, c), processing.dahl_displacement_of(c)) } else { Vec::new() }).collect();
+    let dahl: Vec<Vec<f64>> = (0..nc).map(|c| if layout.params.contains(&Param::Effect { term: EffectTerm::Dahl, channel: c }) { dahl_state(&column(&rec.position, c), processing.dahl_displacement_of(c)) } else { Vec::new() }).collect();
     let keep = processing.trim..n - processing.trim;
     let trimmed = |v: &Vec<f64>| v[keep.clone()].to_vec();
     let rows = RowSource {
         model: model.clone(),
         layout: layout.clone(),
         processing: processing.clone(),
-        to_joint: rec.to_joint.clone(),
-        q: (0..nc).map(|c| trimmed(&column(&rec.q, c))).collect(),
+        to_joint: rec.joint_map(),
+        q: (0..nc).map(|c| trimmed(&column(&rec.position, c))).collect(),
         qd: qd_f.iter().map(trimmed).collect(),
         qdd: qdd_f.iter().map(trimmed).collect(),
         dahl: dahl.iter().map(|d| if d.is_empty() { Vec::new() } else { trimmed(d) }).collect(),
@@ -461,7 +461,7 @@ pub fn regression(model: &Model, rec: &TorqueRecording, layout: &Layout, process
     let velocity_range = qd_f.iter().map(|v| v[keep.clone()].iter().fold((f64::MAX, f64::MIN), |(a, b), x| (a.min(*x), b.max(*x)))).collect();
     Ok(Regression {
         gram: std::sync::OnceLock::new(),
-        tau: (0..nc).map(|c| rec.tau[keep.clone()].iter().map(|r| r[c]).collect()).collect(),
+        tau: (0..nc).map(|c| rec.effort[keep.clone()].iter().map(|r| r[c]).collect()).collect(),
         tau_filtered: tau_f.iter().map(|v| v[keep.clone()].to_vec()).collect(),
         velocity_range,
         rows,
@@ -474,21 +474,21 @@ mod tests {
 
     /// A PSM moving every joint on its own sine for 1300 samples at 200 Hz (three blocks, the
     /// last partial), efforts arbitrary.
-    fn recording(model: &Model) -> TorqueRecording {
+    fn recording(model: &Model) -> JointLog {
         let nq = model.nq();
         let n = 2 * BLOCK_ROWS + 276;
         let t: Vec<f64> = (0..n).map(|i| i as f64 / 200.0).collect();
         let wave = |j: usize, t: f64| 0.2 * (1.0 + 0.3 * j as f64) * (t * (1.0 + 0.4 * j as f64)).sin();
         let dwave = |j: usize, t: f64| 0.2 * (1.0 + 0.3 * j as f64) * (1.0 + 0.4 * j as f64) * (t * (1.0 + 0.4 * j as f64)).cos();
         let mid = |j: usize| 0.5 * (model.joints[j].lower + model.joints[j].upper);
-        TorqueRecording {
+        JointLog {
             source: "sines".into(),
-            q: t.iter().map(|&s| (0..nq).map(|j| mid(j) + 0.1 * wave(j, s)).collect()).collect(),
-            qd: t.iter().map(|&s| (0..nq).map(|j| 0.1 * dwave(j, s)).collect()).collect(),
-            tau: t.iter().map(|&s| (0..nq).map(|j| (s * (j + 1) as f64).cos()).collect()).collect(),
-            channels: model.joints.iter().map(|j| j.name.clone()).collect(),
-            to_joint: DMatrix::identity(nq, nq),
+            position: t.iter().map(|&s| (0..nq).map(|j| mid(j) + 0.1 * wave(j, s)).collect()).collect(),
+            velocity: t.iter().map(|&s| (0..nq).map(|j| 0.1 * dwave(j, s)).collect()).collect(),
+            effort: t.iter().map(|&s| (0..nq).map(|j| (s * (j + 1) as f64).cos()).collect()).collect(),
+            names: model.joints.iter().map(|j| j.name.clone()).collect(),
             t,
+            ..JointLog::default()
         }
     }
 
@@ -496,7 +496,7 @@ mod tests {
     fn the_block_passes_agree_with_each_other_across_block_edges() {
         let model = dvrk_kin::load("psm", None).unwrap();
         let rec = recording(&model);
-        let layout = Layout::new(&model, rec.channels.len(), &Terms::default());
+        let layout = Layout::new(&model, rec.names.len(), &Terms::default());
         let reg = regression(&model, &rec, &layout, &Processing::default()).unwrap();
         assert_eq!(reg.len(), rec.len() - 2 * Processing::default().trim);
         let theta = DVector::from_fn(layout.len(), |i, _| ((i * 7919) % 101) as f64 / 101.0 - 0.5);

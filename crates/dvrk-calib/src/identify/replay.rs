@@ -20,7 +20,7 @@
 //! identified one for 30% of `two` (yaw RMS 0.126 rad against 0.007 rad unlocked).
 
 use super::output::IdentifiedModel;
-use crate::recordings::torque_log::TorqueRecording;
+use crate::recordings::JointLog;
 use crate::error::{CalibError, Result};
 use dvrk_kin::Model;
 use dvrk_sim::{Gains, Scene, Sim, SimOptions};
@@ -42,15 +42,15 @@ pub fn identified_scene(base: &Scene, arm: usize, identified: &IdentifiedModel) 
 /// Torque-driven replay of `rec` on arm `arm` of `scene` with feedback gains `feedback` times the
 /// scene's (kp, kd; no integral): per joint, the RMS of simulated minus recorded joint position
 /// (rad, m) over the recording, and its mean (the bias).
-pub fn torque_replay(scene: &Scene, arm: usize, rec: &TorqueRecording, feedback: f64) -> Result<(Vec<f64>, Vec<f64>)> {
-    let n = rec.channels.len();
-    let map = &rec.to_joint;
+pub fn torque_replay(scene: &Scene, arm: usize, rec: &JointLog, feedback: f64) -> Result<(Vec<f64>, Vec<f64>)> {
+    let n = rec.names.len();
+    let map = &rec.joint_map();
     let inv_t = map.clone().try_inverse().ok_or_else(|| CalibError::data(&rec.source, "the channel-to-joint map is singular"))?.transpose();
     let joints = |v: &[f64]| -> Vec<f64> { (0..n).map(|j| (0..n).map(|c| map[(j, c)] * v[c]).sum()).collect() };
     let efforts = |v: &[f64]| -> Vec<f64> { (0..n).map(|j| (0..n).map(|c| inv_t[(j, c)] * v[c]).sum()).collect() };
-    let q: Vec<Vec<f64>> = rec.q.iter().map(|r| joints(r)).collect();
-    let qd: Vec<Vec<f64>> = rec.qd.iter().map(|r| joints(r)).collect();
-    let tau: Vec<Vec<f64>> = rec.tau.iter().map(|r| efforts(r)).collect();
+    let q: Vec<Vec<f64>> = rec.position.iter().map(|r| joints(r)).collect();
+    let qd: Vec<Vec<f64>> = rec.velocity.iter().map(|r| joints(r)).collect();
+    let tau: Vec<Vec<f64>> = rec.effort.iter().map(|r| efforts(r)).collect();
     let mut scene = scene.clone();
     scene.set_start_recorded(arm, &q[0], dvrk_sim::scene::RECORDED_START_SLACK).map_err(|e| CalibError::context("torque replay", e))?;
     let options = SimOptions { engine: Some(dvrk_sim::Engine::Reduced), ..SimOptions::default() };

@@ -2,7 +2,7 @@
 //! identification, the rigid-body-only baseline, held-out validation (also as the WPI authors
 //! computed their published errors: [`super::as_published`]) and the ablation, as the JSON summary.
 
-use super::{ablation, identify, report, IdentifyOptions, Identification, TorqueRecording};
+use super::{ablation, identify, report, IdentifyOptions, Identification, JointLog};
 use crate::error::Result;
 use dvrk_kin::{BodyInertia, Model};
 use serde_json::{json, Value};
@@ -21,13 +21,13 @@ pub struct IdentifyRun {
 
 /// Identify `model` from `rec` (named `recording` in the report, format `format`), starting at
 /// the CAD `prior`; with `held_out`, validate on it.
-pub fn run(model: &Model, prior: &[BodyInertia], rec: &TorqueRecording, held_out: Option<&TorqueRecording>, options: &IdentifyOptions, recording: &str, format: &str) -> Result<IdentifyRun> {
+pub fn run(model: &Model, prior: &[BodyInertia], rec: &JointLog, held_out: Option<&JointLog>, options: &IdentifyOptions, recording: &str, format: &str) -> Result<IdentifyRun> {
     run_with(model, prior, rec, held_out, options, recording, format, &mut |_| {})
 }
 
 /// [`run`], telling `progress` what it is doing.
 #[allow(clippy::too_many_arguments)]
-pub fn run_with(model: &Model, prior: &[BodyInertia], rec: &TorqueRecording, held_out: Option<&TorqueRecording>, options: &IdentifyOptions, recording: &str, format: &str, progress: &mut dyn FnMut(&str)) -> Result<IdentifyRun> {
+pub fn run_with(model: &Model, prior: &[BodyInertia], rec: &JointLog, held_out: Option<&JointLog>, options: &IdentifyOptions, recording: &str, format: &str, progress: &mut dyn FnMut(&str)) -> Result<IdentifyRun> {
     progress("identifying (regression, cutting planes)");
     let (id, _) = identify(model, prior, rec, options)?;
     let rigid_options = options.rigid_only();

@@ -1,20 +1,31 @@
-//! A joint log with efforts: what the discrepancy workflow reads from a recording (the arm's
-//! `setpoint_js` and `measured_js`, positions and efforts), and what `dvrk synth hidden-effect`
-//! writes. The MCAP reader of [`crate::recordings::mcap_io`] keeps positions only; this one keeps efforts.
+//! The joint log: one arm's recorded joints, with efforts, as every product reads it
+//! (identification fits its channels, the discrepancy workflow analyses it in the model's joints,
+//! `dvrk synth hidden-effect` writes it). The readers: the WPI CSV ([`super::torque_log`]), the
+//! dVRK's topics in MCAP files and ROS 1 bags ([`read_mcap`] here; identification's own
+//! measured-only reader in [`super::torque_log`]), the plain CSV layout ([`super::joint_log_csv`]).
 
 use crate::error::{CalibError, Result};
 use crate::ros_msgs::{self, Header, JointState};
 use dvrk_sim::recording::mcap_out::{ros2_schema, McapOut};
+use nalgebra::{DMatrix, DVector};
 use std::io::Cursor;
 use std::path::Path;
 
 /// The note when the file has no setpoint columns.
 pub const NO_SETPOINTS: &str = "no setpoint columns: the encoder positions stand in for the setpoints (the tracking channel then replays the recording's own motion)";
 
-/// Setpoints and measurements of one arm, on one clock.
+/// Setpoints and measurements of one arm's recorded channels, on one clock.
+///
+/// The channels are the model's joints unless [`JointLog::to_joint`] says otherwise (the WPI
+/// recordings hold the tool's actuators); [`JointLog::in_joint_space`] takes such a log to the
+/// joints.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct JointLog {
-    /// Joint names (the arm's, in its order).
+    /// Where it was read from (the file), for messages and reports: identification's readers
+    /// ([`super::torque_log`]) set it; empty otherwise.
+    pub source: String,
+    /// Channel names (the arm's joints, in the recording's order; `wrist_pitch actuator` for an
+    /// actuator channel).
     pub names: Vec<String>,
     /// Sample times (s), strictly increasing.
     pub t: Vec<f64>,
@@ -22,8 +33,13 @@ pub struct JointLog {
     pub setpoint: Vec<Vec<f64>>,
     /// Measured positions (encoders) per sample (rad, m).
     pub position: Vec<Vec<f64>>,
+    /// Measured velocities per sample (rad/s, m/s); empty when the reader kept none.
+    pub velocity: Vec<Vec<f64>>,
     /// Measured efforts per sample (N·m, N).
     pub effort: Vec<Vec<f64>>,
+    /// Model joints = `to_joint` * channels, for positions and velocities; channel efforts =
+    /// `to_joint^T` * joint efforts (virtual work). `None`: the channels are the model's joints.
+    pub to_joint: Option<DMatrix<f64>>,
     /// A tracker's poses of a marker on one link (the kinematic channel), when recorded.
     pub markers: Option<super::marker_log::MarkerLog>,
 }
@@ -52,6 +68,56 @@ impl JointLog {
         }
         (self.t[self.t.len() - 1] - self.t[0]) / (self.t.len() - 1) as f64
     }
+
+    /// Mean sample rate (Hz) over the recording; `None` with fewer than two samples or a time
+    /// span that is not positive.
+    pub fn rate(&self) -> Option<f64> {
+        let n = self.len();
+        (n >= 2 && self.t[n - 1] > self.t[0]).then(|| (n - 1) as f64 / (self.t[n - 1] - self.t[0]))
+    }
+
+    /// The channel-to-joint map ([`JointLog::to_joint`]), the identity when the channels are the
+    /// model's joints.
+    pub fn joint_map(&self) -> DMatrix<f64> {
+        self.to_joint.clone().unwrap_or_else(|| DMatrix::identity(self.names.len(), self.names.len()))
+    }
+
+    /// Samples `range` as a recording of its own (for cross-validation: choose settings on
+    /// one half, judge them on the other).
+    pub fn slice(&self, range: std::ops::Range<usize>) -> JointLog {
+        let part = |v: &Vec<Vec<f64>>| if v.is_empty() { Vec::new() } else { v[range.clone()].to_vec() };
+        JointLog {
+            source: format!("{}[{}..{}]", self.source, range.start, range.end),
+            names: self.names.clone(),
+            t: self.t[range.clone()].to_vec(),
+            setpoint: part(&self.setpoint),
+            position: part(&self.position),
+            velocity: part(&self.velocity),
+            effort: part(&self.effort),
+            to_joint: self.to_joint.clone(),
+            markers: None,
+        }
+    }
+
+    /// The log in `model`'s joints: positions, setpoints and velocities through `to_joint`,
+    /// efforts through its transpose's inverse (virtual work). A log already in the joints is
+    /// returned as it is. An error if the map is singular (`path` names the file).
+    pub fn in_joint_space(self, model: &dvrk_kin::Model, path: &Path) -> Result<JointLog> {
+        let Some(to_joint) = self.to_joint.clone() else { return Ok(self) };
+        let effort_map =
+            to_joint.transpose().try_inverse().ok_or_else(|| CalibError::data(path.display().to_string(), "the tool coupling is singular: actuator efforts cannot be taken to joint space"))?;
+        let map = |m: &DMatrix<f64>, v: &[f64]| -> Vec<f64> { (m * DVector::from_column_slice(v)).iter().copied().collect() };
+        let maps = |m: &DMatrix<f64>, rows: &[Vec<f64>]| -> Vec<Vec<f64>> { rows.iter().map(|v| if v.is_empty() { Vec::new() } else { map(m, v) }).collect() };
+        Ok(JointLog {
+            names: model.joints.iter().map(|j| j.name.clone()).collect(),
+            setpoint: maps(&to_joint, &self.setpoint),
+            position: maps(&to_joint, &self.position),
+            velocity: maps(&to_joint, &self.velocity),
+            effort: maps(&effort_map, &self.effort),
+            to_joint: None,
+            ..self
+        })
+    }
 }
 
 /// A wpi-csv recording (`dvrk identify`'s reader) as a joint log of `model`'s joints: the tool's
@@ -59,19 +125,10 @@ impl JointLog {
 /// transpose's inverse, by virtual work). It has no setpoints: the encoders stand in for them
 /// (the tracking channel then compares the replay with the recording itself).
 pub fn read_wpi_csv(path: &Path, model: &dvrk_kin::Model) -> Result<JointLog> {
-    let rec = super::torque_log::read_wpi_csv(path, model)?;
-    let to_joint = &rec.to_joint;
-    let effort_map =
-        to_joint.transpose().try_inverse().ok_or_else(|| CalibError::data(path.display().to_string(), "the tool coupling is singular: actuator efforts cannot be taken to joint space"))?;
-    let mut log = JointLog { names: model.joints.iter().map(|j| j.name.clone()).collect(), ..Default::default() };
-    for i in 0..rec.len() {
-        let q = to_joint * nalgebra::DVector::from_column_slice(&rec.q[i]);
-        let tau = &effort_map * nalgebra::DVector::from_column_slice(&rec.tau[i]);
-        log.t.push(rec.t[i]);
-        log.position.push(q.iter().copied().collect());
-        log.setpoint.push(q.iter().copied().collect());
-        log.effort.push(tau.iter().copied().collect());
-    }
+    let mut log = super::torque_log::read_wpi_csv(path, model)?.in_joint_space(model, path)?;
+    log.setpoint = log.position.clone();
+    // The discrepancy workflow differentiates the positions itself.
+    log.velocity = Vec::new();
     Ok(log)
 }
 

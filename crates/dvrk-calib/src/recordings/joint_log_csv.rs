@@ -218,7 +218,7 @@ mod tests {
             setpoint: (0..3).map(|i| row(i, 0.1)).collect(),
             position: (0..3).map(|i| row(i, -0.2)).collect(),
             effort: (0..3).map(|i| row(i, 7.0)).collect(),
-            markers: None,
+            ..JointLog::default()
         }
     }
 

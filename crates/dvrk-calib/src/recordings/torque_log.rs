@@ -1,5 +1,5 @@
-//! Joint recordings with efforts, for identification: positions, velocities and efforts of every
-//! channel, and the map from the recorded channels to the model's joints.
+//! Joint logs with efforts as identification reads them ([`super::JointLog`] in the recorded
+//! channels, with velocities and the map from the channels to the model's joints).
 //!
 //! `wpi-csv` (WPI-AIM/dvrk_dynamics_identification's `*_results.csv`): no header, 21 columns
 //! q(7) qd(7) tau(7) at 200 Hz; channels 5..7 (wrist pitch, wrist yaw, jaw) are the tool's
@@ -8,73 +8,20 @@
 
 use crate::error::{CalibError, Result};
 use dvrk_kin::Model;
-use nalgebra::DMatrix;
+use super::JointLog;
 use std::path::Path;
 
 /// Sample rate of the wpi-csv recordings (Hz).
 pub const WPI_RATE: f64 = 200.0;
 
-/// A recording of joint motion and efforts.
-#[derive(Debug, Clone)]
-pub struct TorqueRecording {
-    /// The file, for messages and reports.
-    pub source: String,
-    /// Sample times (s).
-    pub t: Vec<f64>,
-    /// Recorded positions per sample, one per channel (rad, m).
-    pub q: Vec<Vec<f64>>,
-    /// Recorded velocities (rad/s, m/s).
-    pub qd: Vec<Vec<f64>>,
-    /// Recorded efforts (N·m, N).
-    pub tau: Vec<Vec<f64>>,
-    /// Channel names (the model's joint names; `wrist_pitch actuator` for actuator channels).
-    pub channels: Vec<String>,
-    /// Model joints = `to_joint` * channels, for positions and velocities; channel efforts =
-    /// `to_joint^T` * joint efforts (virtual work).
-    pub to_joint: DMatrix<f64>,
-}
-
-impl TorqueRecording {
-    /// Number of samples.
-    pub fn len(&self) -> usize {
-        self.t.len()
-    }
-
-    /// True when there are no samples.
-    pub fn is_empty(&self) -> bool {
-        self.t.is_empty()
-    }
-
-    /// Mean sample rate (Hz) over the recording; `None` with fewer than two samples or a time
-    /// span that is not positive.
-    pub fn rate(&self) -> Option<f64> {
-        let n = self.len();
-        (n >= 2 && self.t[n - 1] > self.t[0]).then(|| (n - 1) as f64 / (self.t[n - 1] - self.t[0]))
-    }
-
-    /// Samples `range` as a recording of its own (for cross-validation: choose settings on
-    /// one half, judge them on the other).
-    pub fn slice(&self, range: std::ops::Range<usize>) -> TorqueRecording {
-        TorqueRecording {
-            source: format!("{}[{}..{}]", self.source, range.start, range.end),
-            t: self.t[range.clone()].to_vec(),
-            q: self.q[range.clone()].to_vec(),
-            qd: self.qd[range.clone()].to_vec(),
-            tau: self.tau[range].to_vec(),
-            channels: self.channels.clone(),
-            to_joint: self.to_joint.clone(),
-        }
-    }
-}
-
 /// Read a wpi-csv recording for `model` (which must have 7 joints and a tool coupling).
-pub fn read_wpi_csv(path: &Path, model: &Model) -> Result<TorqueRecording> {
+pub fn read_wpi_csv(path: &Path, model: &Model) -> Result<JointLog> {
     let text = std::fs::read_to_string(path).map_err(|e| CalibError::file(path, format!("cannot read: {e}")))?;
     parse_wpi_csv(&text, path, model)
 }
 
 /// Parse the text of a wpi-csv recording (see [`read_wpi_csv`]).
-pub fn parse_wpi_csv(text: &str, path: &Path, model: &Model) -> Result<TorqueRecording> {
+pub fn parse_wpi_csv(text: &str, path: &Path, model: &Model) -> Result<JointLog> {
     let n = model.nq();
     if n != 7 {
         return Err(CalibError::file(path, format!("wpi-csv holds a PSM's 7 joints; model `{}` has {n}", model.name)));
@@ -86,14 +33,11 @@ pub fn parse_wpi_csv(text: &str, path: &Path, model: &Model) -> Result<TorqueRec
         to_joint[(3, k)] = if k == 3 { 1.0 } else { 0.0 };
         to_joint[(k, 3)] = if k == 3 { 1.0 } else { 0.0 };
     }
-    let mut rec = TorqueRecording {
+    let mut rec = JointLog {
         source: path.display().to_string(),
-        t: Vec::new(),
-        q: Vec::new(),
-        qd: Vec::new(),
-        tau: Vec::new(),
-        channels: model.joints.iter().enumerate().map(|(k, j)| if k >= 4 { format!("{} actuator", j.name) } else { j.name.clone() }).collect(),
-        to_joint,
+        names: model.joints.iter().enumerate().map(|(k, j)| if k >= 4 { format!("{} actuator", j.name) } else { j.name.clone() }).collect(),
+        to_joint: Some(to_joint),
+        ..JointLog::default()
     };
     for (line, row) in text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty()) {
         let cells: Vec<&str> = row.split(',').collect();
@@ -109,9 +53,9 @@ pub fn parse_wpi_csv(text: &str, path: &Path, model: &Model) -> Result<TorqueRec
             v.push(x);
         }
         rec.t.push(rec.t.len() as f64 / WPI_RATE);
-        rec.q.push(v[..n].to_vec());
-        rec.qd.push(v[n..2 * n].to_vec());
-        rec.tau.push(v[2 * n..].to_vec());
+        rec.position.push(v[..n].to_vec());
+        rec.velocity.push(v[n..2 * n].to_vec());
+        rec.effort.push(v[2 * n..].to_vec());
     }
     if rec.len() < 100 {
         return Err(CalibError::file(path, format!("{} samples; identification needs at least 100", rec.len())));
@@ -125,7 +69,7 @@ pub fn parse_wpi_csv(text: &str, path: &Path, model: &Model) -> Result<TorqueRec
 /// matched by name (every model joint must be there), velocities from the messages where they
 /// carry them, else by central differences of the positions. The channels are the model's
 /// joints. With what the reader did (notes for the report).
-pub fn read_mcap_joint_states(path: &Path, model: &Model, arm: &str) -> Result<(TorqueRecording, Vec<String>)> {
+pub fn read_mcap_joint_states(path: &Path, model: &Model, arm: &str) -> Result<(JointLog, Vec<String>)> {
     let mut states = crate::recordings::joint_states::read_arm(path, arm, &["measured_js"])?;
     let topic = format!("/{arm}/measured_js");
     let Some(js) = states.kinds.remove("measured_js") else {
@@ -142,14 +86,14 @@ pub fn read_mcap_joint_states(path: &Path, model: &Model, arm: &str) -> Result<(
     if m < 100 {
         return Err(CalibError::file(path, format!("{source}: {m} messages; identification needs at least 100")));
     }
-    let mut rec = TorqueRecording {
+    let mut rec = JointLog {
         source: path.display().to_string(),
         t: js.t.clone(),
-        q: Vec::with_capacity(m),
-        qd: Vec::with_capacity(m),
-        tau: Vec::with_capacity(m),
-        channels: model.joints.iter().map(|j| j.name.clone()).collect(),
-        to_joint: DMatrix::identity(n, n),
+        position: Vec::with_capacity(m),
+        velocity: Vec::with_capacity(m),
+        effort: Vec::with_capacity(m),
+        names: model.joints.iter().map(|j| j.name.clone()).collect(),
+        ..JointLog::default()
     };
     for i in 0..m {
         if js.effort[i].len() != js.names.len() {
@@ -160,17 +104,17 @@ pub fn read_mcap_joint_states(path: &Path, model: &Model, arm: &str) -> Result<(
         if let Some(x) = q.iter().chain(&tau).find(|x| !x.is_finite()) {
             return Err(CalibError::file(path, format!("{source} at t = {} s: {x} is not finite", js.t[i])));
         }
-        rec.q.push(q);
-        rec.tau.push(tau);
+        rec.position.push(q);
+        rec.effort.push(tau);
     }
     for i in 0..m {
         let qd = if js.velocity[i].len() == js.names.len() {
             index.iter().map(|&k| js.velocity[i][k]).collect()
         } else {
             let (a, b) = (i.saturating_sub(1), (i + 1).min(m - 1));
-            (0..n).map(|k| (rec.q[b][k] - rec.q[a][k]) / (rec.t[b] - rec.t[a])).collect()
+            (0..n).map(|k| (rec.position[b][k] - rec.position[a][k]) / (rec.t[b] - rec.t[a])).collect()
         };
-        rec.qd.push(qd);
+        rec.velocity.push(qd);
     }
     Ok((rec, states.notes))
 }
@@ -178,7 +122,7 @@ pub fn read_mcap_joint_states(path: &Path, model: &Model, arm: &str) -> Result<(
 /// Read the recording `path` in `format` (`auto`: told from the file, see
 /// [`crate::recordings::format`]; `wpi-csv`, `mcap` or `bag`) for `model`, the arm `arm` for
 /// MCAP and bags; with what the reader did (notes for the report).
-pub fn read_joint_recording(path: &Path, format: &str, model: &Model, arm: &str) -> Result<(TorqueRecording, Vec<String>)> {
+pub fn read_joint_recording(path: &Path, format: &str, model: &Model, arm: &str) -> Result<(JointLog, Vec<String>)> {
     let resolved = crate::recordings::format::resolve(path, format)?;
     let (rec, mut notes) = match resolved {
         "wpi-csv" => (read_wpi_csv(path, model)?, Vec::new()),
@@ -192,7 +136,8 @@ pub fn read_joint_recording(path: &Path, format: &str, model: &Model, arm: &str)
     };
     notes.splice(0..0, crate::recordings::format::auto_note(path, format, resolved));
     // Measured data past the model's limits is fitted as measured, and said.
-    let joints = rec.q.iter().map(|q| &rec.to_joint * nalgebra::DVector::from_column_slice(q));
+    let to_joint = rec.joint_map();
+    let joints = rec.position.iter().map(|q| &to_joint * nalgebra::DVector::from_column_slice(q));
     notes.extend(dvrk_kin::LimitTally::of(model, joints).summary(model).map(|s| format!("{}: {s}", path.display())));
     Ok((rec, notes))
 }

@@ -670,7 +670,7 @@ fn payload_anywhere_table() {
             let prior = dvrk_sim::scene::builtin_inertials("psm", &psm).unwrap().body_inertias(&psm).unwrap();
             let options = IdentifyOptions::full(Vec::new());
             let (id, _) = identify(&psm, &prior, &rec, &options).unwrap();
-            dvrk_kin::Model::compile(identified_model(&psm, &id, &options.processing, &rec.to_joint, &prior, "effect-free").unwrap().spec).unwrap()
+            dvrk_kin::Model::compile(identified_model(&psm, &id, &options.processing, &rec.joint_map(), &prior, "effect-free").unwrap().spec).unwrap()
         };
         let r = discrepancy(&model, &scene, "PSM1", &h.log, &Options { tracking: false, ..Default::default() }).unwrap().report;
         let truth = &h.answer.effects[0].spec;

@@ -50,12 +50,12 @@ fn one_topic_crtk_layout_and_bags_read_the_same() {
     assert_eq!(base.len(), 2400);
     for name in ["dvrk.mcap", "dvrk.bag", "dvrk_bz2.bag", "dvrk_lz4.bag"] {
         let (rec, notes) = read_joint_recording(&file(dir, name), "auto", &psm, "PSM1").unwrap();
-        assert_eq!((&rec.t, &rec.q, &rec.qd, &rec.tau), (&base.t, &base.q, &base.qd, &base.tau), "{name}");
+        assert_eq!((&rec.t, &rec.position, &rec.velocity, &rec.effort), (&base.t, &base.position, &base.velocity, &base.effort), "{name}");
         let told = if name.ends_with(".bag") { "read as bag" } else { "read as mcap" };
         assert!(notes.iter().any(|n| n.contains(told)), "{name}: {notes:?}");
     }
     // The jaw (joint 7) came from its own topic: the real recording's jaw moves.
-    let jaw: Vec<f64> = base.q.iter().map(|q| q[6]).collect();
+    let jaw: Vec<f64> = base.position.iter().map(|q| q[6]).collect();
     let span = jaw.iter().cloned().fold(f64::MIN, f64::max) - jaw.iter().cloned().fold(f64::MAX, f64::min);
     assert!(span > 0.1, "jaw span {span} rad");
     let (one, _) = joint_log::read_mcap(&file(dir, "one_topic.mcap"), "PSM1").unwrap();

@@ -21,8 +21,8 @@ pub(crate) fn wpi(file: &str) -> Option<PathBuf> {
 struct Fitted {
     model: dvrk_kin::Model,
     prior: Vec<dvrk_kin::BodyInertia>,
-    r1: dvrk_calib::identify::TorqueRecording,
-    r2: dvrk_calib::identify::TorqueRecording,
+    r1: dvrk_calib::identify::JointLog,
+    r2: dvrk_calib::identify::JointLog,
     options: IdentifyOptions,
     id: dvrk_calib::identify::Identification,
 }
@@ -121,7 +121,7 @@ fn the_authors_protocol_reproduces_their_published_roll_error_from_their_paramet
     let p: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(params).unwrap()).unwrap();
     let k = |name: &str| p["10"][name].as_f64().unwrap();
     let roll = |x: &[Vec<f64>]| x.iter().map(|v| v[3]).collect::<Vec<f64>>();
-    let (q, qd, tau) = (roll(&rec.q), roll(&rec.qd), roll(&rec.tau));
+    let (q, qd, tau) = (roll(&rec.position), roll(&rec.velocity), roll(&rec.effort));
     let f = Butterworth::new(protocol.order, protocol.cutoff_hz, w.rate);
     let pad = 40;
     let (qf, qdf, qddf) = (f.filtfilt(&q, pad), f.filtfilt(&qd, pad), f.filtfilt(&derivative(&qd, 1.0 / w.rate), pad));
@@ -138,13 +138,13 @@ fn the_authors_protocol_reproduces_their_published_roll_error_from_their_paramet
 /// A small-part prior names a body the model has, with a positive size.
 #[test]
 fn a_small_part_prior_on_an_unknown_body_or_of_no_size_is_refused() {
-    use dvrk_calib::identify::{SmallBody, TorqueRecording};
+    use dvrk_calib::identify::{SmallBody, JointLog};
     let model = psm();
     let prior = dvrk_sim::scene::builtin_inertials("psm", &model).unwrap().body_inertias(&model).unwrap();
     let t: Vec<f64> = (0..400).map(|i| i as f64 / 200.0).collect();
     let q: Vec<Vec<f64>> = t.iter().map(|t| (0..7).map(|j| 0.2 * (t * (1.0 + j as f64)).sin() + if j == 2 { 0.12 } else { 0.0 }).collect()).collect();
     let qd: Vec<Vec<f64>> = t.iter().map(|t| (0..7).map(|j| 0.2 * (1.0 + j as f64) * (t * (1.0 + j as f64)).cos()).collect()).collect();
-    let rec = TorqueRecording { source: "r.csv".into(), tau: qd.clone(), q, qd, t, channels: model.joints.iter().map(|j| j.name.clone()).collect(), to_joint: nalgebra::DMatrix::identity(7, 7) };
+    let rec = JointLog { source: "r.csv".into(), effort: qd.clone(), position: q, velocity: qd, t, names: model.joints.iter().map(|j| j.name.clone()).collect(), ..JointLog::default() };
     let mut options = IdentifyOptions::psm();
     options.small_bodies.push(SmallBody { name: "tool_shaft".into(), mass_kg: 0.002, radius_m: 0.01 });
     let e = identify(&model, &prior, &rec, &options).unwrap_err().to_string();
@@ -189,7 +189,7 @@ fn identified_model_replays_the_held_out_efforts_closer_than_cad() {
     use dvrk_calib::identify::replay::{identified_scene, torque_replay, IDENTIFIED_PGS_ITERATIONS};
     let Some(Fitted { model, prior, r1, r2, options, id }) = fitted_on_one() else { return };
     let base = dvrk_sim::Scene::load("psm").unwrap();
-    let identified = identified_model(&model, &id, &options.processing, &r1.to_joint, &prior, "one").unwrap();
+    let identified = identified_model(&model, &id, &options.processing, &r1.joint_map(), &prior, "one").unwrap();
     assert!(identified.kept_prior.is_empty(), "{:?}", identified.kept_prior);
     let scene = identified_scene(&base, 0, &identified).unwrap();
     assert_eq!(scene.arms[0].pgs_iterations, Some(IDENTIFIED_PGS_ITERATIONS));
@@ -218,7 +218,7 @@ fn identify_output_is_a_model_file_the_simulator_loads() {
     use dvrk_calib::identify::output::{identified_model, output_toml};
     use dvrk_calib::identify::replay::{identified_scene, torque_replay};
     let Some(Fitted { model, prior, r1, r2, options, id }) = fitted_on_one() else { return };
-    let identified = identified_model(&model, &id, &options.processing, &r1.to_joint, &prior, "one").unwrap();
+    let identified = identified_model(&model, &id, &options.processing, &r1.joint_map(), &prior, "one").unwrap();
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("psm-identified.toml");
     std::fs::write(&path, output_toml(&identified, "one").unwrap()).unwrap();
@@ -244,7 +244,7 @@ fn identify_output_is_a_model_file_the_simulator_loads() {
     // joint efforts are to_joint^-T of the channels' identified efforts, (fc + fd) tanh(a' / vc)
     // + fo + fv a' + k a at the actuators' positions a and velocities a' (to_joint^-1 q, q').
     let (q, qd) = (loaded.home(), [0.0, 0.0, 0.0, 0.0, 0.4, -0.3, 0.5]);
-    let inv = r1.to_joint.clone().try_inverse().unwrap();
+    let inv = r1.joint_map().try_inverse().unwrap();
     let (a, ad) = (&inv * nalgebra::DVector::from_column_slice(&q), &inv * nalgebra::DVector::from_column_slice(&qd));
     let channel = nalgebra::DVector::from_fn(7, |c, _| {
         if c < 4 {
@@ -300,7 +300,7 @@ fn the_identified_model_leaves_less_discrepancy_than_cad_on_the_held_out_recordi
     use dvrk_calib::identify::output::identified_model;
     let Some(Fitted { model, prior, r1, options, id, .. }) = fitted_on_one() else { return };
     let Some(two) = wpi("psm_two_results.csv") else { return };
-    let identified = dvrk_kin::Model::compile(identified_model(&model, &id, &options.processing, &r1.to_joint, &prior, "one").unwrap().spec).unwrap();
+    let identified = dvrk_kin::Model::compile(identified_model(&model, &id, &options.processing, &r1.joint_map(), &prior, "one").unwrap().spec).unwrap();
     let scene = scene_for_arm("PSM1").unwrap();
     let o = Options { tracking: false, ..Default::default() };
     let band = |m: &dvrk_kin::Model| {
@@ -336,7 +336,7 @@ fn a_simulated_recording_gives_back_the_simulators_damping_and_armature() {
     dvrk_sim::run_recorded(&scene, &options, Some(&dvrk_sim::RecordOptions { path: path.clone(), rate: 200.0 }), |_| {}).unwrap();
     let model = psm();
     let rec = read_mcap_joint_states(&path, &model, "PSM1").unwrap().0;
-    assert_eq!(rec.channels[0], "outer_yaw");
+    assert_eq!(rec.names[0], "outer_yaw");
     let prior = dvrk_sim::scene::builtin_inertials("psm", &model).unwrap().body_inertias(&model).unwrap();
     let options = IdentifyOptions::full(vec![3, 4, 5, 6]);
     let (id, _) = identify(&model, &prior, &rec, &options).unwrap();
@@ -360,7 +360,7 @@ fn a_simulated_recording_gives_back_the_simulators_damping_and_armature() {
     // tell an inertia from a spring (k q = -k a / w^2): the fit puts 6.6e-4 N m/rad on the roll's
     // spring (the simulator has none) and the inertia follows; without the roll's spring term the
     // roll comes out 0.00858 (-4.7%). Hence 12%.
-    let identified = identified_model(&model, &id, &options.processing, &rec.to_joint, &prior, "sim").unwrap();
+    let identified = identified_model(&model, &id, &options.processing, &rec.joint_map(), &prior, "sim").unwrap();
     let ident_model = dvrk_kin::Model::compile(identified.spec.clone()).unwrap();
     let ident_scene = dvrk_calib::identify::replay::identified_scene(&scene, 0, &identified).unwrap();
     let roll = model.joint_id("outer_roll").unwrap();

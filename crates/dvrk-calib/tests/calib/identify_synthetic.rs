@@ -9,7 +9,7 @@ use crate::util::psm;
 use dvrk_calib::filter::Butterworth2;
 use dvrk_calib::identify::problem::{regression, EffectTerm, Layout, Param};
 use dvrk_calib::recordings::torque_log::parse_wpi_csv;
-use dvrk_calib::identify::{identify_regression, IdentifyOptions, TorqueRecording};
+use dvrk_calib::identify::{identify_regression, IdentifyOptions, JointLog};
 use dvrk_kin::dynamics::PARAMETERS_PER_BODY;
 use nalgebra::DVector;
 use rand::{Rng, SeedableRng};
@@ -20,7 +20,7 @@ use std::path::Path;
 
 /// A Fourier excitation of the PSM's 7 recorded channels (wpi-csv layout: tool channels in
 /// actuator space), `seconds` at 200 Hz, `amplitude` scaling each channel's motion (0: still).
-pub fn fourier_recording(seconds: f64, amplitude: [f64; 7]) -> TorqueRecording {
+pub fn fourier_recording(seconds: f64, amplitude: [f64; 7]) -> JointLog {
     let model = psm();
     // Centre (rad, m) and per-channel base frequency (Hz) of five harmonics.
     let centre = [0.0, 0.0, 0.15, 0.0, 0.0, 0.0, 0.3];
@@ -100,7 +100,7 @@ fn synthetic_recordings_are_identified_within_their_95_percent_intervals() {
             reg.tau[c] = (0..n - 2 * trim).map(|r| clean[c][r] + noise[trim + r]).collect();
             reg.tau_filtered[c] = (0..n - 2 * trim).map(|r| clean[c][r] + filtered[trim + r]).collect();
         }
-        let id = identify_regression(&model, &cad, &reg, layout.clone(), &rec.channels, &options).unwrap();
+        let id = identify_regression(&model, &cad, &reg, layout.clone(), &rec.names, &options).unwrap();
         for (i, (e, p)) in id.estimates.iter().zip(&layout.params).enumerate() {
             let g = group_of(p);
             // Inertial parameters the recording does not determine are the prior's, not the data's.
@@ -125,10 +125,10 @@ fn synthetic_recordings_are_identified_within_their_95_percent_intervals() {
 }
 
 /// A recording with the efforts of noise alone around the motion `amplitude` describes.
-fn noisy(amplitude: [f64; 7]) -> TorqueRecording {
+fn noisy(amplitude: [f64; 7]) -> JointLog {
     let mut rec = fourier_recording(10.0, amplitude);
     let mut rng = ChaCha8Rng::seed_from_u64(3);
-    for row in rec.tau.iter_mut() {
+    for row in rec.effort.iter_mut() {
         for v in row.iter_mut() {
             *v = Normal::new(0.0, 0.01).unwrap().sample(&mut rng);
         }

@@ -20,7 +20,7 @@ fn identified_on(path: &Path) -> dvrk_kin::Model {
     let rec = read_wpi_csv(path, &model).unwrap();
     let options = IdentifyOptions::for_model(&model);
     let (id, _) = identify(&model, &prior, &rec, &options).unwrap();
-    dvrk_kin::Model::compile(identified_model(&model, &id, &options.processing, &rec.to_joint, &prior, "no weight").unwrap().spec).unwrap()
+    dvrk_kin::Model::compile(identified_model(&model, &id, &options.processing, &rec.joint_map(), &prior, "no weight").unwrap().spec).unwrap()
 }
 
 /// One round of the workflow (no tracking replay) of `model` on `path`.
