@@ -178,7 +178,7 @@ fn joint_csv() {
     let model = dvrk_kin::load("psm", None).unwrap();
     let scratch = Scratch::new("log.csv");
     fuzz(&[joint_csv_seed()], |b| {
-        let _ = dvrk_calib::recordings::joint_log_csv::read(scratch.with(b), &model);
+        let _ = dvrk_calib::recordings::read_joint_log_csv(scratch.with(b), &model);
     });
 }
 
@@ -193,8 +193,8 @@ fn wpi_csv() {
     let scratch = Scratch::new("wpi.csv");
     fuzz(&seeds, |b| {
         let path = scratch.with(b);
-        let _ = dvrk_calib::recordings::joint_log::read_wpi_csv(path, &model);
-        let _ = dvrk_calib::recordings::torque_log::read_wpi_csv(path, &model);
+        let _ = dvrk_calib::recordings::read_wpi_csv_in_joints(path, &model);
+        let _ = dvrk_calib::recordings::read_wpi_csv(path, &model);
     });
 }
 
@@ -204,8 +204,8 @@ fn pose_csv() {
     let scratch = Scratch::new("poses.csv");
     fuzz(&[seed], |b| {
         let path = scratch.with(b);
-        let _ = dvrk_calib::recordings::plain_csv::read(path);
-        let _ = dvrk_calib::recordings::motive_csv::read(path);
+        let _ = dvrk_calib::recordings::read_plain_csv(path);
+        let _ = dvrk_calib::recordings::read_motive_csv(path);
     });
 }
 
@@ -221,7 +221,7 @@ fn mcap_joint_states() {
     let scratch = Scratch::new("fuzz.mcap");
     fuzz(&[seed], |b| {
         let path = scratch.with(b);
-        let _ = dvrk_calib::recordings::joint_log::read_mcap(path, "PSM1");
+        let _ = dvrk_calib::recordings::read_joint_log_mcap(path, "PSM1");
         let _ = dvrk_calib::read_recording(path, &Default::default());
     });
 }

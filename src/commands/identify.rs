@@ -4,7 +4,7 @@
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use dvrk_calib::identify::{output, report, IdentifyOptions};
-use dvrk_calib::recordings::torque_log::read_joint_recording;
+use dvrk_calib::recordings::read_joint_recording;
 use std::path::PathBuf;
 
 #[derive(Debug, Args)]
@@ -71,7 +71,7 @@ pub fn run(args: &IdentifyArgs) -> Result<()> {
         // An identified model file carries its own inertials: they are the prior.
         None => dvrk_sim::scene::builtin_inertials(&model.name, &model).with_context(|| format!("--model {}: no built-in inertials; give --inertials", args.model))?.with_model(&model),
     };
-    let format = dvrk_calib::recordings::format::resolve(&args.recording, &args.format).with_context(|| format!("--recording {}", args.recording.display()))?;
+    let format = dvrk_calib::recordings::resolve_format(&args.recording, &args.format).with_context(|| format!("--recording {}", args.recording.display()))?;
     let mut options = IdentifyOptions::for_recording(&model, format);
     if let Some(c) = args.cutoff {
         options.processing.cutoff = c;

@@ -5,7 +5,7 @@
 use crate::outln;
 use anyhow::{anyhow, bail, Result};
 use clap::{Args, Subcommand};
-use dvrk_calib::recordings::mcap_io::McapLayout;
+use dvrk_calib::recordings::McapLayout;
 use dvrk_calib::synth::{Scenario, SynthMotion, SynthOptions};
 use serde_json::json;
 use std::path::PathBuf;
@@ -119,7 +119,7 @@ pub fn run(c: &SynthCommand) -> Result<()> {
 
 fn hidden_effect(a: &HiddenEffectArgs) -> Result<()> {
     use dvrk_calib::discrepancy::{hidden_effect, Hidden, HiddenOptions};
-    use dvrk_calib::recordings::joint_log;
+    use dvrk_calib::recordings;
     let hidden: Hidden = a.effect.parse().map_err(|e| anyhow!("--effect: {e}"))?;
     let effort_noise = a.noise.as_deref().map(|t| crate::io::parse_list("--noise", t)).transpose()?;
     let ext = a.output.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
@@ -133,8 +133,8 @@ fn hidden_effect(a: &HiddenEffectArgs) -> Result<()> {
     let h = hidden_effect(&a.model, &o)?;
     spinner.finish();
     let bytes = match ext.as_str() {
-        "csv" => dvrk_calib::recordings::joint_log_csv::write(&h.log).into_bytes(),
-        _ => joint_log::write_mcap(&h.log, &dvrk_sim::Scene::load(&a.model)?.arms[0].name)?,
+        "csv" => dvrk_calib::recordings::write_joint_log_csv(&h.log).into_bytes(),
+        _ => recordings::write_joint_log_mcap(&h.log, &dvrk_sim::Scene::load(&a.model)?.arms[0].name)?,
     };
     let staged = vec![crate::io::stage(&a.output, &bytes)?, crate::io::stage(&a.answer, format!("{}\n", serde_json::to_string_pretty(&h.answer)?).as_bytes())?];
     dvrk_kin::atomic::commit_all(staged)?;
@@ -182,8 +182,8 @@ fn mocap(a: &MocapArgs) -> Result<()> {
     spinner.finish();
     let ext = a.output.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
     let bytes = match ext.as_str() {
-        "mcap" => dvrk_calib::recordings::mcap_io::write(&rec, layout, &a.joint_topic)?,
-        "csv" => dvrk_calib::recordings::plain_csv::write(&rec).into_bytes(),
+        "mcap" => dvrk_calib::recordings::write_mcap_poses(&rec, layout, &a.joint_topic)?,
+        "csv" => dvrk_calib::recordings::write_plain_csv(&rec).into_bytes(),
         _ => bail!("-o {}: unknown format `.{ext}`; valid: .mcap, .csv", a.output.display()),
     };
     let mut staged = vec![crate::io::stage(&a.output, &bytes)?];

@@ -140,11 +140,11 @@ pub fn read_recording<'py>(py: Python<'py>, path: PathBuf, topics: Option<Vec<St
 #[pyo3(signature = (recording, model="psm", format="auto", validate=None, arm="PSM1"))]
 pub fn identify<'py>(py: Python<'py>, recording: PathBuf, model: &str, format: &str, validate: Option<PathBuf>, arm: &str) -> Result<Bound<'py, PyAny>> {
     use dvrk_calib::identify::{summary, IdentifyOptions};
-    use dvrk_calib::recordings::torque_log::read_joint_recording;
+    use dvrk_calib::recordings::read_joint_recording;
     let m = dvrk_calib::dvrk_kin::load(model, None)?;
     let summary = py.detach(|| -> Result<serde_json::Value> {
         let prior = dvrk_sim::scene::builtin_inertials(&m.name, &m)?.body_inertias(&m)?;
-        let resolved = dvrk_calib::recordings::format::resolve(&recording, format)?;
+        let resolved = dvrk_calib::recordings::resolve_format(&recording, format)?;
         let (rec, notes) = read_joint_recording(&recording, format, &m, arm)?;
         let held_out = validate.as_ref().map(|v| read_joint_recording(v, resolved, &m, arm).map(|r| r.0)).transpose()?;
         let options = IdentifyOptions::for_recording(&m, resolved);
@@ -213,15 +213,15 @@ pub fn discrepancy<'py>(
 pub fn synth_hidden_effect<'py>(py: Python<'py>, path: PathBuf, effect: &str, seed: u64, scene: &str, duration: f64, marker_link: Option<String>) -> Result<Bound<'py, PyAny>> {
     use dvrk_calib::discrepancy::generate::MarkerOptions;
     use dvrk_calib::discrepancy::{hidden_effect, Hidden, HiddenOptions};
-    use dvrk_calib::recordings::joint_log;
+    use dvrk_calib::recordings;
     let hidden: Hidden = effect.parse().map_err(|e: String| Error::Input(format!("effect: {e}")))?;
     let marker = marker_link.map(|link| MarkerOptions { link, ..Default::default() });
     dvrk_calib::dvrk_kin::atomic::check_outputs(&[], &[("path", &path)])?;
     let answer = py.detach(|| -> Result<serde_json::Value> {
         let h = hidden_effect(scene, &HiddenOptions { hidden, seed, duration, marker, ..Default::default() })?;
         let bytes = match path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
-            Some("csv") => dvrk_calib::recordings::joint_log_csv::write(&h.log).into_bytes(),
-            _ => joint_log::write_mcap(&h.log, &dvrk_sim::Scene::load(scene)?.arms[0].name)?,
+            Some("csv") => dvrk_calib::recordings::write_joint_log_csv(&h.log).into_bytes(),
+            _ => recordings::write_joint_log_mcap(&h.log, &dvrk_sim::Scene::load(scene)?.arms[0].name)?,
         };
         dvrk_calib::dvrk_kin::atomic::write_atomic(&path, &bytes)?;
         serde_json::to_value(&h.answer).map_err(|e| Error::Input(e.to_string()))

@@ -17,24 +17,36 @@
 //! The ROS 2 message codec is dvrk-sim's (`dvrk_sim::recording::{cdr, ros_msgs}`), which records
 //! them; re-exported at the crate's root.
 
-pub mod foxglove;
-pub mod format;
-pub mod joint_log;
-pub mod joint_log_csv;
-pub mod joint_states;
-pub mod marker_log;
-pub mod markers_to_pose;
-pub mod mcap_io;
-pub mod message_file;
-pub mod motive_csv;
-pub mod plain_csv;
-pub mod read;
-pub mod torque_log;
-pub mod tracks;
+// The submodules are the crate's own; other crates see the flat names below (as rapier
+// re-exports its pipeline), so a reader can move between files without breaking a caller.
+pub(crate) mod foxglove;
+pub(crate) mod format;
+pub(crate) mod joint_log;
+pub(crate) mod joint_log_csv;
+pub(crate) mod joint_states;
+pub(crate) mod marker_log;
+pub(crate) mod markers_to_pose;
+pub(crate) mod mcap_io;
+pub(crate) mod message_file;
+pub(crate) mod motive_csv;
+pub(crate) mod plain_csv;
+pub(crate) mod read;
+pub(crate) mod torque_log;
+pub(crate) mod tracks;
 
-pub use joint_log::JointLog;
-pub use marker_log::MarkerLog;
-pub use mcap_io::{McapLayout, McapOptions};
+// Any recording, by format.
+pub use format::{auto_note, resolve as resolve_format, FORMATS};
 pub use read::{read_log, read_recording};
-pub use torque_log::read_wpi_csv;
-pub use tracks::{BodyTrack, JointTrack, MarkerTrack, Recording};
+// Poses: MCAP and ROS 1 bags, Motive and plain CSV, marker clouds.
+pub use markers_to_pose::{drop_outliers, estimate_layout, fit_pose, poses_from_markers, MIN_MARKERS};
+pub use mcap_io::{parse as parse_mcap_poses, pose_topic, read as read_mcap_poses, write as write_mcap_poses, McapLayout, McapOptions};
+pub use message_file::{container, for_each as for_each_message, for_each_mcap, Container};
+pub use motive_csv::{parse as parse_motive_csv, read as read_motive_csv};
+pub use plain_csv::{parse as parse_plain_csv, read as read_plain_csv, write as write_plain_csv};
+pub use tracks::{common_samples, median_period, BodyTrack, JointTrack, MarkerTrack, Recording};
+// Joint logs: one type, read as identification and the discrepancy workflow want it.
+pub use joint_log::{read_mcap as read_joint_log_mcap, read_wpi_csv as read_wpi_csv_in_joints, write_mcap as write_joint_log_mcap, JointLog, NO_SETPOINTS};
+pub use joint_log_csv::{parse as parse_joint_log_csv, read as read_joint_log_csv, write as write_joint_log_csv, CsvLog};
+pub use joint_states::{read_arm, read_arms, ArmStates, JointStates};
+pub use marker_log::{marker_frame, read_mcap as read_marker_mcap, synthetic_topic, MarkerLog};
+pub use torque_log::{parse_wpi_csv, read_joint_recording, read_mcap_joint_states, read_wpi_csv, WPI_RATE};

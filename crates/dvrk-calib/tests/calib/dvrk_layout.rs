@@ -8,10 +8,10 @@
 //! installs both) or the external data is absent.
 
 use dvrk_calib::discrepancy::{discrepancy, scene_for_arm, Options};
-use dvrk_calib::recordings::joint_log;
+use dvrk_calib::recordings;
 use dvrk_calib::identify::{summary, IdentifyOptions};
-use dvrk_calib::recordings::torque_log::read_joint_recording;
-use dvrk_calib::recordings::mcap_io::McapOptions;
+use dvrk_calib::recordings::read_joint_recording;
+use dvrk_calib::recordings::McapOptions;
 use dvrk_calib::{pivot_calibration, read_recording, PivotOptions};
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -58,9 +58,9 @@ fn one_topic_crtk_layout_and_bags_read_the_same() {
     let jaw: Vec<f64> = base.position.iter().map(|q| q[6]).collect();
     let span = jaw.iter().cloned().fold(f64::MIN, f64::max) - jaw.iter().cloned().fold(f64::MAX, f64::min);
     assert!(span > 0.1, "jaw span {span} rad");
-    let (one, _) = joint_log::read_mcap(&file(dir, "one_topic.mcap"), "PSM1").unwrap();
+    let (one, _) = recordings::read_joint_log_mcap(&file(dir, "one_topic.mcap"), "PSM1").unwrap();
     for name in ["dvrk.mcap", "dvrk_bz2.bag"] {
-        let (log, _) = joint_log::read_mcap(&file(dir, name), "PSM1").unwrap();
+        let (log, _) = recordings::read_joint_log_mcap(&file(dir, name), "PSM1").unwrap();
         assert_eq!(log, one, "{name}");
     }
 }
@@ -84,7 +84,7 @@ fn identify_and_discrepancy_agree_across_layouts_and_containers() {
     let yaw = a["relative_error"][0].as_f64().unwrap();
     assert!(yaw > 0.02 && yaw < 0.2, "yaw relative error {yaw}");
     let report = |name: &str| {
-        let (log, _) = joint_log::read_mcap(&file(dir, name), "PSM1").unwrap();
+        let (log, _) = recordings::read_joint_log_mcap(&file(dir, name), "PSM1").unwrap();
         let r = discrepancy(&psm, &scene_for_arm("PSM1").unwrap(), "PSM1", &log, &Options { tracking: false, ..Default::default() }).unwrap().report;
         serde_json::to_value(&r).unwrap()
     };

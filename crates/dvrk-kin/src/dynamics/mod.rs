@@ -16,6 +16,7 @@
 //! (`joints = K actuators`), multiply by `K^T`.
 
 mod crba;
+mod crba_plan;
 mod file_inertials;
 mod inertia;
 mod regressor;

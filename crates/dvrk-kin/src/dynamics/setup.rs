@@ -33,7 +33,7 @@ pub struct DynamicsModel {
     /// Per frame: the non-zero coefficients `(joint, c)` of its variable `phi = c . q + b`.
     pub(crate) terms: Vec<Vec<(usize, f64)>>,
     /// The composite-rigid-body pass's frame pairs and where each lands in `M`, flattened once.
-    pub(crate) crba: super::crba::Plan,
+    pub(crate) crba: super::crba_plan::Plan,
 }
 
 impl DynamicsModel {
@@ -63,7 +63,7 @@ impl DynamicsModel {
             })
             .collect();
         let terms: Vec<Vec<(usize, f64)>> = model.frames.iter().map(|f| f.variable().map(|v| v.joints().collect()).unwrap_or_default()).collect();
-        let crba = super::crba::Plan::new(model, &terms);
+        let crba = super::crba_plan::Plan::new(model, &terms);
         Ok(DynamicsModel { model_name: model.name.clone(), nq: model.nq(), nframes: nf, inertias, carries, kind, terms, crba })
     }
 
