@@ -62,6 +62,8 @@ pub fn run(args: &IdentifyArgs) -> Result<()> {
     }
     let g = crate::io::parse_list("--gravity", &args.gravity)?;
     let [gx, gy, gz] = g[..] else { bail!("--gravity {}: three components x,y,z (m/s^2)", args.gravity) };
+    // The recording's format (read from its first bytes when `auto`) before any model is loaded.
+    let format = dvrk_calib::recordings::resolve_format(&args.recording, &args.format).with_context(|| format!("--recording {}", args.recording.display()))?;
     let model = dvrk_kin::load(&args.model, None).with_context(|| format!("--model {}", args.model))?;
     let prior = match &args.inertials {
         Some(p) => {
@@ -71,7 +73,6 @@ pub fn run(args: &IdentifyArgs) -> Result<()> {
         // An identified model file carries its own inertials: they are the prior.
         None => dvrk_sim::scene::builtin_inertials(&model.name, &model).with_context(|| format!("--model {}: no built-in inertials; give --inertials", args.model))?.with_model(&model),
     };
-    let format = dvrk_calib::recordings::resolve_format(&args.recording, &args.format).with_context(|| format!("--recording {}", args.recording.display()))?;
     let mut options = IdentifyOptions::for_recording(&model, format);
     if let Some(c) = args.cutoff {
         options.processing.cutoff = c;

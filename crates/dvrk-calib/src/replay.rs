@@ -2,9 +2,9 @@
 //! a recording:
 //! - MCAP or ROS 1 bag: for each arm of the scene, `/<ARM>/setpoint_js` (what the arm was
 //!   told), else `/<ARM>/measured_js` (what it did), with the jaw's own topic merged
-//!   (`/<ARM>/jaw/setpoint_js`: [`crate::recordings::joint_states`]); arms with neither hold home. Joints
+//!   (`/<ARM>/jaw/setpoint_js`: [`crate::recordings::read_arms`]); arms with neither hold home. Joints
 //!   are matched by name; joints the topics lack hold home.
-//! - CSV (the plain format of [`crate::recordings::plain_csv`]): `time` and `q1..qN` for the one arm of
+//! - CSV (the plain format of [`crate::recordings::read_plain_csv`]): `time` and `q1..qN` for the one arm of
 //!   the scene that runs the tracking test.
 
 use crate::error::{CalibError, Result};

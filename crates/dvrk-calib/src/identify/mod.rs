@@ -158,7 +158,7 @@ impl IdentifyOptions {
     }
 
     /// The options for `model` and a recording in `format` (resolved, see
-    /// [`crate::recordings::format`]): the WPI channels (tool actuators) take
+    /// [`crate::recordings::resolve_format`]): the WPI channels (tool actuators) take
     /// [`IdentifyOptions::for_model`]; a joint-space recording (MCAP, bag) takes every effect term
     /// on every joint, springs on the tool's.
     pub fn for_recording(model: &Model, format: &str) -> IdentifyOptions {

@@ -2,17 +2,17 @@
 //! products (motion-capture calibration, identification, discrepancy), which read through it and
 //! never from each other.
 //!
-//! - Poses: MCAP and ROS 1 bags ([`message_file`], [`mcap_io`], with Foxglove's protobuf poses
-//!   in [`foxglove`]), Motive CSV ([`motive_csv`]), plain CSV ([`plain_csv`]), one dispatch
-//!   ([`read_recording`]); the tracks they fill ([`tracks`]); marker clouds to body poses
-//!   ([`markers_to_pose`]).
-//! - Joints: the dVRK's CRTK `JointState` topics ([`joint_states`]); one joint log with efforts
+//! - Poses: MCAP and ROS 1 bags (`message_file.rs`, `mcap_io.rs`, with Foxglove's protobuf poses
+//!   in `foxglove.rs`), Motive CSV (`motive_csv.rs`), plain CSV (`plain_csv.rs`), one dispatch
+//!   ([`read_recording`]); the tracks they fill (`tracks.rs`); marker clouds to body poses
+//!   (`markers_to_pose.rs`).
+//! - Joints: the dVRK's CRTK `JointState` topics (`joint_states.rs`); one joint log with efforts
 //!   ([`JointLog`], in the recorded channels with their map to the model's joints), read as
-//!   identification wants it ([`torque_log`]: the WPI CSV in its actuator channels, the dVRK's
+//!   identification wants it (`torque_log.rs`: the WPI CSV in its actuator channels, the dVRK's
 //!   `measured_js` with velocities) and as the discrepancy workflow wants it ([`read_log`]: in the
-//!   joints, with setpoints: [`joint_log`] for MCAP and bags, its CSV layout [`joint_log_csv`], a
-//!   tracked marker's poses [`marker_log`]).
-//! - The format of a file, told from its content when asked for `auto` ([`format`]).
+//!   joints, with setpoints: `joint_log.rs` for MCAP and bags, its CSV layout `joint_log_csv.rs`, a
+//!   tracked marker's poses `marker_log.rs`).
+//! - The format of a file, told from its content when asked for `auto` (`format.rs`).
 //!
 //! The ROS 2 message codec is dvrk-sim's (`dvrk_sim::recording::{cdr, ros_msgs}`), which records
 //! them; re-exported at the crate's root.

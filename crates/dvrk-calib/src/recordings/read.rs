@@ -32,7 +32,7 @@ pub fn read_recording(path: &Path, options: &McapOptions) -> Result<Recording> {
     }
 }
 
-/// Read `path` in `format` (`auto`: told from the file, [`crate::recordings::format`]) for
+/// Read `path` in `format` (`auto`: told from the file, [`crate::recordings::resolve_format`]) for
 /// `model`'s arm `arm`; with what the reader assumed (notes for the report).
 pub fn read_log(path: &Path, format: &str, model: &dvrk_kin::Model, arm: &str) -> Result<(super::JointLog, Vec<String>)> {
     let resolved = super::format::resolve(path, format)?;

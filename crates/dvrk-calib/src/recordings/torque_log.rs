@@ -120,7 +120,7 @@ pub fn read_mcap_joint_states(path: &Path, model: &Model, arm: &str) -> Result<(
 }
 
 /// Read the recording `path` in `format` (`auto`: told from the file, see
-/// [`crate::recordings::format`]; `wpi-csv`, `mcap` or `bag`) for `model`, the arm `arm` for
+/// [`crate::recordings::resolve_format`]; `wpi-csv`, `mcap` or `bag`) for `model`, the arm `arm` for
 /// MCAP and bags; with what the reader did (notes for the report).
 pub fn read_joint_recording(path: &Path, format: &str, model: &Model, arm: &str) -> Result<(JointLog, Vec<String>)> {
     let resolved = crate::recordings::format::resolve(path, format)?;
