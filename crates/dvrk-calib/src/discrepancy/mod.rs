@@ -3,7 +3,7 @@
 //!
 //! - [`generate`]: recordings with a hidden effect and their answers (`dvrk synth hidden-effect`),
 //!   on an exciting multi-sine ([`excitation`]);
-//! - [`joint_log`]: setpoints, encoder positions and efforts read from (written to) a recording;
+//! - [`crate::recordings::JointLog`]: setpoints, encoder positions and efforts read from (written to) a recording;
 //!   [`crate::recordings::read_joint_log_csv`] the same as plain CSV;
 //! - [`signals`]: filtering, the noise floor and the nominal model's effort;
 //! - [`candidates`]: each candidate effect's signature from the model itself;

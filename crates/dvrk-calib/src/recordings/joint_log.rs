@@ -22,7 +22,7 @@ pub const NO_SETPOINTS: &str = "no setpoint columns: the encoder positions stand
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct JointLog {
     /// Where it was read from (the file), for messages and reports: identification's readers
-    /// ([`super::torque_log`]) set it; empty otherwise.
+    /// ([`super::read_wpi_csv`], [`super::read_mcap_joint_states`]) set it; empty otherwise.
     pub source: String,
     /// Channel names (the arm's joints, in the recording's order; `wrist_pitch actuator` for an
     /// actuator channel).
