@@ -179,3 +179,18 @@ fn an_overflowing_figure_is_not_exported() {
     assert_one_line(&dvrk_err(&["export", "mjcf", scene.to_str().unwrap(), "-o", out.to_str().unwrap()]), &["MJCF export", "stiffness=\"inf\"", "cable:counterweight_link"]);
     assert!(!out.exists());
 }
+
+/// Issue 43 (validate before load): a `--plot` whose format is unknown is refused before the
+/// recording is read, so the error names the flag, not whatever the recording holds.
+#[test]
+fn calib_refuses_a_plot_format_before_reading_the_recording() {
+    let dir = crate::util::tempdir();
+    let junk = dir.path().join("r.csv");
+    std::fs::write(&junk, "not a recording").unwrap();
+    let config = dir.path().join("axes.toml");
+    std::fs::write(&config, "not read either").unwrap();
+    let (r, c, jpg) = (junk.to_str().unwrap(), config.to_str().unwrap(), dir.path().join("p.jpg"));
+    let jpg = jpg.to_str().unwrap();
+    assert_one_line(&dvrk_err(&["calib", "pivot", "--recording", r, "--plot", jpg]), &["p.jpg", "--plot", "unknown image format"]);
+    assert_one_line(&dvrk_err(&["calib", "axes", "--recording", r, "--config", c, "--plot", jpg]), &["p.jpg", "--plot", "unknown image format"]);
+}
