@@ -31,6 +31,14 @@ pub fn check_outputs(inputs: &[(&str, &Path)], outputs: &[(&str, Option<&Path>)]
     Ok(dvrk_kin::atomic::check_outputs(inputs, &outputs)?)
 }
 
+/// Refuse a `--plot` whose image format is unknown (.png and .svg are drawn) before any work.
+pub fn check_plot(plot: Option<&Path>) -> Result<()> {
+    if let Some(p) = plot {
+        dvrk_calib::plot::check_path(p)?;
+    }
+    Ok(())
+}
+
 /// Print a line to stdout; a closed pipe (`dvrk ... | head`) ends the program quietly.
 pub fn print_line(args: std::fmt::Arguments) {
     let mut out = std::io::stdout().lock();

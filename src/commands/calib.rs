@@ -92,9 +92,7 @@ pub fn run(c: &CalibCommand) -> Result<()> {
 
 fn pivot(a: &PivotArgs) -> Result<()> {
     crate::io::check_outputs(&[("--recording", &a.recording)], &[("--plot", a.plot.as_deref())])?;
-    if let Some(p) = &a.plot {
-        dvrk_calib::plot::check_path(p)?;
-    }
+    crate::io::check_plot(a.plot.as_deref())?;
     let method: PivotMethod = a.method.parse().map_err(|e| anyhow!("--method: {e}"))?;
     // All topics are read so that `--topic` may be a short name (`end` for /mocap/end/pose).
     let spinner = crate::progress::Progress::spinner("reading the recording", crate::progress::Progress::wanted(a.json));
@@ -150,9 +148,7 @@ fn pivot(a: &PivotArgs) -> Result<()> {
 
 fn axes(a: &AxesArgs) -> Result<()> {
     crate::io::check_outputs(&[("--recording", &a.recording), ("--config", &a.config)], &[("-o", a.output.as_deref()), ("--plot", a.plot.as_deref())])?;
-    if let Some(p) = &a.plot {
-        dvrk_calib::plot::check_path(p)?;
-    }
+    crate::io::check_plot(a.plot.as_deref())?;
     let text = dvrk_kin::load::read_text(&a.config)?;
     let cfg = AxesConfig::from_toml(&text, &a.config)?;
     let method = a.method.as_deref().map(str::parse).transpose().map_err(|e| anyhow!("--method: {e}"))?;

@@ -71,9 +71,7 @@ fn model_text_with(model: &str, effects: &[dvrk_kin::effects::EffectSpec]) -> Re
 }
 
 pub fn run(a: &DiscrepancyArgs) -> Result<()> {
-    if let Some(p) = &a.plot {
-        dvrk_calib::plot::check_path(p)?;
-    }
+    crate::io::check_plot(a.plot.as_deref())?;
     let model_path = std::path::Path::new(&a.model);
     crate::io::check_outputs(
         &[("--recording", &a.recording), ("--model", model_path)],

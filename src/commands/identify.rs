@@ -57,9 +57,7 @@ pub fn run(args: &IdentifyArgs) -> Result<()> {
     inputs.extend(args.validate.as_deref().map(|v| ("--validate", v)));
     inputs.extend(args.inertials.as_deref().map(|v| ("--inertials", v)));
     crate::io::check_outputs(&inputs, &[("-o", args.output.as_deref()), ("--plot", args.plot.as_deref())])?;
-    if let Some(p) = &args.plot {
-        dvrk_calib::plot::check_path(p)?;
-    }
+    crate::io::check_plot(args.plot.as_deref())?;
     let g = crate::io::parse_list("--gravity", &args.gravity)?;
     let [gx, gy, gz] = g[..] else { bail!("--gravity {}: three components x,y,z (m/s^2)", args.gravity) };
     // The recording's format (read from its first bytes when `auto`) before any model is loaded.

@@ -140,12 +140,7 @@ pub fn run(args: &SimArgs) -> Result<()> {
     if !(args.plot_rate.is_finite() && args.plot_rate > 0.0) {
         bail!("--plot-rate {}: must be a positive number of samples per second", args.plot_rate);
     }
-    if let Some(p) = &args.plot {
-        match p.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
-            Some("png" | "svg") => {}
-            _ => bail!("--plot {}: unknown image format; valid: .png, .svg", p.display()),
-        }
-    }
+    crate::io::check_plot(args.plot.as_deref())?;
     // The trajectory's kind now; a replay's file is read against the scene below.
     enum TrajectoryArg<'a> {
         Kind(TrajectoryKind),

@@ -43,9 +43,6 @@ pub struct Sim {
     /// then `worlds` is empty), and per scene arm its tree and place in the tree's arm list.
     pub(crate) reduced: Vec<crate::reduced::ReducedTree>,
     pub(crate) reduced_place: Vec<(usize, usize)>,
-    /// Per scene joint: its arm and its index in that arm (a controller looks joints up every
-    /// step).
-    joint_at: Vec<(usize, usize)>,
 }
 
 impl Sim {
@@ -76,11 +73,7 @@ impl Sim {
             qd_link: vec![0.0; nq],
             reduced,
             reduced_place,
-            joint_at: Vec::with_capacity(nq),
         };
-        for (a, arm) in sim.arms.iter().enumerate() {
-            sim.joint_at.extend((0..arm.model.nq()).map(|k| (a, k)));
-        }
         sim.read_state();
         sim.apply_modes(scene)?;
         Ok(sim)
@@ -124,7 +117,12 @@ impl Sim {
 
     /// (arm, joint) of scene joint `i`.
     fn locate(&self, i: usize) -> Result<(usize, usize)> {
-        self.joint_at.get(i).copied().ok_or_else(|| SimError::value("joint index", i as f64, format!("the scene has {} joints", self.nq())))
+        for (a, arm) in self.arms.iter().enumerate() {
+            if i < arm.q_offset + arm.model.nq() {
+                return Ok((a, i - arm.q_offset));
+            }
+        }
+        Err(SimError::value("joint index", i as f64, format!("the scene has {} joints", self.nq())))
     }
 
     /// The actuator of scene joint `i`.
@@ -165,14 +163,11 @@ impl Sim {
         act.target = position.clamp(lower, upper);
         act.target_velocity = velocity;
         // A coupling error: every drive's true target moves with this one.
-        if self.arms[a].effects.coupling.is_some() {
-            for m in 0..self.arms[a].actuators.len() {
-                if self.arms[a].actuators[m].mode == Mode::Position {
-                    self.apply_position_motor(a, m);
-                }
+        let coupled = self.arms[a].effects.coupling.is_some();
+        for m in 0..self.arms[a].actuators.len() {
+            if (m == k || coupled) && self.arms[a].actuators[m].mode == Mode::Position {
+                self.apply_position_motor(a, m);
             }
-        } else if self.arms[a].actuators[k].mode == Mode::Position {
-            self.apply_position_motor(a, k);
         }
         Ok(())
     }

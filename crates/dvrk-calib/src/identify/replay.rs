@@ -44,13 +44,7 @@ pub fn identified_scene(base: &Scene, arm: usize, identified: &IdentifiedModel) 
 /// (rad, m) over the recording, and its mean (the bias).
 pub fn torque_replay(scene: &Scene, arm: usize, rec: &JointLog, feedback: f64) -> Result<(Vec<f64>, Vec<f64>)> {
     let n = rec.names.len();
-    let map = &rec.joint_map();
-    let inv_t = map.clone().try_inverse().ok_or_else(|| CalibError::data(&rec.source, "the channel-to-joint map is singular"))?.transpose();
-    let joints = |v: &[f64]| -> Vec<f64> { (0..n).map(|j| (0..n).map(|c| map[(j, c)] * v[c]).sum()).collect() };
-    let efforts = |v: &[f64]| -> Vec<f64> { (0..n).map(|j| (0..n).map(|c| inv_t[(j, c)] * v[c]).sum()).collect() };
-    let q: Vec<Vec<f64>> = rec.position.iter().map(|r| joints(r)).collect();
-    let qd: Vec<Vec<f64>> = rec.velocity.iter().map(|r| joints(r)).collect();
-    let tau: Vec<Vec<f64>> = rec.effort.iter().map(|r| efforts(r)).collect();
+    let JointLog { position: q, velocity: qd, effort: tau, .. } = rec.in_joint_space(&scene.arms[arm].model)?;
     let mut scene = scene.clone();
     scene.set_start_recorded(arm, &q[0], dvrk_sim::scene::RECORDED_START_SLACK).map_err(|e| CalibError::context("torque replay", e))?;
     let options = SimOptions { engine: Some(dvrk_sim::Engine::Reduced), ..SimOptions::default() };

@@ -100,22 +100,23 @@ impl JointLog {
     }
 
     /// The log in `model`'s joints: positions, setpoints and velocities through `to_joint`,
-    /// efforts through its transpose's inverse (virtual work). A log already in the joints is
-    /// returned as it is. An error if the map is singular (`path` names the file).
-    pub fn in_joint_space(self, model: &dvrk_kin::Model, path: &Path) -> Result<JointLog> {
-        let Some(to_joint) = self.to_joint.clone() else { return Ok(self) };
+    /// efforts through its transpose's inverse (virtual work); a log already in the joints as it
+    /// is. An error naming [`JointLog::source`] if the map is singular.
+    pub fn in_joint_space(&self, model: &dvrk_kin::Model) -> Result<JointLog> {
+        let Some(to_joint) = &self.to_joint else { return Ok(self.clone()) };
         let effort_map =
-            to_joint.transpose().try_inverse().ok_or_else(|| CalibError::data(path.display().to_string(), "the tool coupling is singular: actuator efforts cannot be taken to joint space"))?;
-        let map = |m: &DMatrix<f64>, v: &[f64]| -> Vec<f64> { (m * DVector::from_column_slice(v)).iter().copied().collect() };
-        let maps = |m: &DMatrix<f64>, rows: &[Vec<f64>]| -> Vec<Vec<f64>> { rows.iter().map(|v| if v.is_empty() { Vec::new() } else { map(m, v) }).collect() };
+            to_joint.transpose().try_inverse().ok_or_else(|| CalibError::data(&self.source, "the tool coupling is singular: actuator efforts cannot be taken to joint space"))?;
+        let maps = |m: &DMatrix<f64>, rows: &[Vec<f64>]| -> Vec<Vec<f64>> { rows.iter().map(|v| if v.is_empty() { Vec::new() } else { (m * DVector::from_column_slice(v)).iter().copied().collect() }).collect() };
         Ok(JointLog {
+            source: self.source.clone(),
             names: model.joints.iter().map(|j| j.name.clone()).collect(),
-            setpoint: maps(&to_joint, &self.setpoint),
-            position: maps(&to_joint, &self.position),
-            velocity: maps(&to_joint, &self.velocity),
+            t: self.t.clone(),
+            setpoint: maps(to_joint, &self.setpoint),
+            position: maps(to_joint, &self.position),
+            velocity: maps(to_joint, &self.velocity),
             effort: maps(&effort_map, &self.effort),
             to_joint: None,
-            ..self
+            markers: self.markers.clone(),
         })
     }
 }
@@ -125,10 +126,12 @@ impl JointLog {
 /// transpose's inverse, by virtual work). It has no setpoints: the encoders stand in for them
 /// (the tracking channel then compares the replay with the recording itself).
 pub fn read_wpi_csv(path: &Path, model: &dvrk_kin::Model) -> Result<JointLog> {
-    let mut log = super::torque_log::read_wpi_csv(path, model)?.in_joint_space(model, path)?;
+    let mut rec = super::torque_log::read_wpi_csv(path, model)?;
+    // The discrepancy workflow differentiates the positions itself: the recorded velocities
+    // are not taken along.
+    rec.velocity = Vec::new();
+    let mut log = rec.in_joint_space(model)?;
     log.setpoint = log.position.clone();
-    // The discrepancy workflow differentiates the positions itself.
-    log.velocity = Vec::new();
     Ok(log)
 }
 
