@@ -193,7 +193,7 @@ fn wpi_csv() {
     let scratch = Scratch::new("wpi.csv");
     fuzz(&seeds, |b| {
         let path = scratch.with(b);
-        let _ = dvrk_calib::recordings::read_wpi_csv_in_joints(path, &model);
+        let _ = dvrk_calib::discrepancy::read_log(path, "wpi-csv", &model, "PSM1");
         let _ = dvrk_calib::recordings::read_wpi_csv(path, &model);
     });
 }
@@ -211,6 +211,7 @@ fn pose_csv() {
 
 #[test]
 fn mcap_joint_states() {
+    let model = dvrk_kin::load("psm", None).unwrap();
     // A short recording of the PSM scene, as `dvrk sim --out` writes it.
     let dir = tempfile::tempdir().unwrap();
     let rec = dir.path().join("seed.mcap");
@@ -221,7 +222,8 @@ fn mcap_joint_states() {
     let scratch = Scratch::new("fuzz.mcap");
     fuzz(&[seed], |b| {
         let path = scratch.with(b);
-        let _ = dvrk_calib::recordings::read_joint_log_mcap(path, "PSM1");
+        let _ = dvrk_calib::discrepancy::read_log(path, "mcap", &model, "PSM1");
+        let _ = dvrk_calib::identify::read_log(path, "mcap", &model, "PSM1");
         let _ = dvrk_calib::read_recording(path, &Default::default());
     });
 }

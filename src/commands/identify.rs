@@ -4,7 +4,7 @@
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use dvrk_calib::identify::{output, report, IdentifyOptions};
-use dvrk_calib::recordings::read_joint_recording;
+use dvrk_calib::identify::read_log;
 use std::path::PathBuf;
 
 #[derive(Debug, Args)]
@@ -77,10 +77,10 @@ pub fn run(args: &IdentifyArgs) -> Result<()> {
         options.processing.channel_cutoff.clear();
     }
     options.processing.gravity = nalgebra::Vector3::new(gx, gy, gz);
-    let (rec, notes) = read_joint_recording(&args.recording, &args.format, &model, &args.arm)?;
+    let (rec, notes) = read_log(&args.recording, &args.format, &model, &args.arm)?;
     let inertias = prior.body_inertias(&model)?;
     let held_out = match &args.validate {
-        Some(v) => Some(read_joint_recording(v, format, &model, &args.arm).with_context(|| format!("--validate {}", v.display()))?.0),
+        Some(v) => Some(read_log(v, format, &model, &args.arm).with_context(|| format!("--validate {}", v.display()))?.0),
         None => None,
     };
     let spinner = crate::progress::Progress::spinner("", crate::progress::Progress::wanted(args.json));

@@ -140,13 +140,13 @@ pub fn read_recording<'py>(py: Python<'py>, path: PathBuf, topics: Option<Vec<St
 #[pyo3(signature = (recording, model="psm", format="auto", validate=None, arm="PSM1"))]
 pub fn identify<'py>(py: Python<'py>, recording: PathBuf, model: &str, format: &str, validate: Option<PathBuf>, arm: &str) -> Result<Bound<'py, PyAny>> {
     use dvrk_calib::identify::{summary, IdentifyOptions};
-    use dvrk_calib::recordings::read_joint_recording;
+    use dvrk_calib::identify::read_log;
     let m = dvrk_calib::dvrk_kin::load(model, None)?;
     let summary = py.detach(|| -> Result<serde_json::Value> {
         let prior = dvrk_sim::scene::builtin_inertials(&m.name, &m)?.body_inertias(&m)?;
         let resolved = dvrk_calib::recordings::resolve_format(&recording, format)?;
-        let (rec, notes) = read_joint_recording(&recording, format, &m, arm)?;
-        let held_out = validate.as_ref().map(|v| read_joint_recording(v, resolved, &m, arm).map(|r| r.0)).transpose()?;
+        let (rec, notes) = read_log(&recording, format, &m, arm)?;
+        let held_out = validate.as_ref().map(|v| read_log(v, resolved, &m, arm).map(|r| r.0)).transpose()?;
         let options = IdentifyOptions::for_recording(&m, resolved);
         let mut r = summary::run(&m, &prior, &rec, held_out.as_ref(), &options, &recording.display().to_string(), resolved)?;
         r.summary["notes"] = serde_json::json!(notes);

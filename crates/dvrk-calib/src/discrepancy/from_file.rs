@@ -1,7 +1,6 @@
-//! `dvrk discrepancy` and `dvrk_twin.discrepancy` share this: read the recording in its format,
-//! take the arm's built-in scene, run the repeated workflow.
+//! `dvrk discrepancy` and `dvrk_twin.discrepancy` share this: read the recording in its format
+//! ([`read_log`]), take the arm's built-in scene, run the repeated workflow.
 
-use crate::recordings::read_log;
 use super::repeat::{discrepancy_repeated_prepared, discrepancy_repeated_with, prepare_rounds, Repeated};
 use crate::recordings::joint_log::JointLog;
 use super::options::Options;
@@ -15,6 +14,32 @@ use std::path::Path;
 pub struct MarkerSource {
     pub topic: String,
     pub link: String,
+}
+
+/// Fewest samples with a setpoint the workflow reads.
+pub const MIN_SAMPLES: usize = 100;
+
+/// Read arm `arm`'s recording `path` in `format` (`auto`: told from the file, see
+/// [`crate::recordings::resolve_format`]) for `model` ([`crate::recordings::read_joint_log`]), as
+/// the workflow analyses it: in the model's joints (the WPI recordings' actuator channels taken
+/// there), from the first setpoint on, the encoders standing in for the setpoints when the
+/// recording has none; efforts as measured, or none at all (a recording of encoders alone, for the
+/// kinematic channel); velocities not kept (the workflow differentiates the positions itself).
+/// With what the reader did (notes for the report).
+pub fn read_log(path: &Path, format: &str, model: &Model, arm: &str) -> Result<(JointLog, Vec<String>)> {
+    let (mut log, mut notes) = crate::recordings::read_joint_log(path, format, model, arm)?;
+    log.velocity = Vec::new();
+    let mut log = log.into_joint_space(model)?;
+    notes.extend(log.setpoints_or_encoders(path));
+    if !log.has_efforts() {
+        notes.push(format!("{}: /{arm}/measured_js carries no efforts: only the kinematic channel (a tracked marker) can be analysed", path.display()));
+    }
+    if log.len() < MIN_SAMPLES {
+        return Err(CalibError::file(path, format!("{} samples with a setpoint (need at least {MIN_SAMPLES})", log.len())));
+    }
+    // Measured data past the model's limits is analysed as measured, and said.
+    notes.extend(log.limits_note(model, path));
+    Ok((log, notes))
 }
 
 /// The repeated workflow on recording `path` of arm `arm` against `model`, with the tracked

@@ -3,8 +3,8 @@
 //!
 //! - [`generate`]: recordings with a hidden effect and their answers (`dvrk synth hidden-effect`),
 //!   on an exciting multi-sine ([`excitation`]);
-//! - [`crate::recordings::JointLog`]: setpoints, encoder positions and efforts read from (written to) a recording;
-//!   [`crate::recordings::read_joint_log_csv`] the same as plain CSV;
+//! - [`read_log`]: setpoints, encoder positions and efforts read from a recording
+//!   ([`crate::recordings::JointLog`], [`crate::recordings::read_joint_log`]);
 //! - [`signals`]: filtering, the noise floor and the nominal model's effort;
 //! - [`candidates`]: each candidate effect's signature from the model itself;
 //! - [`stats`]: bounded fits, effective sample size, chi-square tails;
@@ -43,6 +43,7 @@ pub mod stats;
 pub mod tracking;
 pub mod workflow;
 
+pub use from_file::read_log;
 pub use generate::{hidden_effect, Answer, Hidden, HiddenOptions, HiddenRecording};
 pub use crate::recordings::JointLog;
 pub use nuisance::InertiaPrior;

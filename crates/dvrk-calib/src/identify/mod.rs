@@ -12,6 +12,7 @@
 
 pub mod ablation;
 pub mod as_published;
+mod input;
 pub mod output;
 pub mod plot;
 pub mod problem;
@@ -26,6 +27,7 @@ use dvrk_kin::{BodyInertia, Model};
 use nalgebra::{DMatrix, DVector, SymmetricEigen};
 use problem::{EffectTerm, Layout, Param, Processing, Regression, Terms};
 pub use crate::recordings::{read_wpi_csv, JointLog};
+pub use input::{read_log, MIN_SAMPLES};
 use serde::Serialize;
 
 /// What to identify and how.

@@ -1,15 +1,12 @@
 //! The joint log: one arm's recorded joints, with efforts, as every product reads it
 //! (identification fits its channels, the discrepancy workflow analyses it in the model's joints,
-//! `dvrk synth hidden-effect` writes it). The readers: the WPI CSV ([`super::torque_log`]), the
-//! dVRK's topics in MCAP files and ROS 1 bags ([`read_mcap`] here; identification's own
-//! measured-only reader in [`super::torque_log`]), the plain CSV layout ([`super::joint_log_csv`]).
+//! `dvrk synth hidden-effect` writes it). [`crate::recordings::read_joint_log`] reads it as
+//! recorded, whatever the format (the WPI CSV `wpi_csv.rs`, the dVRK's topics in MCAP files and
+//! ROS 1 bags `joint_log_mcap.rs`, the plain CSV layout `joint_log_csv.rs`); each product then
+//! takes what it needs with the operations here.
 
 use crate::error::{CalibError, Result};
-use crate::ros_msgs::{self, Header, JointState};
-use dvrk_sim::recording::mcap_out::{ros2_schema, McapOut};
 use nalgebra::{DMatrix, DVector};
-use std::io::Cursor;
-use std::path::Path;
 
 /// The note when the file has no setpoint columns.
 pub const NO_SETPOINTS: &str = "no setpoint columns: the encoder positions stand in for the setpoints (the tracking channel then replays the recording's own motion)";
@@ -21,21 +18,25 @@ pub const NO_SETPOINTS: &str = "no setpoint columns: the encoder positions stand
 /// joints.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct JointLog {
-    /// Where it was read from (the file), for messages and reports: identification's readers
-    /// ([`super::read_wpi_csv`], [`super::read_mcap_joint_states`]) set it; empty otherwise.
+    /// Where it was read from (the file), for messages and reports; empty for a log made in
+    /// memory.
     pub source: String,
     /// Channel names (the arm's joints, in the recording's order; `wrist_pitch actuator` for an
     /// actuator channel).
     pub names: Vec<String>,
     /// Sample times (s), strictly increasing.
     pub t: Vec<f64>,
-    /// Commanded positions per sample (rad, m).
+    /// Commanded positions per sample (rad, m): the latest setpoint at or before each sample, a
+    /// sample's list empty before the first one; no sample at all when the recording has none
+    /// ([`JointLog::setpoints_or_encoders`]).
     pub setpoint: Vec<Vec<f64>>,
     /// Measured positions (encoders) per sample (rad, m).
     pub position: Vec<Vec<f64>>,
-    /// Measured velocities per sample (rad/s, m/s); empty when the reader kept none.
+    /// Measured velocities per sample (rad/s, m/s), a sample's list empty where its message
+    /// carried none ([`JointLog::fill_missing_velocities`]); no sample at all when not kept.
     pub velocity: Vec<Vec<f64>>,
-    /// Measured efforts per sample (N·m, N).
+    /// Measured efforts per sample (N·m, N); every sample's list empty for a recording of
+    /// encoders alone ([`JointLog::has_efforts`]).
     pub effort: Vec<Vec<f64>>,
     /// Model joints = `to_joint` * channels, for positions and velocities; channel efforts =
     /// `to_joint^T` * joint efforts (virtual work). `None`: the channels are the model's joints.
@@ -119,111 +120,60 @@ impl JointLog {
             markers: self.markers.clone(),
         })
     }
-}
 
-/// A wpi-csv recording (`dvrk identify`'s reader) as a joint log of `model`'s joints: the tool's
-/// actuator channels taken to joint space (positions through `to_joint`, efforts through its
-/// transpose's inverse, by virtual work). It has no setpoints: the encoders stand in for them
-/// (the tracking channel then compares the replay with the recording itself).
-pub fn read_wpi_csv(path: &Path, model: &dvrk_kin::Model) -> Result<JointLog> {
-    let mut rec = super::torque_log::read_wpi_csv(path, model)?;
-    // The discrepancy workflow differentiates the positions itself: the recorded velocities
-    // are not taken along.
-    rec.velocity = Vec::new();
-    let mut log = rec.in_joint_space(model)?;
-    log.setpoint = log.position.clone();
-    Ok(log)
-}
+    /// [`JointLog::in_joint_space`], consuming the log: one already in the joints is returned
+    /// as it is, not copied (a long recording's samples are held once).
+    pub fn into_joint_space(self, model: &dvrk_kin::Model) -> Result<JointLog> {
+        match self.to_joint {
+            None => Ok(self),
+            Some(_) => self.in_joint_space(model),
+        }
+    }
 
-/// Write `log` as MCAP: `/<arm>/setpoint_js` (position) and `/<arm>/measured_js` (position,
-/// effort), sensor_msgs/msg/JointState in CDR; and the tracker's poses, if any, as
-/// geometry_msgs/msg/PoseStamped on their topic.
-pub fn write_mcap(log: &JointLog, arm: &str) -> Result<Vec<u8>> {
-    let io = |e: std::io::Error| CalibError::data("MCAP writer", e.to_string());
-    let mut w = McapOut::new(Cursor::new(Vec::new())).map_err(io)?;
-    let (n, s) = ros_msgs::joint_state_schema();
-    let sp = w.add_channel(&format!("/{arm}/setpoint_js"), ros2_schema(n, &s), "cdr").map_err(io)?;
-    let me = w.add_channel(&format!("/{arm}/measured_js"), ros2_schema(n, &s), "cdr").map_err(io)?;
-    // The tracker's poses, interleaved in time order.
-    let marker = match &log.markers {
-        Some(m) => {
-            let (n, s) = ros_msgs::pose_stamped_schema();
-            Some((m, w.add_channel(&m.topic, ros2_schema(n, &s), "cdr").map_err(io)?))
-        }
-        None => None,
-    };
-    let ns = |t: f64| (t.max(0.0) * 1e9).round() as u64;
-    let mut next_pose = 0;
-    for (i, t) in log.t.iter().enumerate() {
-        while let Some((m, ch)) = marker.filter(|(m, _)| next_pose < m.t.len() && m.t[next_pose] <= *t) {
-            let tp = m.t[next_pose];
-            w.log(ch, ns(tp), &ros_msgs::PoseStamped::from_pose(tp, "tracker", &m.poses[next_pose]).encode());
-            next_pose += 1;
-        }
-        let set = JointState { header: Header::at(*t, ""), name: log.names.clone(), position: log.setpoint[i].clone(), ..Default::default() };
-        let meas = JointState { header: Header::at(*t, ""), name: log.names.clone(), position: log.position[i].clone(), effort: log.effort[i].clone(), ..Default::default() };
-        for (ch, js) in [(sp, set), (me, meas)] {
-            w.log(ch, ns(*t), &js.encode());
+    /// Velocities by central differences of the positions for every sample whose message
+    /// carried none (one-sided at the ends).
+    pub fn fill_missing_velocities(&mut self) {
+        let (m, n) = (self.len(), self.names.len());
+        self.velocity.resize(m, Vec::new());
+        for i in 0..m {
+            if self.velocity[i].len() != n {
+                let (a, b) = (i.saturating_sub(1), (i + 1).min(m - 1));
+                self.velocity[i] = (0..n).map(|k| (self.position[b][k] - self.position[a][k]) / (self.t[b] - self.t[a])).collect();
+            }
         }
     }
-    Ok(w.finish().map_err(io)?.into_inner())
-}
 
-/// Read an arm's setpoints and measurements (with efforts, or without any: then every sample's
-/// list is empty, [`JointLog::has_efforts`]) from an MCAP file or ROS 1 bag, in
-/// the dVRK's layout (`/<arm>/setpoint_js`, `/<arm>/measured_js`, the jaw or gripper on its own
-/// topic, merged by [`crate::recordings::joint_states::read_arm`]) or with every joint on one topic. The
-/// setpoints are matched to the measurements by time (the latest setpoint at or before each
-/// measurement); without setpoints the encoders stand in for them (said in the notes). Errors
-/// name the file, the topic and the message.
-pub fn read_mcap(path: &Path, arm: &str) -> Result<(JointLog, Vec<String>)> {
-    let (set_kind, meas_kind) = ("setpoint_js", "measured_js");
-    let mut states = crate::recordings::joint_states::read_arm(path, arm, &[set_kind, meas_kind])?;
-    let meas_topic = format!("/{arm}/{meas_kind}");
-    let Some(mut meas) = states.kinds.remove(meas_kind) else {
-        return Err(CalibError::file(path, format!("no topic {meas_topic}; topics: {}", states.listing())));
-    };
-    let mut notes = std::mem::take(&mut states.notes);
-    let set = match states.kinds.remove(set_kind) {
-        Some(set) if set.names != meas.names => {
-            return Err(CalibError::file(path, format!("/{arm}/{set_kind} joints {:?} differ from {meas_topic} joints {:?}", set.names, meas.names)));
+    /// A setpoint for every sample: the samples before the first setpoint are dropped; a
+    /// recording without setpoints gets its encoder positions in their place, and the note
+    /// saying so ([`NO_SETPOINTS`], after `path`).
+    pub fn setpoints_or_encoders(&mut self, path: &std::path::Path) -> Option<String> {
+        if self.setpoint.is_empty() {
+            self.setpoint = self.position.clone();
+            return Some(format!("{}: {}", path.display(), NO_SETPOINTS));
         }
-        Some(set) => set,
-        None => {
-            notes.push(format!("{}: {}", path.display(), NO_SETPOINTS));
-            meas.clone()
+        let first = self.setpoint.iter().position(|s| !s.is_empty()).unwrap_or(self.len());
+        if first > 0 {
+            let drop_front = |v: &mut Vec<Vec<f64>>| {
+                if !v.is_empty() {
+                    v.drain(..first);
+                }
+            };
+            self.t.drain(..first);
+            for v in [&mut self.setpoint, &mut self.position, &mut self.velocity, &mut self.effort] {
+                drop_front(v);
+            }
         }
-    };
-    let nq = meas.names.len();
-    meas.velocity = Vec::new();
-    let mut log = JointLog { names: std::mem::take(&mut meas.names), ..Default::default() };
-    let mut j = 0;
-    // Encoders alone (no message carries efforts): the kinematic channel can still run.
-    let without_efforts = meas.effort.iter().all(Vec::is_empty);
-    if without_efforts {
-        notes.push(format!("{}: {meas_topic} carries no efforts: only the kinematic channel (a tracked marker) can be analysed", path.display()));
+        None
     }
-    for (i, t) in meas.t.iter().enumerate() {
-        if !without_efforts && meas.effort[i].len() != nq {
-            return Err(CalibError::file(path, format!("{meas_topic} at t = {t} s: {} efforts for {nq} joints (the discrepancy workflow needs measured efforts)", meas.effort[i].len())));
-        }
-        if let Some(k) = meas.position[i].iter().chain(&meas.effort[i]).position(|x| !x.is_finite()) {
-            return Err(CalibError::file(path, format!("{meas_topic} at t = {t} s: value {k} is not finite")));
-        }
-        while j + 1 < set.t.len() && set.t[j + 1] <= *t + 1e-9 {
-            j += 1;
-        }
-        if set.t.first().is_none_or(|t0| *t0 > *t + 1e-9) {
-            continue;
-        }
-        log.t.push(*t);
-        log.setpoint.push(set.position[j].clone());
-        // Moved, not copied: a 5-minute recording's samples are held once.
-        log.position.push(std::mem::take(&mut meas.position[i]));
-        log.effort.push(std::mem::take(&mut meas.effort[i]));
+
+    /// What `model`'s limits say of the measured positions (taken to the joints), after `path`;
+    /// `None` when every sample is within them. Measured data past a limit is analysed as
+    /// measured, and said.
+    pub fn limits_note(&self, model: &dvrk_kin::Model, path: &std::path::Path) -> Option<String> {
+        let summary = match &self.to_joint {
+            None => dvrk_kin::LimitTally::of(model, &self.position).summary(model),
+            Some(m) => dvrk_kin::LimitTally::of(model, self.position.iter().map(|q| m * DVector::from_column_slice(q))).summary(model),
+        };
+        summary.map(|s| format!("{}: {s}", path.display()))
     }
-    if log.len() < 100 {
-        return Err(CalibError::file(path, format!("{} usable samples on {meas_topic} (need at least 100)", log.len())));
-    }
-    Ok((log, notes))
 }

@@ -7,11 +7,11 @@
 //!   ([`read_recording`]); the tracks they fill (`tracks.rs`); marker clouds to body poses
 //!   (`markers_to_pose.rs`).
 //! - Joints: the dVRK's CRTK `JointState` topics (`joint_states.rs`); one joint log with efforts
-//!   ([`JointLog`], in the recorded channels with their map to the model's joints), read as
-//!   identification wants it (`torque_log.rs`: the WPI CSV in its actuator channels, the dVRK's
-//!   `measured_js` with velocities) and as the discrepancy workflow wants it ([`read_log`]: in the
-//!   joints, with setpoints: `joint_log.rs` for MCAP and bags, its CSV layout `joint_log_csv.rs`, a
-//!   tracked marker's poses `marker_log.rs`).
+//!   and setpoints ([`JointLog`], in the recorded channels with their map to the model's joints)
+//!   and one reader of it whatever the format ([`read_joint_log`]: the WPI CSV `wpi_csv.rs`, MCAP
+//!   and bags `joint_log_mcap.rs`, its CSV layout `joint_log_csv.rs`), read as recorded; each
+//!   product prepares what it needs with [`JointLog`]'s operations. A tracked marker's poses:
+//!   `marker_log.rs`.
 //! - The format of a file, told from its content when asked for `auto` (`format.rs`).
 //!
 //! The ROS 2 message codec is dvrk-sim's (`dvrk_sim::recording::{cdr, ros_msgs}`), which records
@@ -23,6 +23,7 @@ pub(crate) mod foxglove;
 pub(crate) mod format;
 pub(crate) mod joint_log;
 pub(crate) mod joint_log_csv;
+pub(crate) mod joint_log_mcap;
 pub(crate) mod joint_states;
 pub(crate) mod marker_log;
 pub(crate) mod markers_to_pose;
@@ -31,12 +32,12 @@ pub(crate) mod message_file;
 pub(crate) mod motive_csv;
 pub(crate) mod plain_csv;
 pub(crate) mod read;
-pub(crate) mod torque_log;
 pub(crate) mod tracks;
+pub(crate) mod wpi_csv;
 
 // Any recording, by format.
 pub use format::{auto_note, resolve as resolve_format, FORMATS};
-pub use read::{read_log, read_recording};
+pub use read::{read_joint_log, read_recording};
 // Poses: MCAP and ROS 1 bags, Motive and plain CSV, marker clouds.
 pub use markers_to_pose::{drop_outliers, estimate_layout, fit_pose, poses_from_markers, MIN_MARKERS};
 pub use mcap_io::{parse as parse_mcap_poses, pose_topic, read as read_mcap_poses, write as write_mcap_poses, McapLayout, McapOptions};
@@ -44,9 +45,10 @@ pub use message_file::{container, for_each as for_each_message, for_each_mcap, C
 pub use motive_csv::{parse as parse_motive_csv, read as read_motive_csv};
 pub use plain_csv::{parse as parse_plain_csv, read as read_plain_csv, write as write_plain_csv};
 pub use tracks::{common_samples, median_period, BodyTrack, JointTrack, MarkerTrack, Recording};
-// Joint logs: one type, read as identification and the discrepancy workflow want it.
-pub use joint_log::{read_mcap as read_joint_log_mcap, read_wpi_csv as read_wpi_csv_in_joints, write_mcap as write_joint_log_mcap, JointLog, NO_SETPOINTS};
+// Joint logs: one type, one reader ([`read_joint_log`]); each product prepares its own view.
+pub use joint_log::{JointLog, NO_SETPOINTS};
+pub use joint_log_mcap::write_mcap as write_joint_log_mcap;
 pub use joint_log_csv::{parse as parse_joint_log_csv, read as read_joint_log_csv, write as write_joint_log_csv, CsvLog};
 pub use joint_states::{read_arm, read_arms, ArmStates, JointStates};
 pub use marker_log::{marker_frame, read_mcap as read_marker_mcap, synthetic_topic, MarkerLog};
-pub use torque_log::{parse_wpi_csv, read_joint_recording, read_mcap_joint_states, read_wpi_csv, WPI_RATE};
+pub use wpi_csv::{parse as parse_wpi_csv, read as read_wpi_csv, WPI_RATE};

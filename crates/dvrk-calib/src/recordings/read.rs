@@ -1,6 +1,6 @@
 //! Reading a recording whatever its format: poses ([`read_recording`]: MCAP or a ROS 1 bag, told
 //! by their first bytes whatever the name, a Motive CSV export, recognised by its `Format Version`
-//! first line, or the plain CSV format) and joint logs with efforts ([`read_log`]).
+//! first line, or the plain CSV format) and joint logs with efforts ([`read_joint_log`]).
 
 use crate::error::{CalibError, Result};
 use crate::recordings::mcap_io::McapOptions;
@@ -32,17 +32,21 @@ pub fn read_recording(path: &Path, options: &McapOptions) -> Result<Recording> {
     }
 }
 
-/// Read `path` in `format` (`auto`: told from the file, [`crate::recordings::resolve_format`]) for
-/// `model`'s arm `arm`; with what the reader assumed (notes for the report).
-pub fn read_log(path: &Path, format: &str, model: &dvrk_kin::Model, arm: &str) -> Result<(super::JointLog, Vec<String>)> {
+/// Read arm `arm`'s joint log from `path` in `format` (`auto`: told from the file,
+/// [`crate::recordings::resolve_format`]) for `model`, as recorded: `wpi-csv` in its channels
+/// (the tool's actuators, [`super::JointLog::to_joint`]) with its velocities and no setpoints;
+/// `mcap` and `bag` in the model's joints, velocities where the messages carry them, setpoints
+/// where the arm's topic has them; `csv` in the model's joints with its setpoint columns (the
+/// encoders in their place, said in the notes, when it has none).
+/// Each product takes what it needs from it (the discrepancy workflow and identification have
+/// their `read_log`). With what the reader did (notes for the report).
+pub fn read_joint_log(path: &Path, format: &str, model: &dvrk_kin::Model, arm: &str) -> Result<(super::JointLog, Vec<String>)> {
     let resolved = super::format::resolve(path, format)?;
     let (log, mut notes) = match resolved {
-        "mcap" | "bag" => super::joint_log::read_mcap(path, arm)?,
-        "wpi-csv" => (super::joint_log::read_wpi_csv(path, model)?, vec![format!("{}: {}", path.display(), super::joint_log::NO_SETPOINTS)]),
+        "mcap" | "bag" => super::joint_log_mcap::read(path, model, arm)?,
+        "wpi-csv" => (super::wpi_csv::read(path, model)?, Vec::new()),
         _ => super::joint_log_csv::read(path, model).map(|c| (c.log, c.notes))?,
     };
     notes.splice(0..0, super::format::auto_note(path, format, resolved));
-    // Measured data past the model's limits is analysed as measured, and said.
-    notes.extend(dvrk_kin::LimitTally::of(model, &log.position).summary(model).map(|s| format!("{}: {s}", path.display())));
     Ok((log, notes))
 }

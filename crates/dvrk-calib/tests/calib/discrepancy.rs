@@ -176,17 +176,18 @@ fn a_stand_in_for_an_effect_too_small_to_matter_is_not_named() {
 fn joint_logs_round_trip_and_bad_recordings_are_refused() {
     let dir = tempfile::tempdir().unwrap();
     let h = trial(Hidden::None, 5, None, 8.0);
+    let psm = dvrk_kin::load("psm", None).unwrap();
     let path = dir.path().join("rec.mcap");
     std::fs::write(&path, recordings::write_joint_log_mcap(&h.log, "PSM1").unwrap()).unwrap();
-    let back = recordings::read_joint_log_mcap(&path, "PSM1").unwrap().0;
+    let back = dvrk_calib::discrepancy::read_log(&path, "mcap", &psm, "PSM1").unwrap().0;
     assert_eq!(back.names, h.log.names);
     assert_eq!(back.len(), h.log.len());
     assert!((back.effort[100][1] - h.log.effort[100][1]).abs() < 1e-12);
-    let e = recordings::read_joint_log_mcap(&path, "PSM2").unwrap_err().to_string();
+    let e = dvrk_calib::discrepancy::read_log(&path, "mcap", &psm, "PSM2").unwrap_err().to_string();
     assert!(e.contains("/PSM2/measured_js") && e.contains("rec.mcap"), "{e}");
     let bad = dir.path().join("bad.mcap");
     std::fs::write(&bad, b"not an mcap").unwrap();
-    let e = recordings::read_joint_log_mcap(&bad, "PSM1").unwrap_err().to_string();
+    let e = dvrk_calib::discrepancy::read_log(&bad, "mcap", &psm, "PSM1").unwrap_err().to_string();
     assert!(e.contains("bad.mcap") && e.contains("MCAP"), "{e}");
     // Too short for the analysis (8 s: 2 s fade-in, 0.5 s edge, at least 5 s of data needed).
     let mut short = h.log.clone();
@@ -625,7 +626,7 @@ fn a_recording_without_efforts_runs_the_kinematic_channel_alone() {
     let path = dir.path().join("no-efforts.mcap");
     std::fs::write(&path, dvrk_calib::recordings::write_joint_log_mcap(&h.log, "PSM1").unwrap()).unwrap();
     let model = dvrk_kin::load("psm", None).unwrap();
-    let (log, notes) = dvrk_calib::recordings::read_log(&path, "auto", &model, "PSM1").unwrap();
+    let (log, notes) = dvrk_calib::discrepancy::read_log(&path, "auto", &model, "PSM1").unwrap();
     assert!(!log.has_efforts() && notes.iter().any(|n| n.contains("/PSM1/measured_js carries no efforts")), "{notes:?}");
     let e = dvrk_calib::discrepancy::from_file::run(&path, "auto", &model, "PSM1", None, &Options::default(), 1).err().unwrap().to_string();
     assert!(e.contains("no-efforts.mcap") && e.contains("carries no efforts and no tracked marker was given") && !e.contains('\n'), "{e}");
@@ -648,7 +649,6 @@ fn a_recording_without_efforts_runs_the_kinematic_channel_alone() {
 fn payload_anywhere_table() {
     use dvrk_calib::discrepancy::generate::ANY_BODY;
     use dvrk_calib::identify::{identify, output::identified_model, IdentifyOptions};
-    use dvrk_calib::recordings::read_mcap_joint_states;
     let trials: u64 = env_or("DVRK_TRIALS", 30);
     let first: u64 = env_or("DVRK_FIRST_SEED", 2000);
     let cad = std::env::var("DVRK_CAD").is_ok_and(|v| v == "1");
@@ -666,7 +666,7 @@ fn payload_anywhere_table() {
             let free = hidden_effect("psm", &HiddenOptions { hidden: Hidden::None, seed, duration: 30.0, ..Default::default() }).unwrap();
             let path = dir.path().join(format!("free{seed}.mcap"));
             std::fs::write(&path, recordings::write_joint_log_mcap(&free.log, "PSM1").unwrap()).unwrap();
-            let rec = read_mcap_joint_states(&path, &psm, "PSM1").unwrap().0;
+            let rec = dvrk_calib::identify::read_log(&path, "mcap", &psm, "PSM1").unwrap().0;
             let prior = dvrk_sim::scene::builtin_inertials("psm", &psm).unwrap().body_inertias(&psm).unwrap();
             let options = IdentifyOptions::full(Vec::new());
             let (id, _) = identify(&psm, &prior, &rec, &options).unwrap();

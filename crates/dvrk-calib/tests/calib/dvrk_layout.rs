@@ -8,9 +8,8 @@
 //! installs both) or the external data is absent.
 
 use dvrk_calib::discrepancy::{discrepancy, scene_for_arm, Options};
-use dvrk_calib::recordings;
 use dvrk_calib::identify::{summary, IdentifyOptions};
-use dvrk_calib::recordings::read_joint_recording;
+use dvrk_calib::identify;
 use dvrk_calib::recordings::McapOptions;
 use dvrk_calib::{pivot_calibration, read_recording, PivotOptions};
 use std::path::{Path, PathBuf};
@@ -46,10 +45,10 @@ fn file(dir: &Path, name: &str) -> PathBuf {
 fn one_topic_crtk_layout_and_bags_read_the_same() {
     let Some(dir) = fixtures() else { return };
     let psm = dvrk_kin::load("psm", None).unwrap();
-    let (base, _) = read_joint_recording(&file(dir, "one_topic.mcap"), "auto", &psm, "PSM1").unwrap();
+    let (base, _) = identify::read_log(&file(dir, "one_topic.mcap"), "auto", &psm, "PSM1").unwrap();
     assert_eq!(base.len(), 2400);
     for name in ["dvrk.mcap", "dvrk.bag", "dvrk_bz2.bag", "dvrk_lz4.bag"] {
-        let (rec, notes) = read_joint_recording(&file(dir, name), "auto", &psm, "PSM1").unwrap();
+        let (rec, notes) = identify::read_log(&file(dir, name), "auto", &psm, "PSM1").unwrap();
         assert_eq!((&rec.t, &rec.position, &rec.velocity, &rec.effort), (&base.t, &base.position, &base.velocity, &base.effort), "{name}");
         let told = if name.ends_with(".bag") { "read as bag" } else { "read as mcap" };
         assert!(notes.iter().any(|n| n.contains(told)), "{name}: {notes:?}");
@@ -58,10 +57,11 @@ fn one_topic_crtk_layout_and_bags_read_the_same() {
     let jaw: Vec<f64> = base.position.iter().map(|q| q[6]).collect();
     let span = jaw.iter().cloned().fold(f64::MIN, f64::max) - jaw.iter().cloned().fold(f64::MAX, f64::min);
     assert!(span > 0.1, "jaw span {span} rad");
-    let (one, _) = recordings::read_joint_log_mcap(&file(dir, "one_topic.mcap"), "PSM1").unwrap();
+    let (one, _) = dvrk_calib::discrepancy::read_log(&file(dir, "one_topic.mcap"), "auto", &psm, "PSM1").unwrap();
     for name in ["dvrk.mcap", "dvrk_bz2.bag"] {
-        let (log, _) = recordings::read_joint_log_mcap(&file(dir, name), "PSM1").unwrap();
-        assert_eq!(log, one, "{name}");
+        let (log, _) = dvrk_calib::discrepancy::read_log(&file(dir, name), "auto", &psm, "PSM1").unwrap();
+        // The same log but for where it was read from.
+        assert_eq!(dvrk_calib::recordings::JointLog { source: one.source.clone(), ..log }, one, "{name}");
     }
 }
 
@@ -74,7 +74,7 @@ fn identify_and_discrepancy_agree_across_layouts_and_containers() {
     let prior = dvrk_sim::scene::builtin_inertials("psm", &psm).unwrap().body_inertias(&psm).unwrap();
     let options = IdentifyOptions::for_recording(&psm, "mcap");
     let summary = |name: &str| {
-        let (rec, _) = read_joint_recording(&file(dir, name), "auto", &psm, "PSM1").unwrap();
+        let (rec, _) = identify::read_log(&file(dir, name), "auto", &psm, "PSM1").unwrap();
         summary::run(&psm, &prior, &rec, None, &options, "r", "mcap").unwrap().summary
     };
     let (a, b) = (summary("one_topic.mcap"), summary("dvrk_lz4.bag"));
@@ -84,7 +84,7 @@ fn identify_and_discrepancy_agree_across_layouts_and_containers() {
     let yaw = a["relative_error"][0].as_f64().unwrap();
     assert!(yaw > 0.02 && yaw < 0.2, "yaw relative error {yaw}");
     let report = |name: &str| {
-        let (log, _) = recordings::read_joint_log_mcap(&file(dir, name), "PSM1").unwrap();
+        let (log, _) = dvrk_calib::discrepancy::read_log(&file(dir, name), "auto", &psm, "PSM1").unwrap();
         let r = discrepancy(&psm, &scene_for_arm("PSM1").unwrap(), "PSM1", &log, &Options { tracking: false, ..Default::default() }).unwrap().report;
         serde_json::to_value(&r).unwrap()
     };
@@ -121,14 +121,14 @@ fn pivot_from_a_bag_equals_pivot_from_mcap() {
 fn bad_bags_are_named() {
     let Some(dir) = fixtures() else { return };
     let psm = dvrk_kin::load("psm", None).unwrap();
-    let e = read_joint_recording(&file(dir, "dvrk.bag"), "auto", &psm, "PSM2").unwrap_err().to_string();
+    let e = identify::read_log(&file(dir, "dvrk.bag"), "auto", &psm, "PSM2").unwrap_err().to_string();
     assert!(e.contains("dvrk.bag") && e.contains("no topic /PSM2/measured_js") && e.contains("/PSM1/jaw/measured_js"), "{e}");
-    let e = read_joint_recording(&file(dir, "jaw_only.bag"), "auto", &psm, "PSM1").unwrap_err().to_string();
+    let e = identify::read_log(&file(dir, "jaw_only.bag"), "auto", &psm, "PSM1").unwrap_err().to_string();
     assert!(e.contains("jaw_only.bag") && e.contains("/PSM1/jaw/measured_js is there but its arm topic /PSM1/measured_js is not"), "{e}");
     let bytes = std::fs::read(file(dir, "dvrk_bz2.bag")).unwrap();
     let cut = file(dir, "cut.bag");
     std::fs::write(&cut, &bytes[..bytes.len() / 2]).unwrap();
-    let e = read_joint_recording(&cut, "auto", &psm, "PSM1").unwrap_err().to_string();
+    let e = identify::read_log(&cut, "auto", &psm, "PSM1").unwrap_err().to_string();
     assert!(e.contains("cut.bag") && e.contains("truncated ROS 1 bag") && !e.contains('\n'), "{e}");
 }
 
@@ -139,7 +139,7 @@ fn bad_bags_are_named() {
 fn a_real_recording_past_a_limit_is_fitted_and_counted() {
     let Some(one) = crate::identify::wpi("psm_one_results.csv") else { return };
     let psm = dvrk_kin::load("psm", None).unwrap();
-    let (rec, notes) = read_joint_recording(&one, "auto", &psm, "PSM1").unwrap();
+    let (rec, notes) = identify::read_log(&one, "auto", &psm, "PSM1").unwrap();
     assert_eq!(rec.len(), 5999);
     let note = notes.iter().find(|n| n.contains("outside the limits")).unwrap_or_else(|| panic!("{notes:?}"));
     assert!(note.contains("509 of 5999 measured configuration(s)") && note.contains("jaw: 509 of 5999 sample(s) outside [-0.698132, 1.39626] rad, at most 4.252e-3 rad past"), "{note}");

@@ -295,7 +295,7 @@ fn identify_output_is_a_model_file_the_simulator_loads() {
 /// pitch 0.027 / 0.079, wrist yaw 0.020 / 0.053, jaw 0.0059 / 0.046.
 #[test]
 fn the_identified_model_leaves_less_discrepancy_than_cad_on_the_held_out_recording() {
-    use dvrk_calib::recordings::read_log;
+    use dvrk_calib::discrepancy::read_log;
     use dvrk_calib::discrepancy::{discrepancy, scene_for_arm, Options};
     use dvrk_calib::identify::output::identified_model;
     let Some(Fitted { model, prior, r1, options, id, .. }) = fitted_on_one() else { return };
@@ -323,7 +323,7 @@ fn the_identified_model_leaves_less_discrepancy_than_cad_on_the_held_out_recordi
 /// level ~0 (the simulator has none).
 #[test]
 fn a_simulated_recording_gives_back_the_simulators_damping_and_armature() {
-    use dvrk_calib::recordings::read_mcap_joint_states;
+    use dvrk_calib::identify::read_log;
     use dvrk_calib::identify::output::identified_model;
     use dvrk_calib::identify::report::effects;
     let dir = tempfile::tempdir().unwrap();
@@ -335,7 +335,7 @@ fn a_simulated_recording_gives_back_the_simulators_damping_and_armature() {
     let options = dvrk_sim::RunOptions { duration: 20.0, trajectory: dvrk_sim::run::TrajectoryKind::Sine, sim };
     dvrk_sim::run_recorded(&scene, &options, Some(&dvrk_sim::RecordOptions { path: path.clone(), rate: 200.0 }), |_| {}).unwrap();
     let model = psm();
-    let rec = read_mcap_joint_states(&path, &model, "PSM1").unwrap().0;
+    let rec = read_log(&path, "mcap", &model, "PSM1").unwrap().0;
     assert_eq!(rec.names[0], "outer_yaw");
     let prior = dvrk_sim::scene::builtin_inertials("psm", &model).unwrap().body_inertias(&model).unwrap();
     let options = IdentifyOptions::full(vec![3, 4, 5, 6]);
@@ -377,6 +377,6 @@ fn a_simulated_recording_gives_back_the_simulators_damping_and_armature() {
         assert!((got - truth).abs() < 0.12 * truth, "roll inertia {got} vs {truth}");
     }
     // A missing topic and a wrong arm name are named.
-    let e = read_mcap_joint_states(&path, &model, "PSM2").unwrap_err().to_string();
+    let e = read_log(&path, "mcap", &model, "PSM2").unwrap_err().to_string();
     assert!(e.contains("no topic /PSM2/measured_js; topics:"), "{e}");
 }

@@ -4,7 +4,7 @@
 //! identified on the no-weight recording (`dvrk identify -o`), with the covariance of its
 //! inertias, which the workflow takes as the inertia nuisance's prior.
 
-use dvrk_calib::recordings::read_log;
+use dvrk_calib::discrepancy::read_log;
 use dvrk_calib::discrepancy::{discrepancy, scene_for_arm, Options, Report};
 use dvrk_calib::identify::{identify, output::identified_model, read_wpi_csv, IdentifyOptions};
 use std::path::{Path, PathBuf};
