@@ -183,6 +183,19 @@ fn an_overflowing_figure_is_not_exported() {
 /// Issue 43 (validate before load): a `--plot` whose format is unknown is refused before the
 /// recording is read, so the error names the flag, not whatever the recording holds.
 #[test]
+fn synth_mocap_checks_its_flags_before_loading_the_model() {
+    let dir = crate::util::tempdir();
+    let out = dir.path().join("m.mcap");
+    let o = out.to_str().unwrap();
+    // The model does not exist: each flag's error must come first, naming the flag.
+    assert_one_line(&dvrk_err(&["synth", "mocap", "--model", "no-such-model", "--layout", "pose", "-o", o]), &["--layout", "`pose`"]);
+    assert_one_line(&dvrk_err(&["synth", "mocap", "--model", "no-such-model", "--noise-mm=-1", "-o", o]), &["--noise-mm", "-1"]);
+    let txt = dir.path().join("m.txt");
+    assert_one_line(&dvrk_err(&["synth", "mocap", "--model", "no-such-model", "-o", txt.to_str().unwrap()]), &["m.txt", "unknown format `.txt`"]);
+    assert!(!out.exists());
+}
+
+#[test]
 fn calib_refuses_a_plot_format_before_reading_the_recording() {
     let dir = crate::util::tempdir();
     let junk = dir.path().join("r.csv");

@@ -151,7 +151,6 @@ fn mocap(a: &MocapArgs) -> Result<()> {
         &[("--model", std::path::Path::new(&a.model))],
         &[("-o", Some(&a.output)), ("--config-out", a.config_out.as_deref()), ("--truth", a.truth.as_deref())],
     )?;
-    let model = dvrk_kin::load(&a.model, None)?;
     let motion: SynthMotion = a.motion.parse().map_err(|e| anyhow!("--motion: {e}"))?;
     let amp = crate::io::parse_list("--amplitude", &a.amplitude)?;
     let [a1, a2] = amp.as_slice() else { bail!("--amplitude: give two values (q1, q2 in rad), got {}", amp.len()) };
@@ -165,6 +164,12 @@ fn mocap(a: &MocapArgs) -> Result<()> {
         "foxglove" => McapLayout::Foxglove,
         other => bail!("--layout: `{other}` is not a layout; valid: pose-stamped, tf, foxglove, foxglove-json"),
     };
+    let ext = a.output.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
+    if ext != "mcap" && ext != "csv" {
+        bail!("-o {}: unknown format `.{ext}`; valid: .mcap, .csv", a.output.display());
+    }
+    // Every flag is checked: now the model.
+    let model = dvrk_kin::load(&a.model, None)?;
     let options = SynthOptions {
         motion,
         noise: a.noise_mm * 1e-3,
@@ -180,11 +185,9 @@ fn mocap(a: &MocapArgs) -> Result<()> {
     let spinner = crate::progress::Progress::spinner("simulating the tracker", crate::progress::Progress::wanted(false));
     let rec = scenario.record(a.seed);
     spinner.finish();
-    let ext = a.output.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
     let bytes = match ext.as_str() {
         "mcap" => dvrk_calib::recordings::write_mcap_poses(&rec, layout, &a.joint_topic)?,
-        "csv" => dvrk_calib::recordings::write_plain_csv(&rec).into_bytes(),
-        _ => bail!("-o {}: unknown format `.{ext}`; valid: .mcap, .csv", a.output.display()),
+        _ => dvrk_calib::recordings::write_plain_csv(&rec).into_bytes(),
     };
     let mut staged = vec![crate::io::stage(&a.output, &bytes)?];
     if let Some(c) = &a.config_out {

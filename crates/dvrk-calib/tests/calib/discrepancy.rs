@@ -170,6 +170,32 @@ fn a_stand_in_for_an_effect_too_small_to_matter_is_not_named() {
     assert!(r.effects.is_empty());
 }
 
+/// The dVRK's topics with the joints in another order than the model's read in the model's
+/// order (matched by name), the same log as one written in order.
+#[test]
+fn an_mcap_in_another_joint_order_reads_in_the_models() {
+    let dir = tempfile::tempdir().unwrap();
+    let h = trial(Hidden::None, 5, None, 5.0);
+    let psm = dvrk_kin::load("psm", None).unwrap();
+    let order = [6, 0, 5, 1, 4, 2, 3];
+    let shuffle = |v: &Vec<Vec<f64>>| -> Vec<Vec<f64>> { v.iter().map(|s| order.iter().map(|&k| s[k]).collect()).collect() };
+    let shuffled = dvrk_calib::recordings::JointLog {
+        names: order.iter().map(|&k| h.log.names[k].clone()).collect(),
+        setpoint: shuffle(&h.log.setpoint),
+        position: shuffle(&h.log.position),
+        effort: shuffle(&h.log.effort),
+        ..h.log.clone()
+    };
+    let (a, b) = (dir.path().join("a.mcap"), dir.path().join("b.mcap"));
+    std::fs::write(&a, recordings::write_joint_log_mcap(&h.log, "PSM1").unwrap()).unwrap();
+    std::fs::write(&b, recordings::write_joint_log_mcap(&shuffled, "PSM1").unwrap()).unwrap();
+    let read = |p: &std::path::Path| dvrk_calib::discrepancy::read_log(p, "mcap", &psm, "PSM1").unwrap().0;
+    let (in_order, reordered) = (read(&a), read(&b));
+    assert_eq!(reordered.names, psm.joints.iter().map(|j| j.name.clone()).collect::<Vec<_>>());
+    assert_eq!((&reordered.t, &reordered.setpoint, &reordered.position, &reordered.effort), (&in_order.t, &in_order.setpoint, &in_order.position, &in_order.effort));
+    assert!(reordered.len() > 1000);
+}
+
 /// The MCAP written for a hidden-effect recording reads back with its efforts; recordings the
 /// workflow cannot use are refused with the file, topic and value.
 #[test]
