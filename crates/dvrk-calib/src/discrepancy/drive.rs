@@ -1,7 +1,7 @@
 //! Signatures of a joint's two-mass drive (compliance, backlash): nonlinear in their parameter,
 //! so each is a 1-D profile, and each grid point is a small simulation of its own. The encoder
 //! sits on the motor, whose recorded motion (with the detail the band leaves out, up to
-//! [`MOTOR_DETAIL_CUTOFF`]) holds it below [`MOTOR_TIE`] and leaves it free above; the link,
+//! [`MOTOR_DETAIL_CUTOFF`]) holds it below `MOTOR_TIE` and leaves it free above; the link,
 //! reduced to its own joint (inertia `M_jj` and gravity stiffness from the model, the model's
 //! load along the recorded motion), is integrated behind the transmission at 4 times the
 //! recording's rate; the drive's torque then goes through the analysis' filter like the
@@ -56,7 +56,7 @@ const SUBSTEPS: usize = 4;
 pub enum Law {
     /// Spring of this stiffness (N·m/rad, N/m).
     Compliance(f64),
-    /// Play of half-width `half` (rad, m), a stiff contact beyond it ([`CONTACT_BANDWIDTH`] on
+    /// Play of half-width `half` (rad, m), a stiff contact beyond it (`CONTACT_BANDWIDTH` on
     /// the motor inertia).
     Backlash { half: f64 },
 }

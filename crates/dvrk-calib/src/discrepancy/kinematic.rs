@@ -419,7 +419,7 @@ pub fn analyse(i: &Inputs) -> Result<KinematicChannel> {
 const LENGTH_STEP: f64 = 1e-4;
 
 /// The frames between the base and `frame` whose DH length `a` the tracker can see, base first,
-/// each with `model` compiled with that `a` longer by [`LENGTH_STEP`]: a moving joint before the
+/// each with `model` compiled with that `a` longer by `LENGTH_STEP`: a moving joint before the
 /// length turns it, and one at or after it (modified DH: the frame's own joint acts after its
 /// `a`) turns what follows; a length outside both is absorbed by the tracker's or the marker's
 /// placement.

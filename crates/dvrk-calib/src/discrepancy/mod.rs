@@ -8,7 +8,9 @@
 //! - [`signals`]: filtering, the noise floor and the nominal model's effort;
 //! - [`candidates`]: each candidate effect's signature from the model itself;
 //! - [`stats`]: bounded fits, effective sample size, chi-square tails;
-//! - [`workflow`]: fit, score, hold out, verdict ([`discrepancy`]); [`report`] its JSON;
+//! - [`workflow`]: the analysis top to bottom ([`discrepancy`]): the prediction (`baseline.rs`),
+//!   the profiled effects (`profiles.rs`), the linear candidates, the verdict (`verdict.rs`), each
+//!   effect's entry (`effect_report.rs`); [`report`] its JSON;
 //! - [`tracking`]: the setpoints replayed through the simulator, before and after;
 //! - [`plot`]: the residual before and after against time, velocity, load and position.
 //!
@@ -17,9 +19,11 @@
 //! on a link, [`kinematic`]) joins its evidence per candidate, and runs alone on a recording
 //! without efforts ([`kinematic_only`]).
 
+mod baseline;
 pub mod candidates;
 pub mod consistency;
 pub mod drive;
+mod effect_report;
 pub mod excitation;
 mod explain;
 pub mod fit;
@@ -31,6 +35,7 @@ pub mod nuisance;
 pub mod options;
 pub mod payload;
 pub mod plot;
+mod profiles;
 pub mod registration;
 pub mod repeat;
 pub mod report;
@@ -41,6 +46,7 @@ pub mod signals;
 pub mod signature;
 pub mod stats;
 pub mod tracking;
+mod verdict;
 pub mod workflow;
 
 pub use from_file::read_log;

@@ -32,7 +32,7 @@ pub struct Options {
     pub seed: u64,
     /// The inertias re-estimated next to every candidate, within this prior.
     pub inertia_prior: InertiaPrior,
-    /// Analyse only this effect's candidate ([`same_effect`]): the repeated workflow's refit of
+    /// Analyse only this effect's candidate ([`super::workflow::same_effect`]): the repeated workflow's refit of
     /// an effect named in an earlier round, the model holding every other.
     pub only: Option<EffectSpec>,
 }

@@ -111,7 +111,7 @@ pub fn estimate_layout(track: &MarkerTrack) -> Result<Vec<Vector3<f64>>> {
 /// Poses of a cluster from its raw markers. `layout` is the cluster in its body frame (m; from
 /// the rigid-body definition, or [`estimate_layout`] when `None`). Frames with fewer than three
 /// visible markers count as occluded; frames whose RMS residual exceeds
-/// `OUTLIER_FACTOR x median` (and [`OUTLIER_FLOOR`]) count as outliers; both are left out.
+/// `OUTLIER_FACTOR x median` (and `OUTLIER_FLOOR`) count as outliers; both are left out.
 pub fn poses_from_markers(track: &MarkerTrack, layout: Option<&[Vector3<f64>]>) -> Result<BodyTrack> {
     let k = track.markers();
     let what = || format!("rigid body `{}`", track.body);

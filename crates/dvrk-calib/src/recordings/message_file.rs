@@ -125,7 +125,7 @@ pub fn for_each(path: &Path, visit: impl FnMut(&Message) -> Result<()>) -> Resul
 }
 
 /// Every message of the MCAP file `bytes` (from `path`), in file order, through the `mcap`
-/// crate's sans-io reader with a record length limit ([`record_length_limit`]): its
+/// crate's sans-io reader with a record length limit (`record_length_limit`): its
 /// `MessageStream` has none, and a damaged record inside a chunk (found by the fuzz target
 /// `tests/fuzz.rs::mcap_joint_states`) made it reserve 3.5e18 bytes and abort the process.
 /// Returns the number of messages.

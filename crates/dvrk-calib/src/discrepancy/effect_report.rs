@@ -1,0 +1,183 @@
+//! A scored candidate as a model-file effect and as the report's entry: its parameters and
+//! intervals, what it explains per joint, and for a payload where it sits and which placements on
+//! other bodies explain as much.
+
+use super::candidates::{self, Candidate, Table};
+use super::fit::Fitter;
+use super::payload::{Normal, Placement};
+use super::profiles::{profiled_name, profiled_spec};
+use super::report::{EffectReport, JointExplained};
+use super::scoring::{Score, Scored};
+use super::signals::{add, residual, rms, Prepared};
+use crate::error::Result;
+use dvrk_kin::effects::{EffectKind, EffectSpec};
+use dvrk_kin::Model;
+use std::collections::BTreeMap;
+
+/// A joint's effort unit.
+pub(super) fn unit(model: &Model, k: usize) -> &'static str {
+    if model.joints[k].kind == dvrk_kin::JointType::Prismatic {
+        "N"
+    } else {
+        "N·m"
+    }
+}
+
+/// A scored effect's model-file form (a kinematic-channel-only one's as that channel gives it).
+pub(super) fn spec_of(model: &Model, e: &Scored) -> EffectSpec {
+    match &e.kinematic {
+        Some((spec, _)) => spec.clone(),
+        None => fitted_spec(model, e.candidate, e.kind, e.joint, &e.score),
+    }
+}
+
+/// The torque channel's fit `s` of candidate `c` (a profile's, of `kind` on `joint`, without one).
+fn fitted_spec(model: &Model, c: Option<&Candidate>, kind: EffectKind, joint: Option<usize>, s: &Score) -> EffectSpec {
+    match c {
+        Some(c) => c.spec(model, &s.x, s.profiled, "dvrk discrepancy"),
+        None => profiled_spec(model, kind, joint, s.x[0]),
+    }
+}
+
+/// The 95% intervals of the torque channel's fit `s`, by parameter name.
+fn intervals(c: Option<&Candidate>, kind: EffectKind, s: &Score) -> BTreeMap<String, [f64; 2]> {
+    let mut m = BTreeMap::new();
+    match c {
+        None => {
+            m.insert(profiled_name(kind).into(), s.ci[0]);
+        }
+        Some(c) if matches!(c.kind, EffectKind::Spring | EffectKind::ActuatorSpring) => {
+            m.insert("k".into(), s.ci[0]);
+        }
+        Some(c) if matches!(c.kind, EffectKind::PayloadMass) => {
+            m.insert("mass".into(), s.ci[0]);
+        }
+        Some(c) => {
+            for ((n, ci), a) in c.names.iter().zip(&s.ci).zip(&c.at) {
+                m.insert(n.clone(), [ci[0] + a, ci[1] + a]);
+            }
+        }
+    }
+    m
+}
+
+/// What the report of an effect needs of the analysis.
+pub(super) struct EffectReporter<'a> {
+    pub(super) model: &'a Model,
+    pub(super) prep: &'a Prepared,
+    /// The prediction (the residual's).
+    pub(super) base: &'a Table,
+    pub(super) fit: &'a Fitter<'a>,
+    /// The nominal residual.
+    pub(super) r: &'a Table,
+    /// Every scored candidate (a payload's equivalents are among them).
+    pub(super) scored: &'a [Scored<'a>],
+    /// Each payload body's normal equations ([`super::payload::candidates`]).
+    pub(super) normals: &'a BTreeMap<String, Normal>,
+    /// Per joint, the band RMS of the residual before (the nuisance refitted) and of the
+    /// measured effort, on the training part.
+    pub(super) before_rms: &'a [f64],
+    pub(super) effort_rms: &'a [f64],
+    /// Where each payload's body turns about (m), and the spread of that point.
+    pivots: BTreeMap<String, ([f64; 3], f64)>,
+    ambiguity_bic: f64,
+}
+
+impl<'a> EffectReporter<'a> {
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn new(
+        model: &'a Model,
+        prep: &'a Prepared,
+        base: &'a Table,
+        fit: &'a Fitter<'a>,
+        r: &'a Table,
+        scored: &'a [Scored<'a>],
+        normals: &'a BTreeMap<String, Normal>,
+        rms: (&'a [f64], &'a [f64]),
+        ambiguity_bic: f64,
+    ) -> Result<Self> {
+        let mut pivots = BTreeMap::new();
+        for link in scored.iter().filter(|e| e.kind == EffectKind::PayloadMass).filter_map(|e| e.candidate.and_then(|c| c.link.clone())) {
+            if let Some(f) = model.frames.iter().position(|f| f.name == link) {
+                pivots.insert(link, super::payload::pivot(model, model.frames[f].body, &prep.q)?);
+            }
+        }
+        Ok(EffectReporter { model, prep, base, fit, r, scored, normals, before_rms: rms.0, effort_rms: rms.1, pivots, ambiguity_bic })
+    }
+
+    /// Per joint, what an effect's effort `effect` (its nuisance's share included) explains.
+    fn explained(&self, effect: &Table) -> Vec<JointExplained> {
+        let mut with = self.base.clone();
+        add(&mut with, effect);
+        let f1 = residual(self.prep, &with, true);
+        let tr = 0..self.prep.split;
+        self.prep
+            .active
+            .iter()
+            .map(|&k| {
+                let (b, a) = (self.before_rms[k], rms(&f1, k, tr.clone()));
+                JointExplained { joint: self.model.joints[k].name.clone(), unit: unit(self.model, k), rms_before: b, rms_after: a, share_of_effort: (b - a) / self.effort_rms[k].max(1e-300) }
+            })
+            .collect()
+    }
+
+    /// The payloads on other bodies that explain as much as `best`'s (within the ambiguity).
+    fn equivalents(&self, best: &Scored) -> Vec<Placement> {
+        self.scored
+            .iter()
+            .filter(|e| e.kind == EffectKind::PayloadMass && e.label != best.label && !e.score.at_edge && e.score.delta_bic > best.score.delta_bic - self.ambiguity_bic)
+            .filter_map(|e| {
+                let c = e.candidate?;
+                Some(Placement { link: c.link.clone()?, mass: e.score.x[0], position: candidates::payload_at(&c.at, &e.score.x).unwrap_or([c.at[1], c.at[2], c.at[3]]), delta_bic: e.score.delta_bic })
+            })
+            .collect()
+    }
+
+    /// A scored candidate as a model-file effect and as the report's entry; `effect`: its fitted
+    /// effort where the caller has it already (else rebuilt).
+    pub(super) fn report(&self, e: &Scored, effect: Option<&Table>) -> Result<(EffectSpec, EffectReport)> {
+        let s = &e.score;
+        let (mut spec, ci95) = match &e.kinematic {
+            Some((spec, ci)) => (spec.clone(), ci.clone()),
+            None => (fitted_spec(self.model, e.candidate, e.kind, e.joint, s), intervals(e.candidate, e.kind, s)),
+        };
+        let payload = match e.candidate {
+            Some(c) if c.kind == EffectKind::PayloadMass => c.link.as_ref().and_then(|l| Some((self.pivots.get(l)?, self.normals.get(l)?))).map(|((pv, spread), normal)| {
+                let place = candidates::payload_at(&c.at, &s.x).unwrap_or([c.at[1], c.at[2], c.at[3]]);
+                let pr = super::payload::profile(normal, place, s.x[0].max(1e-6), *pv, s.chi2_unit);
+                // A mass at the vocabulary's bound: the lightest placement within the interval
+                // stands for it, in the report and the model file.
+                let upper = EffectKind::PayloadMass.range("mass").map_or(20.0, |r| r[1]);
+                if s.x[0] >= upper * (1.0 - 1e-9) && pr.mass[0] < s.x[0] {
+                    let (mass, at) = (pr.mass[0], pr.lightest_place);
+                    spec.parameters.insert("mass".into(), mass);
+                    for (k, axis) in ["x", "y", "z"].iter().enumerate() {
+                        spec.parameters.insert((*axis).into(), at[k]);
+                    }
+                    let unbounded = (s.x[0], (nalgebra::Vector3::from(place) - nalgebra::Vector3::from(*pv)).norm());
+                    super::payload::report(at, mass, &pr, *pv, *spread, self.equivalents(e), Some(unbounded))
+                } else {
+                    super::payload::report(place, s.x[0], &pr, *pv, *spread, self.equivalents(e), None)
+                }
+            }),
+            _ => None,
+        };
+        let report = EffectReport {
+            name: spec.name.clone(),
+            joint: spec.joint.clone(),
+            link: spec.link.as_ref().map(|l| l.to_string()),
+            actuator: spec.actuator,
+            parameters: spec.parameters.clone(),
+            ci95,
+            delta_bic: s.delta_bic,
+            p_value: s.p_value,
+            payload,
+            explained: match (&e.kinematic, effect) {
+                (Some(_), _) => Vec::new(),
+                (None, Some(t)) => self.explained(t),
+                (None, None) => self.explained(&e.efforts(self.fit, self.r)?.0),
+            },
+        };
+        Ok((spec, report))
+    }
+}
