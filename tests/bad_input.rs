@@ -183,6 +183,13 @@ fn an_overflowing_figure_is_not_exported() {
 /// Issue 43 (validate before load): a `--plot` whose format is unknown is refused before the
 /// recording is read, so the error names the flag, not whatever the recording holds.
 #[test]
+fn serve_and_fk_check_their_flags_before_loading_the_scene_or_model() {
+    // Neither the scene nor the model exists: the flag's error must come first, naming it.
+    assert_one_line(&dvrk_err(&["serve", "--scene", "no-such-scene", "--domain", "300"]), &["--domain 300", "must be in 0..="]);
+    assert_one_line(&dvrk_err(&["fk", "no-such-model", "--actuators"]), &["--actuators", "--q"]);
+}
+
+#[test]
 fn synth_mocap_checks_its_flags_before_loading_the_model() {
     let dir = crate::util::tempdir();
     let out = dir.path().join("m.mcap");

@@ -37,12 +37,18 @@ pub struct FkArgs {
 }
 
 pub fn run(args: &FkArgs) -> Result<()> {
-    let m = super::load(&args.model)?;
+    // The flags are checked before the model is loaded.
     if let (Some(input), Some(output)) = (&args.input, &args.output) {
         if args.q.is_some() {
             bail!("--q: give either --q or --input, not both");
         }
         crate::io::check_outputs(&[("--input", input), ("MODEL", std::path::Path::new(&args.model.model))], &[("--output", Some(output))])?;
+    }
+    if args.actuators && args.q.is_none() {
+        bail!("--actuators: give the actuator positions with --q");
+    }
+    let m = super::load(&args.model)?;
+    if let (Some(input), Some(output)) = (&args.input, &args.output) {
         let frame = match &args.frame {
             Some(f) => super::frame_arg(&m, "--frame", f)?,
             None => m.tip,
@@ -50,7 +56,7 @@ pub fn run(args: &FkArgs) -> Result<()> {
         return batch(&m, input, output, frame, args.strict);
     }
     let q = if args.actuators {
-        let text = args.q.as_deref().ok_or_else(|| anyhow!("--actuators: give the actuator positions with --q"))?;
+        let text = args.q.as_deref().unwrap_or_default(); // given: checked above
         let a = crate::io::parse_list("--q", text)?;
         let q = m.joints_from_actuators(&a).map_err(|e| anyhow!("--actuators: {e}"))?;
         m.check_q(&q).map_err(|e| anyhow!("--q (as actuators): {e}"))?;

@@ -51,7 +51,6 @@ pub fn run(args: &ServeArgs) -> Result<()> {
         e => bail!("--engine {e}: unknown (valid: reduced, rapier)"),
     };
     crate::io::check_outputs(&[("--scene", std::path::Path::new(&args.scene))], &[("--out", args.out.as_deref())])?;
-    let scene = super::sim::load_scene(&args.scene)?;
     let domain = match args.domain {
         Some(d) => d,
         None => Ros2Options::domain_from_env()?,
@@ -59,6 +58,8 @@ pub fn run(args: &ServeArgs) -> Result<()> {
     if domain > Ros2Options::MAX_DOMAIN {
         bail!("--domain {domain}: must be in 0..={}", Ros2Options::MAX_DOMAIN);
     }
+    // Every flag is checked: now the scene.
+    let scene = super::sim::load_scene(&args.scene)?;
     let options = ServeOptions {
         duration: args.duration,
         rate: args.rate,

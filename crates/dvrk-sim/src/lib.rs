@@ -33,6 +33,7 @@ pub mod recording;
 pub mod reduced;
 pub mod ros2;
 pub mod run;
+mod run_tally;
 pub mod scene;
 pub mod serve;
 pub mod serve_cp;

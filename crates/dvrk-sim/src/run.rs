@@ -7,7 +7,8 @@ use crate::recording::{RecordOptions, Recorder};
 use crate::sim::{Sim, SimOptions};
 use crate::trajectory::Trajectory;
 use crate::Scene;
-use dvrk_kin::rcm::distance_to_axis;
+use crate::run_tally::{RcmWatch, Tally};
+pub use crate::run_tally::WindowSummary;
 use serde::Serialize;
 use std::time::Instant;
 
@@ -105,21 +106,6 @@ pub struct Summary {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub camera: Option<CameraSummary>,
 }
-
-/// One tenth of a run ([`Summary::windows`]).
-#[derive(Debug, Clone, Copy, Serialize)]
-pub struct WindowSummary {
-    /// s of simulated time
-    pub start: f64,
-    pub end: f64,
-    /// Largest loop-closure gap in the window (m).
-    pub max_closure_error: f64,
-    /// Largest distance of an insertion axis from its arm's RCM in the window (m).
-    pub max_rcm_error: f64,
-}
-
-/// Windows of a run ([`Summary::windows`]).
-const WINDOWS: u64 = 10;
 
 /// What the camera cost in a run.
 #[derive(Debug, Clone, Serialize)]
@@ -256,59 +242,12 @@ pub fn run_with(scene: &Scene, options: &RunOptions, outputs: &Outputs, progress
 
 /// [`run_with`], the recording left staged for the caller to commit with its other outputs.
 pub fn run_staged(scene: &Scene, options: &RunOptions, outputs: &Outputs, mut progress: impl FnMut(f64)) -> Result<Run> {
-    let (record, trace_rate) = (outputs.record, outputs.trace_rate);
-    if let Some(d) = outputs.frames_dir {
-        if scene.camera.is_none() {
-            return Err(SimError::field(&scene.file, "camera", format!("--frames-dir {}: the scene has no camera", d.display())));
-        }
-        if !d.is_dir() {
-            return Err(SimError::Io { path: d.display().to_string(), source: std::io::Error::new(std::io::ErrorKind::NotFound, "not a directory") });
-        }
-    }
-    if let Some(r) = trace_rate {
-        if !(r.is_finite() && r > 0.0) {
-            return Err(SimError::value("trace rate (Hz)", r, "must be a positive finite number"));
-        }
-        // The trace is kept in memory (two numbers per traced joint and sample): bounded before
-        // anything is allocated.
-        if options.duration * r > 1e7 {
-            return Err(SimError::value("traced samples (duration x plot rate)", options.duration * r, "at most 1e7 are kept in memory for the plot; lower the plot rate"));
-        }
-    }
-    if !(options.duration.is_finite() && options.duration > 0.0) {
-        return Err(SimError::value("duration (s)", options.duration, "must be a positive finite number"));
-    }
-    // A replayed arm starts on its first sample, so the run does not begin with a jump.
-    let mut replayed: Vec<Option<&Trajectory>> = vec![None; scene.arms.len()];
-    let started;
-    let scene = match &options.trajectory {
-        TrajectoryKind::Replay(r) => {
-            let mut s = scene.clone();
-            for (name, traj) in &r.arms {
-                let a = s.arm_index(name)?;
-                let (mut q0, mut qd0) = (vec![0.0; s.arms[a].model.nq()], vec![0.0; s.arms[a].model.nq()]);
-                if let Trajectory::Samples { q, .. } = traj {
-                    if q.first().map(|x| x.len()) != Some(q0.len()) {
-                        return Err(SimError::field(&r.source, name.as_str(), format!("samples are not {} joints long", q0.len())));
-                    }
-                }
-                traj.sample(0.0, &mut q0, &mut qd0);
-                s.set_start(a, &q0)?;
-                replayed[a] = Some(traj);
-            }
-            started = s;
-            &started
-        }
-        _ => scene,
-    };
+    check(scene, options, outputs)?;
+    let (started, replayed) = start_on_replay(scene, &options.trajectory)?;
+    let scene = started.as_ref().unwrap_or(scene);
     let mut sim = Sim::new(scene, &options.sim)?;
-    if let Some(f) = outputs.realtime {
-        if !(f.is_finite() && f > 0.0) {
-            return Err(SimError::value("real-time factor (--realtime)", f, "must be a positive finite number"));
-        }
-    }
     let live = outputs.live.and_then(|m| m.lock().ok()?.take());
-    let mut recorder = match (record, live) {
+    let mut recorder = match (outputs.record, live) {
         (None, None) => None,
         (record, live) => Some(Recorder::open(&sim, record, live, record.map_or(RecordOptions::DEFAULT_RATE, |r| r.rate))?),
     };
@@ -320,83 +259,14 @@ pub fn run_staged(scene: &Scene, options: &RunOptions, outputs: &Outputs, mut pr
         r.add_camera()?;
     }
     let (mut png, mut scratch) = (Vec::new(), Vec::new());
-    let mut notes = Vec::new();
-    let trajectories: Vec<Trajectory> = sim
-        .arms
-        .iter()
-        .enumerate()
-        .map(|(i, a)| match &options.trajectory {
-            TrajectoryKind::Replay(_) => replayed[i].cloned().unwrap_or_else(|| Trajectory::Hold { q: a.model.home() }),
-            TrajectoryKind::Sine if a.tracking == crate::scene::Tracking::Sine => {
-                let (t, n) = Trajectory::tracking_test(&a.model);
-                notes.extend(n.into_iter().map(|s| format!("{}: {s}", a.name)));
-                t
-            }
-            _ => Trajectory::Hold { q: a.model.home() },
-        })
-        .collect();
-    // The RCM of each arm: its insertion-axis frame's placement in its body, and the world point.
-    let rcms: Vec<Option<(usize, dvrk_kin::Pose, nalgebra::Vector3<f64>)>> = sim
-        .arms
-        .iter()
-        .map(|a| {
-            let m = &a.model;
-            let r = m.rcm.as_ref()?;
-            let fk = m.fk(&m.home()).ok()?;
-            let body = m.frames[r.frame].body;
-            let rel = fk[m.bodies[body].frames[0]].inverse() * fk[r.frame];
-            Some((r.frame, rel, (m.base * nalgebra::Point3::from(r.point)).coords))
-        })
-        .collect();
-    // An arm carried by another (a PSM on its held SUJ) has its RCM fixed to the carrying body,
-    // which the position-held setup joints let sag slightly: the point, in that body's frame.
-    let carriers: Vec<Option<(usize, usize, nalgebra::Vector3<f64>)>> = sim
-        .arms
-        .iter()
-        .zip(&rcms)
-        .map(|(a, r)| {
-            let (pa, pf) = a.parent?;
-            let body = sim.arms[pa].model.frames[pf].body;
-            let local = sim.body_pose(pa, body).inverse() * nalgebra::Point3::from(r.as_ref()?.2);
-            Some((pa, body, local.coords))
-        })
-        .collect();
+    let (trajectories, mut notes) = references(&sim, &options.trajectory, &replayed);
+    let rcm = RcmWatch::new(&sim);
     let n = sim.nq();
     let steps = (options.duration / sim.dt).round().max(1.0) as u64;
     let (mut qr, mut qdr) = (vec![0.0; n], vec![0.0; n]);
-    let mut sum_sq = vec![0.0; n];
-    let mut max_err = vec![0.0_f64; n];
-    let mut max_eff = vec![0.0_f64; n];
-    let (mut max_closure, mut final_closure, mut max_rcm) = (0.0_f64, 0.0_f64, 0.0_f64);
-    let mut max_closure_time = 0.0;
-    let mut windows: Vec<WindowSummary> = (0..WINDOWS)
-        .map(|w| WindowSummary { start: (w * steps / WINDOWS) as f64 * sim.dt, end: ((w + 1) * steps / WINDOWS) as f64 * sim.dt, max_closure_error: 0.0, max_rcm_error: 0.0 })
-        .collect();
-    let mut finite = true;
+    let mut tally = Tally::new(n, steps, sim.dt);
     let every = (steps / 100).max(1);
-    let mut trace = trace_rate.map(|rate| {
-        let sine: Vec<bool> = trajectories.iter().map(|t| !matches!(t, Trajectory::Hold { .. })).collect();
-        let any = sine.iter().any(|s| *s);
-        let stride = ((1.0 / (rate * sim.dt)).round() as u64).max(1);
-        let cap = (steps / stride + 2) as usize;
-        let mut joints = Vec::new();
-        for (a, arm) in sim.arms.iter().enumerate() {
-            if any && !sine[a] {
-                continue;
-            }
-            for (k, j) in arm.model.joints.iter().enumerate() {
-                joints.push(TraceJoint {
-                    arm: arm.name.clone(),
-                    joint: j.name.clone(),
-                    unit: j.unit(),
-                    index: arm.q_offset + k,
-                    commanded: Vec::with_capacity(cap),
-                    measured: Vec::with_capacity(cap),
-                });
-            }
-        }
-        (stride, Trace { t: Vec::with_capacity(cap), joints })
-    });
+    let mut trace = outputs.trace_rate.map(|rate| Trace::for_run(&sim, &trajectories, rate, steps));
     let start = Instant::now();
     let mut pacer = outputs.realtime.map(crate::pace::Pacer::new);
     let mut done = steps;
@@ -424,44 +294,10 @@ pub fn run_staged(scene: &Scene, options: &RunOptions, outputs: &Outputs, mut pr
                 }
             }
         }
-        for i in 0..n {
-            let e = sim.q()[i] - sim.actuator(i)?.target;
-            if !e.is_finite() {
-                finite = false;
-            }
-            sum_sq[i] += e * e;
-            max_err[i] = max_err[i].max(e.abs());
-            max_eff[i] = max_eff[i].max(sim.actuator(i)?.effort.abs());
-        }
-        let c = sim.closure_error();
-        if c > max_closure {
-            max_closure = c;
-            max_closure_time = t;
-        }
-        if s >= steps - steps / 10 {
-            final_closure = final_closure.max(c);
-        }
-        let window = &mut windows[(s * WINDOWS / steps) as usize];
-        window.max_closure_error = window.max_closure_error.max(c);
-        for (a, r) in rcms.iter().enumerate() {
-            if let Some((frame, rel, point)) = r {
-                let pose = sim.frame_pose(a, *frame, rel);
-                let point = match carriers[a] {
-                    Some((pa, body, local)) => (sim.body_pose(pa, body) * nalgebra::Point3::from(local)).coords,
-                    None => *point,
-                };
-                let d = distance_to_axis(&pose, &point);
-                max_rcm = max_rcm.max(d);
-                window.max_rcm_error = window.max_rcm_error.max(d);
-            }
-        }
+        tally.after_step(&sim, s, t, &rcm)?;
         if let Some((stride, tr)) = trace.as_mut() {
             if s % *stride == 0 || s + 1 == steps {
-                tr.t.push(t);
-                for j in &mut tr.joints {
-                    j.commanded.push(sim.actuator(j.index)?.target);
-                    j.measured.push(sim.q()[j.index]);
-                }
+                tr.sample(&sim, t)?;
             }
         }
         if s % every == 0 {
@@ -487,15 +323,13 @@ pub fn run_staged(scene: &Scene, options: &RunOptions, outputs: &Outputs, mut pr
                 arm: arm.name.clone(),
                 joint: j.name.clone(),
                 unit: j.unit(),
-                rms_error: (sum_sq[i] / done as f64).sqrt(),
-                max_error: max_err[i],
-                max_effort: max_eff[i],
+                rms_error: (tally.sum_sq[i] / done as f64).sqrt(),
+                max_error: tally.max_err[i],
+                max_effort: tally.max_eff[i],
             });
         }
     }
     let simulated = done as f64 * sim.dt;
-    // A run stopped early (a signal, a non-finite state) reports the windows it reached.
-    windows.retain(|w| w.start < done as f64 * sim.dt);
     let summary = Summary {
         scene: scene.name.clone(),
         trajectory: options.trajectory.label(),
@@ -510,12 +344,12 @@ pub fn run_staged(scene: &Scene, options: &RunOptions, outputs: &Outputs, mut pr
         wall_time: wall,
         real_time_factor: simulated / wall.max(1e-12),
         joints,
-        max_closure_error: max_closure,
-        max_closure_time,
-        final_closure_error: final_closure,
-        max_rcm_error: max_rcm,
-        windows,
-        finite,
+        max_closure_error: tally.max_closure,
+        max_closure_time: tally.max_closure_time,
+        final_closure_error: tally.final_closure,
+        max_rcm_error: tally.max_rcm,
+        windows: tally.windows_reached(done, sim.dt),
+        finite: tally.finite,
         notes,
         camera: camera.map(|c| CameraSummary {
             frames: c.frames,
@@ -525,4 +359,111 @@ pub fn run_staged(scene: &Scene, options: &RunOptions, outputs: &Outputs, mut pr
         }),
     };
     Ok(Run { summary, trace: trace.map(|(_, t)| t), recording })
+}
+
+/// The run's options and outputs checked before the scene is built.
+fn check(scene: &Scene, options: &RunOptions, outputs: &Outputs) -> Result<()> {
+    if let Some(d) = outputs.frames_dir {
+        if scene.camera.is_none() {
+            return Err(SimError::field(&scene.file, "camera", format!("--frames-dir {}: the scene has no camera", d.display())));
+        }
+        if !d.is_dir() {
+            return Err(SimError::Io { path: d.display().to_string(), source: std::io::Error::new(std::io::ErrorKind::NotFound, "not a directory") });
+        }
+    }
+    if let Some(r) = outputs.trace_rate {
+        if !(r.is_finite() && r > 0.0) {
+            return Err(SimError::value("trace rate (Hz)", r, "must be a positive finite number"));
+        }
+        // The trace is kept in memory (two numbers per traced joint and sample): bounded before
+        // anything is allocated.
+        if options.duration * r > 1e7 {
+            return Err(SimError::value("traced samples (duration x plot rate)", options.duration * r, "at most 1e7 are kept in memory for the plot; lower the plot rate"));
+        }
+    }
+    if !(options.duration.is_finite() && options.duration > 0.0) {
+        return Err(SimError::value("duration (s)", options.duration, "must be a positive finite number"));
+    }
+    if let Some(f) = outputs.realtime {
+        if !(f.is_finite() && f > 0.0) {
+            return Err(SimError::value("real-time factor (--realtime)", f, "must be a positive finite number"));
+        }
+    }
+    Ok(())
+}
+
+/// For a replay: the scene with each replayed arm starting on its first sample (so the run does
+/// not begin with a jump), and each arm's replayed trajectory (`None`: it holds home).
+fn start_on_replay<'t>(scene: &Scene, trajectory: &'t TrajectoryKind) -> Result<(Option<Scene>, Vec<Option<&'t Trajectory>>)> {
+    let mut replayed: Vec<Option<&Trajectory>> = vec![None; scene.arms.len()];
+    let TrajectoryKind::Replay(r) = trajectory else {
+        return Ok((None, replayed));
+    };
+    let mut s = scene.clone();
+    for (name, traj) in &r.arms {
+        let a = s.arm_index(name)?;
+        let (mut q0, mut qd0) = (vec![0.0; s.arms[a].model.nq()], vec![0.0; s.arms[a].model.nq()]);
+        if let Trajectory::Samples { q, .. } = traj {
+            if q.first().map(|x| x.len()) != Some(q0.len()) {
+                return Err(SimError::field(&r.source, name.as_str(), format!("samples are not {} joints long", q0.len())));
+            }
+        }
+        traj.sample(0.0, &mut q0, &mut qd0);
+        s.set_start(a, &q0)?;
+        replayed[a] = Some(traj);
+    }
+    Ok((Some(s), replayed))
+}
+
+/// Each arm's reference under `trajectory` (`replayed`: a replay's per arm), and the notes the
+/// tracking test makes (amplitudes scaled to the limits).
+fn references(sim: &Sim, trajectory: &TrajectoryKind, replayed: &[Option<&Trajectory>]) -> (Vec<Trajectory>, Vec<String>) {
+    let mut notes = Vec::new();
+    let trajectories = sim
+        .arms
+        .iter()
+        .enumerate()
+        .map(|(i, a)| match trajectory {
+            TrajectoryKind::Replay(_) => replayed[i].cloned().unwrap_or_else(|| Trajectory::Hold { q: a.model.home() }),
+            TrajectoryKind::Sine if a.tracking == crate::scene::Tracking::Sine => {
+                let (t, n) = Trajectory::tracking_test(&a.model);
+                notes.extend(n.into_iter().map(|s| format!("{}: {s}", a.name)));
+                t
+            }
+            _ => Trajectory::Hold { q: a.model.home() },
+        })
+        .collect();
+    (trajectories, notes)
+}
+
+impl Trace {
+    /// An empty trace of the tracked joints (those of arms on a reference other than holding;
+    /// every joint when none is) for a run of `steps` steps, sampled at `rate` (Hz); with its
+    /// stride in steps. Its buffers are allocated here, not in the run.
+    fn for_run(sim: &Sim, trajectories: &[Trajectory], rate: f64, steps: u64) -> (u64, Trace) {
+        let sine: Vec<bool> = trajectories.iter().map(|t| !matches!(t, Trajectory::Hold { .. })).collect();
+        let any = sine.iter().any(|s| *s);
+        let stride = ((1.0 / (rate * sim.dt)).round() as u64).max(1);
+        let cap = (steps / stride + 2) as usize;
+        let mut joints = Vec::new();
+        for (a, arm) in sim.arms.iter().enumerate() {
+            if any && !sine[a] {
+                continue;
+            }
+            for (k, j) in arm.model.joints.iter().enumerate() {
+                joints.push(TraceJoint { arm: arm.name.clone(), joint: j.name.clone(), unit: j.unit(), index: arm.q_offset + k, commanded: Vec::with_capacity(cap), measured: Vec::with_capacity(cap) });
+            }
+        }
+        (stride, Trace { t: Vec::with_capacity(cap), joints })
+    }
+
+    /// One sample of the run at `t` (s).
+    fn sample(&mut self, sim: &Sim, t: f64) -> Result<()> {
+        self.t.push(t);
+        for j in &mut self.joints {
+            j.commanded.push(sim.actuator(j.index)?.target);
+            j.measured.push(sim.q()[j.index]);
+        }
+        Ok(())
+    }
 }
