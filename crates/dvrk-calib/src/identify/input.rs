@@ -2,7 +2,7 @@
 //! channels ([`read_log`]).
 
 use crate::error::{CalibError, Result};
-use crate::recordings::JointLog;
+use crate::recordings::{JointLog, Parts};
 use dvrk_kin::Model;
 use std::path::Path;
 
@@ -24,15 +24,13 @@ pub fn read_log(path: &Path, format: &str, model: &Model, arm: &str) -> Result<(
             ))
         }
     }
-    let (mut log, mut notes) = crate::recordings::read_joint_log(path, format, model, arm)?;
+    let (mut log, mut notes) = crate::recordings::read_joint_log_parts(path, format, model, arm, Parts::Measured)?;
     if !log.has_efforts() {
         return Err(CalibError::file(path, format!("/{arm}/measured_js carries no efforts: identification needs measured efforts")));
     }
     if log.len() < MIN_SAMPLES {
         return Err(CalibError::file(path, format!("{} samples; identification needs at least {MIN_SAMPLES}", log.len())));
     }
-    // Setpoints are the discrepancy workflow's; identification fits what was measured.
-    log.setpoint = Vec::new();
     log.fill_missing_velocities();
     // Measured data past the model's limits is fitted as measured, and said.
     notes.extend(log.limits_note(model, path));

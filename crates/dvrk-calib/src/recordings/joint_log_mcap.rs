@@ -49,11 +49,12 @@ pub fn write_mcap(log: &JointLog, arm: &str) -> Result<Vec<u8>> {
 /// `/<arm>/measured_js` with its efforts (none: every sample's list empty, a recording of
 /// encoders alone) and its velocities where it carries them, and the latest `/<arm>/setpoint_js`
 /// at or before each (none before the first; none at all without the topic, or when it lacks a
-/// model joint: said in the notes). With what the reader did (notes for the report); errors name
-/// the file, the topic and the message.
-pub fn read(path: &Path, model: &Model, arm: &str) -> Result<(JointLog, Vec<String>)> {
+/// model joint: said in the notes; not read at all without `setpoints`). With what the reader did
+/// (notes for the report); errors name the file, the topic and the message.
+pub fn read(path: &Path, model: &Model, arm: &str, setpoints: bool) -> Result<(JointLog, Vec<String>)> {
     let (set_kind, meas_kind) = ("setpoint_js", "measured_js");
-    let mut states = crate::recordings::joint_states::read_arm(path, arm, &[meas_kind, set_kind])?;
+    let kinds: &[&str] = if setpoints { &[meas_kind, set_kind] } else { &[meas_kind] };
+    let mut states = crate::recordings::joint_states::read_arm(path, arm, kinds)?;
     let Some(mut meas) = states.kinds.remove(meas_kind) else {
         return Err(CalibError::file(path, format!("no topic /{arm}/{meas_kind}; topics: {}", states.listing())));
     };

@@ -37,7 +37,7 @@ pub(crate) mod wpi_csv;
 
 // Any recording, by format.
 pub use format::{auto_note, resolve as resolve_format, FORMATS};
-pub use read::{read_joint_log, read_recording};
+pub use read::{read_joint_log, read_joint_log_parts, read_recording, Parts};
 // Poses: MCAP and ROS 1 bags, Motive and plain CSV, marker clouds.
 pub use markers_to_pose::{drop_outliers, estimate_layout, fit_pose, poses_from_markers, MIN_MARKERS};
 pub use mcap_io::{parse as parse_mcap_poses, pose_topic, read as read_mcap_poses, write as write_mcap_poses, McapLayout, McapOptions};

@@ -41,12 +41,31 @@ pub fn read_recording(path: &Path, options: &McapOptions) -> Result<Recording> {
 /// Each product takes what it needs from it (the discrepancy workflow and identification have
 /// their `read_log`). With what the reader did (notes for the report).
 pub fn read_joint_log(path: &Path, format: &str, model: &dvrk_kin::Model, arm: &str) -> Result<(super::JointLog, Vec<String>)> {
+    read_joint_log_parts(path, format, model, arm, Parts::All)
+}
+
+/// Which parts of a joint log to read.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Parts {
+    /// Setpoints and measurements.
+    All,
+    /// The measurements alone: a fit of what was measured needs no setpoints, and on MCAP and
+    /// bags they are a topic as large as the measurements (34 MB more at the peak of a 5-minute
+    /// 1 kHz recording).
+    Measured,
+}
+
+/// [`read_joint_log`], of `parts` only.
+pub fn read_joint_log_parts(path: &Path, format: &str, model: &dvrk_kin::Model, arm: &str, parts: Parts) -> Result<(super::JointLog, Vec<String>)> {
     let resolved = super::format::resolve(path, format)?;
-    let (log, mut notes) = match resolved {
-        "mcap" | "bag" => super::joint_log_mcap::read(path, model, arm)?,
+    let (mut log, mut notes) = match resolved {
+        "mcap" | "bag" => super::joint_log_mcap::read(path, model, arm, parts == Parts::All)?,
         "wpi-csv" => (super::wpi_csv::read(path, model)?, Vec::new()),
         _ => super::joint_log_csv::read(path, model).map(|c| (c.log, c.notes))?,
     };
+    if parts == Parts::Measured {
+        log.setpoint = Vec::new();
+    }
     notes.splice(0..0, super::format::auto_note(path, format, resolved));
     Ok((log, notes))
 }

@@ -168,7 +168,14 @@ impl<'a> CdrReader<'a> {
     /// A sequence of f64.
     pub fn f64_seq(&mut self, field: &str) -> Result<Vec<f64>, String> {
         let n = self.seq_len(field, 8)?;
-        (0..n).map(|i| self.f64(&format!("{field}[{i}]"))).collect()
+        // Exactly `n` (bounded by the bytes left): a reader keeps the decoded samples, and a
+        // collected Result grows its Vec by doubling (8 for a PSM's 7 joints, 10 MB more on a
+        // 5-minute recording). The element is named only in an error.
+        let mut v = Vec::with_capacity(n);
+        for i in 0..n {
+            v.push(self.f64(field).map_err(|e| e.replacen(field, &format!("{field}[{i}]"), 1))?);
+        }
+        Ok(v)
     }
     /// A sequence of strings.
     pub fn string_seq(&mut self, field: &str) -> Result<Vec<String>, String> {
@@ -201,6 +208,23 @@ mod tests {
         assert_eq!(r.f64("c").unwrap(), 1.5);
         let e = r.f64("d").unwrap_err();
         assert_eq!(e, "d: the message ends at byte 24 of its payload, 8 more byte(s) needed");
+    }
+
+    /// A sequence decodes to exactly its length, and a short one names the element it ends in.
+    #[test]
+    fn f64_sequences_are_exact_and_name_their_element() {
+        let mut w = CdrWriter::new();
+        w.f64_seq(&[0.5; 7]);
+        let b = w.finish();
+        let v = CdrReader::new(&b).unwrap().f64_seq("q").unwrap();
+        assert_eq!((v.len(), v.capacity(), v[6]), (7, 7, 0.5));
+        // Length 2 at payload 0..4, then 16 bytes: the count passes, but the f64s start at 8
+        // after padding, so the second ends past the payload.
+        let mut b = vec![0, 1, 0, 0];
+        b.extend_from_slice(&2u32.to_le_bytes());
+        b.extend_from_slice(&[0; 16]);
+        let e = CdrReader::new(&b).unwrap().f64_seq("q").unwrap_err();
+        assert_eq!(e, "q[1]: the message ends at byte 20 of its payload, 8 more byte(s) needed");
     }
 
     #[test]
