@@ -84,7 +84,15 @@ pub fn read(path: &Path, model: &Model, arm: &str, setpoints: bool) -> Result<(J
     let without_efforts = meas.effort.iter().all(Vec::is_empty);
     let mut log = JointLog { source: path.display().to_string(), names: joints.clone(), ..Default::default() };
     let m = meas.t.len();
+    // Exactly `m` samples each: grown by doubling they held 18 MB more on a 5-minute recording.
     log.t = std::mem::take(&mut meas.t);
+    log.t.shrink_to_fit();
+    log.position.reserve_exact(m);
+    log.effort.reserve_exact(m);
+    log.velocity.reserve_exact(m);
+    if set.is_some() {
+        log.setpoint.reserve_exact(m);
+    }
     let mut j = 0;
     for i in 0..m {
         let t = log.t[i];
