@@ -259,12 +259,12 @@ fn cables_of(model: &dvrk_kin::Model, arm: &crate::scene::Arm, options: &SimOpti
         }
         let terms: Vec<(usize, f64)> = d.coef.iter().copied().enumerate().filter(|(_, c)| *c != 0.0).collect();
         let [(k, ci)] = terms.as_slice() else {
-            return Err(SimError::Build(format!("passive joint of body {} depends on several joints", model.bodies[dof_body(&dof_of_body, i)].name)));
+            return Err(SimError::Build(format!("passive joint of body {} depends on several joints", model.bodies[dof_body(dof_of_body, i)].name)));
         };
         let dr = &drives[*k];
         let coeff = ci / dr.c;
         // Stiffness for a CABLE_BANDWIDTH cable mode on the follower's own inertia, critically damped.
-        let inertia = axis_inertia(&arm.inertials, model, dof_body(&dof_of_body, i), &d.frame2, d.revolute);
+        let inertia = axis_inertia(&arm.inertials, model, dof_body(dof_of_body, i), &d.frame2, d.revolute);
         let w = CABLE_BANDWIDTH;
         cables.push(Cable { leader: dr.dof, follower: i, coeff, offset: d.offset - coeff * dr.b, stiffness: inertia * w * w, damping: 2.0 * inertia * w, built_damping: 2.0 * inertia * w });
     }
