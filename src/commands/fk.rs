@@ -38,31 +38,37 @@ pub struct FkArgs {
 
 pub fn run(args: &FkArgs) -> Result<()> {
     // The flags are checked before the model is loaded.
-    if let (Some(input), Some(output)) = (&args.input, &args.output) {
-        if args.q.is_some() {
-            bail!("--q: give either --q or --input, not both");
+    let batch_io = match (&args.input, &args.output) {
+        (Some(input), Some(output)) => {
+            if args.q.is_some() {
+                bail!("--q: give either --q or --input, not both");
+            }
+            crate::io::check_outputs(&[("--input", input), ("MODEL", std::path::Path::new(&args.model.model))], &[("--output", Some(output))])?;
+            Some((input, output))
         }
-        crate::io::check_outputs(&[("--input", input), ("MODEL", std::path::Path::new(&args.model.model))], &[("--output", Some(output))])?;
-    }
-    if args.actuators && args.q.is_none() {
-        bail!("--actuators: give the actuator positions with --q");
-    }
+        _ => None,
+    };
+    // One configuration given as actuator positions: read them now.
+    let actuators = match (args.actuators && batch_io.is_none(), args.q.as_deref()) {
+        (false, _) => None,
+        (true, None) => bail!("--actuators: give the actuator positions with --q"),
+        (true, Some(text)) => Some(crate::io::parse_list("--q", text)?),
+    };
     let m = super::load(&args.model)?;
-    if let (Some(input), Some(output)) = (&args.input, &args.output) {
+    if let Some((input, output)) = batch_io {
         let frame = match &args.frame {
             Some(f) => super::frame_arg(&m, "--frame", f)?,
             None => m.tip,
         };
         return batch(&m, input, output, frame, args.strict);
     }
-    let q = if args.actuators {
-        let text = args.q.as_deref().unwrap_or_default(); // given: checked above
-        let a = crate::io::parse_list("--q", text)?;
-        let q = m.joints_from_actuators(&a).map_err(|e| anyhow!("--actuators: {e}"))?;
-        m.check_q(&q).map_err(|e| anyhow!("--q (as actuators): {e}"))?;
-        q
-    } else {
-        super::q_arg(&m, "--q", args.q.as_deref())?
+    let q = match actuators {
+        Some(a) => {
+            let q = m.joints_from_actuators(&a).map_err(|e| anyhow!("--actuators: {e}"))?;
+            m.check_q(&q).map_err(|e| anyhow!("--q (as actuators): {e}"))?;
+            q
+        }
+        None => super::q_arg(&m, "--q", args.q.as_deref())?,
     };
     let mut data = Data::new(&m);
     dvrk_kin::forward_kinematics(&m, &mut data, &q)?;
