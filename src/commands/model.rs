@@ -122,7 +122,7 @@ pub fn show(args: &ModelArgs) -> Result<()> {
     }
     crate::outln!("\njoints:");
     for (k, j) in m.joints.iter().enumerate() {
-        crate::outln!("  q{:<3} {:<22} {:<9} [{:>9.5}, {:>9.5}] {}  effort limit {} {}", k + 1, j.name, format!("{:?}", j.kind).to_lowercase(), j.lower, j.upper, j.unit(), j.effort_limit, if j.kind == dvrk_kin::JointType::Revolute { "N·m" } else { "N" });
+        crate::outln!("  q{:<3} {:<22} {:<9} [{:>9.5}, {:>9.5}] {}  effort limit {} {}", k + 1, j.name, format!("{:?}", j.kind).to_lowercase(), j.lower, j.upper, j.unit(), j.effort_limit, j.effort_unit());
     }
     if !m.closures.is_empty() {
         crate::outln!("\nloop closures (points in m):");

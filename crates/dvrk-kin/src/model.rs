@@ -33,6 +33,14 @@ impl Joint {
             JointType::Prismatic => "m",
         }
     }
+
+    /// Unit of the effort: `N·m` or `N`.
+    pub fn effort_unit(&self) -> &'static str {
+        match self.kind {
+            JointType::Revolute => "N·m",
+            JointType::Prismatic => "N",
+        }
+    }
 }
 
 /// How a frame moves relative to its parent.

@@ -14,15 +14,6 @@ use dvrk_kin::effects::{EffectKind, EffectSpec};
 use dvrk_kin::Model;
 use std::collections::BTreeMap;
 
-/// A joint's effort unit.
-pub(super) fn unit(model: &Model, k: usize) -> &'static str {
-    if model.joints[k].kind == dvrk_kin::JointType::Prismatic {
-        "N"
-    } else {
-        "N·m"
-    }
-}
-
 /// A scored effect's model-file form (a kinematic-channel-only one's as that channel gives it).
 pub(super) fn spec_of(model: &Model, e: &Scored) -> EffectSpec {
     match &e.kinematic {
@@ -116,7 +107,7 @@ impl<'a> EffectReporter<'a> {
             .iter()
             .map(|&k| {
                 let (b, a) = (self.before_rms[k], rms(&f1, k, tr.clone()));
-                JointExplained { joint: self.model.joints[k].name.clone(), unit: unit(self.model, k), rms_before: b, rms_after: a, share_of_effort: (b - a) / self.effort_rms[k].max(1e-300) }
+                JointExplained { joint: self.model.joints[k].name.clone(), unit: self.model.joints[k].effort_unit(), rms_before: b, rms_after: a, share_of_effort: (b - a) / self.effort_rms[k].max(1e-300) }
             })
             .collect()
     }

@@ -6,7 +6,7 @@
 
 use super::baseline::Baseline;
 use super::candidates::{self, Candidate, Table};
-use super::effect_report::{spec_of, unit, EffectReporter};
+use super::effect_report::{spec_of, EffectReporter};
 use super::explain::{mimicked_note, unexplained_guess};
 use super::fit::{Fitter, Rows};
 pub use super::options::{Options, Outcome};
@@ -258,7 +258,7 @@ fn analyse(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog, prep: &
             let (bk, ak) = (before_rms[k], rms(&f1, k, tr.clone()));
             JointRms {
                 joint: names[k].clone(),
-                unit: unit(&arm.model, k),
+                unit: arm.model.joints[k].effort_unit(),
                 noise: prep.noise[k],
                 band_floor: prep.floor[k],
                 band_rms_before: bk,

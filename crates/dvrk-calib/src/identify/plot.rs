@@ -4,7 +4,7 @@
 use super::{Identification, IdentifyOptions, JointLog};
 use crate::error::Result;
 use crate::plot::{file_label, Figure, Line, Panel, BLUE, ORANGE};
-use dvrk_kin::{JointType, Model};
+use dvrk_kin::Model;
 
 /// Points per line at most (a 30 s, 200 Hz recording is drawn whole).
 const MAX_POINTS: usize = 3000;
@@ -16,10 +16,8 @@ pub fn figure(id: &Identification, model: &Model, rec: &JointLog, options: &Iden
     let trim = options.processing.trim;
     let t = &rec.t[trim..trim + reg.len()];
     let stride = reg.len().div_ceil(MAX_POINTS).max(1);
-    let unit = |name: &str| match model.joints.iter().find(|j| j.name == name).map(|j| j.kind) {
-        Some(JointType::Prismatic) => "N",
-        _ => "N·m",
-    };
+    // An actuator channel is not a joint: its effort is a torque.
+    let unit = |name: &str| model.joints.iter().find(|j| j.name == name).map_or("N·m", |j| j.effort_unit());
     let panels = rec
         .names
         .iter()
