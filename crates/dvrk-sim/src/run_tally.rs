@@ -120,13 +120,14 @@ impl Tally {
     /// Count step `s` (0-based), which ended at `t` (s).
     pub(crate) fn after_step(&mut self, sim: &Sim, s: u64, t: f64, rcm: &RcmWatch) -> Result<()> {
         for i in 0..self.sum_sq.len() {
-            let e = sim.q()[i] - sim.actuator(i)?.target;
+            let act = sim.actuator(i)?;
+            let e = sim.q()[i] - act.target;
             if !e.is_finite() {
                 self.finite = false;
             }
             self.sum_sq[i] += e * e;
             self.max_err[i] = self.max_err[i].max(e.abs());
-            self.max_eff[i] = self.max_eff[i].max(sim.actuator(i)?.effort.abs());
+            self.max_eff[i] = self.max_eff[i].max(act.effort.abs());
         }
         let c = sim.closure_error();
         if c > self.max_closure {
