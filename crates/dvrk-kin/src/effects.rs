@@ -21,6 +21,11 @@
 //!   friction loads every joint its cables couple. A model without a coupling has its actuators
 //!   on its joints (`C = I`);
 //! - the simulated drive and sensors (dvrk-sim): `joint_compliance`, `backlash`, `latency`;
+//! - the recording's clocks and the drive's history (the discrepancy workflow's kinematic
+//!   channel): `clock_offset` (`seconds`, either sign: the tracker's clock late against the
+//!   joint stream's when positive), `motion_play` (`b`, half the gap of a lightly loaded drive:
+//!   the link holds where it was when the motor reverses until the gap is crossed,
+//!   [`motion_play`]);
 //! - kinematics and dynamics: `coupling_error` (`dRC`: the true actuator-to-joint coupling is the
 //!   model's plus `dRC` at 1-based row R, column C; the controller reads joints through the
 //!   model's). The compiled model's frames follow the true joints of the joints read, so its
@@ -46,6 +51,7 @@ use std::collections::BTreeMap;
 pub use crate::spec::EffectSpec;
 pub use crate::vocabulary::{coupling_entry_name, coupling_error_range, Effect, EffectKind, ParameterInfo, Target, COUPLING_ERROR_FRACTION};
 pub(crate) use crate::vocabulary::coupling_entry;
+pub use crate::play::motion_play;
 
 
 /// Check the model's `[[effects]]` against the vocabulary, the model's joints and frames and the

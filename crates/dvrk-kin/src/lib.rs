@@ -37,6 +37,7 @@ mod jacobian;
 pub mod limits;
 pub mod load;
 mod model;
+mod play;
 mod vocabulary;
 mod compile;
 pub mod nesting;

@@ -13,8 +13,10 @@ pub enum EffectKind {
     LinkLength,
     BaseRegistration,
     Latency,
+    ClockOffset,
     JointCompliance,
     Backlash,
+    MotionPlay,
     CoulombFriction,
     ViscousFriction,
     PayloadMass,
@@ -67,13 +69,15 @@ const fn p(name: &'static str, unit: &'static str, prismatic_unit: &'static str,
 
 impl EffectKind {
     /// The whole vocabulary.
-    pub const ALL: [EffectKind; 16] = [
+    pub const ALL: [EffectKind; 18] = [
         EffectKind::JointOffset,
         EffectKind::LinkLength,
         EffectKind::BaseRegistration,
         EffectKind::Latency,
+        EffectKind::ClockOffset,
         EffectKind::JointCompliance,
         EffectKind::Backlash,
+        EffectKind::MotionPlay,
         EffectKind::CoulombFriction,
         EffectKind::ViscousFriction,
         EffectKind::PayloadMass,
@@ -93,8 +97,10 @@ impl EffectKind {
             EffectKind::LinkLength => "link_length",
             EffectKind::BaseRegistration => "base_registration",
             EffectKind::Latency => "latency",
+            EffectKind::ClockOffset => "clock_offset",
             EffectKind::JointCompliance => "joint_compliance",
             EffectKind::Backlash => "backlash",
+            EffectKind::MotionPlay => "motion_play",
             EffectKind::CoulombFriction => "coulomb_friction",
             EffectKind::ViscousFriction => "viscous_friction",
             EffectKind::PayloadMass => "payload_mass",
@@ -116,11 +122,11 @@ impl EffectKind {
     /// What it acts on.
     pub fn target(self) -> Target {
         match self {
-            EffectKind::JointOffset | EffectKind::JointCompliance | EffectKind::Backlash | EffectKind::CoulombFriction | EffectKind::ViscousFriction | EffectKind::Spring => {
+            EffectKind::JointOffset | EffectKind::JointCompliance | EffectKind::Backlash | EffectKind::MotionPlay | EffectKind::CoulombFriction | EffectKind::ViscousFriction | EffectKind::Spring => {
                 Target::Joint
             }
             EffectKind::LinkLength | EffectKind::PayloadMass => Target::Link,
-            EffectKind::BaseRegistration | EffectKind::Latency | EffectKind::CouplingError | EffectKind::CounterweightError => Target::Model,
+            EffectKind::BaseRegistration | EffectKind::Latency | EffectKind::ClockOffset | EffectKind::CouplingError | EffectKind::CounterweightError => Target::Model,
             EffectKind::ActuatorCoulombFriction | EffectKind::ActuatorViscousFriction | EffectKind::ActuatorSpring | EffectKind::MotorInertia => Target::Actuator,
         }
     }
@@ -133,8 +139,10 @@ impl EffectKind {
             EffectKind::LinkLength => LINK_LENGTH,
             EffectKind::BaseRegistration => BASE_REGISTRATION,
             EffectKind::Latency => LATENCY,
+            EffectKind::ClockOffset => CLOCK_OFFSET,
             EffectKind::JointCompliance => JOINT_COMPLIANCE,
             EffectKind::Backlash => BACKLASH,
+            EffectKind::MotionPlay => BACKLASH,
             EffectKind::CoulombFriction => COULOMB,
             EffectKind::ViscousFriction => VISCOUS,
             EffectKind::PayloadMass => PAYLOAD,
@@ -188,6 +196,9 @@ const BASE_REGISTRATION: &[ParameterInfo] = &[
     p("rz", "rad", "rad", -PI, PI, Some(0.0)),
 ];
 const LATENCY: &[ParameterInfo] = &[p("seconds", "s", "s", 0.0, 1.0, None)];
+/// A tracker's clock against the joint stream's, either sign (positive: the tracker late, its pose
+/// stamped `t` shows the link at the encoders' `t - seconds`); a second off is another recording.
+const CLOCK_OFFSET: &[ParameterInfo] = &[p("seconds", "s", "s", -1.0, 1.0, None)];
 const JOINT_COMPLIANCE: &[ParameterInfo] = &[p("stiffness", "N·m/rad", "N/m", 1e-3, 1e8, None)];
 const BACKLASH: &[ParameterInfo] = &[p("b", "rad", "m", 0.0, 0.2, None)];
 const COULOMB: &[ParameterInfo] = &[

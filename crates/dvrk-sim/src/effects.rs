@@ -225,7 +225,9 @@ impl ArmEffects {
                     }
                     out.forces.push(e.clone());
                 }
-                EffectKind::JointCompliance | EffectKind::Backlash => {
+                // A play by motion direction is the same dead zone as a load-side play: where its
+                // link rests in the gap is the dynamics' outcome (its load against its friction).
+                EffectKind::JointCompliance | EffectKind::Backlash | EffectKind::MotionPlay => {
                     let j = e.joint.ok_or_else(|| SimError::Build(format!("{}: no joint", what(None))))?;
                     let inertia = armature[j];
                     if inertia <= 0.0 {
@@ -250,7 +252,9 @@ impl ArmEffects {
                 | EffectKind::CouplingError
                 | EffectKind::JointOffset
                 | EffectKind::LinkLength
-                | EffectKind::BaseRegistration => {}
+                | EffectKind::BaseRegistration
+                // The tracker's clock: a recording's, not the arm's.
+                | EffectKind::ClockOffset => {}
             }
         }
         for (j, t) in out.transmissions.iter_mut().enumerate() {
