@@ -30,7 +30,10 @@ pub struct HiddenEffectArgs {
     pub seed: u64,
     /// none, random, random-pair, an effect (coulomb_friction, viscous_friction, spring,
     /// joint_compliance, backlash, latency, joint_offset, payload_mass, coupling_error;
-    /// counterweight_error by name only) or two joined by `+`.
+    /// counterweight_error and the wrist's actuator_coulomb_friction, actuator_viscous_friction
+    /// by name only; with --marker-link also link_length, clock_offset (the tracker's clock 5-30
+    /// ms off either way) and motion_play (0.2-0.6 deg of play by motion direction on the outer
+    /// yaw or pitch)) or two joined by `+`.
     #[arg(long, default_value = "random")]
     pub effect: String,
     /// Effort noise per joint (N·m, N), comma-separated; about 1% of each joint's effort when absent.

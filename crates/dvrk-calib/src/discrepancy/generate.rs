@@ -34,8 +34,16 @@ pub const HIDDEN_KINDS: [EffectKind; 9] = [
     EffectKind::CouplingError,
 ];
 
-/// Effects only a tracker on the link sees (hidden only with [`HiddenOptions::marker`]).
-pub const TRACKED_KINDS: [EffectKind; 1] = [EffectKind::LinkLength];
+/// Effects only a tracker on the link sees (hidden only with [`HiddenOptions::marker`]): a DH
+/// length, the tracker's clock against the joint stream's, and a lightly loaded drive's play by
+/// motion direction (the last two applied to the tracked link, not to the simulated arm, whose
+/// efforts they leave as they are).
+pub const TRACKED_KINDS: [EffectKind; 3] = [EffectKind::LinkLength, EffectKind::ClockOffset, EffectKind::MotionPlay];
+
+/// The tracked kinds the tracker applies (to its stamps, to the link it sees), not the arm.
+fn applied_by_tracker(spec: &EffectSpec) -> bool {
+    spec.name == EffectKind::ClockOffset.name() || spec.name == EffectKind::MotionPlay.name()
+}
 
 /// Effects hidden only by name: the inertias the workflow refits take most of them. A
 /// counterweight's mass is itself an inertial parameter, and its travel ratio moves the
@@ -262,6 +270,19 @@ fn draw(kind: EffectKind, model: &Model, inertials: &dvrk_sim::inertials::Inerti
         e.source = "dvrk synth hidden-effect".into();
         return Ok(e);
     }
+    if kind == EffectKind::ClockOffset || kind == EffectKind::MotionPlay {
+        if marker.is_none() {
+            return Err(CalibError::field("effect", format!("{} is hidden only with a tracker (--marker-link)", kind.name())));
+        }
+        let s: f64 = if rng.random::<bool>() { 1.0 } else { -1.0 };
+        // A motion-capture system's clock 5-30 ms off either way; a cable drive's play of
+        // 0.2-0.6 deg (b half of it) on the outer yaw or pitch.
+        let (joint, p) = match kind {
+            EffectKind::ClockOffset => (None, ("seconds", s * scale * rng.random_range(5e-3..30e-3))),
+            _ => (Some(model.joints[rng.random_range(0..2usize)].name.clone()), ("b", scale * rng.random_range(0.1..0.3_f64).to_radians())),
+        };
+        return Ok(EffectSpec { name: kind.name().into(), joint, link: None, actuator: None, parameters: BTreeMap::from([(p.0.to_string(), p.1)]), source: "dvrk synth hidden-effect".into() });
+    }
     if ACTUATOR_KINDS.contains(&kind) {
         // One of the wrist's actuators (5..7: 1-based), at the WPI tool's magnitudes (its
         // identified actuator friction: Coulomb 0.008-0.025 N·m with the presliding level,
@@ -365,8 +386,9 @@ fn draw(kind: EffectKind, model: &Model, inertials: &dvrk_sim::inertials::Inerti
 
 /// The tracker's poses of a marker on link `mo.link` of the truth `truth` (its own kinematics at
 /// the links' joint positions `link`, sampled at `t`), at the tracker's rate, placed by a drawn
-/// tracker-to-base and link-to-marker transform, with noise.
-fn track_marker(truth: &Model, t: &[f64], link: &[Vec<f64>], mo: &MarkerOptions, rng: &mut ChaCha8Rng) -> Result<crate::recordings::marker_log::MarkerLog> {
+/// tracker-to-base and link-to-marker transform, with noise; the tracker's own effects of
+/// `specs` applied: its clock's offset to its stamps, a motion play to the link it sees.
+fn track_marker(truth: &Model, specs: &[EffectSpec], t: &[f64], link: &[Vec<f64>], mo: &MarkerOptions, rng: &mut ChaCha8Rng) -> Result<crate::recordings::marker_log::MarkerLog> {
     use super::registration::pose_exp;
     use nalgebra::Vector6;
     if !(mo.rate.is_finite() && mo.rate > 0.0 && mo.position_noise.is_finite() && mo.position_noise >= 0.0 && mo.rotation_noise.is_finite() && mo.rotation_noise >= 0.0) {
@@ -380,8 +402,22 @@ fn track_marker(truth: &Model, t: &[f64], link: &[Vec<f64>], mo: &MarkerOptions,
     let unit = Normal::new(0.0, 1.0).expect("unit normal");
     let mut data = dvrk_kin::Data::new(truth);
     let mut out = crate::recordings::marker_log::MarkerLog { topic: crate::recordings::marker_log::synthetic_topic(&truth.frames[frame].name), frame, t: Vec::new(), poses: Vec::new() };
+    let mut late = 0.0;
+    let mut link = link.to_vec();
+    for e in specs.iter().filter(|e| applied_by_tracker(e)) {
+        match e.joint.as_deref() {
+            None => late += e.parameters["seconds"],
+            Some(name) => {
+                let j = truth.joint_id(name)?;
+                let motor: Vec<f64> = link.iter().map(|q| q[j]).collect();
+                let (mut behind, mut side) = (vec![0.0; motor.len()], vec![0.0; motor.len()]);
+                dvrk_kin::effects::motion_play(e.parameters["b"], &motor, &mut behind, &mut side);
+                link.iter_mut().zip(behind).for_each(|(q, l)| q[j] = l);
+            }
+        }
+    }
     let mut next = t.first().copied().unwrap_or(0.0);
-    for (ti, q) in t.iter().zip(link) {
+    for (ti, q) in t.iter().zip(&link) {
         if *ti + 1e-9 < next {
             continue;
         }
@@ -391,7 +427,7 @@ fn track_marker(truth: &Model, t: &[f64], link: &[Vec<f64>], mo: &MarkerOptions,
         for k in 0..6 {
             n[k] = unit.sample(rng) * if k < 3 { mo.position_noise } else { mo.rotation_noise };
         }
-        out.t.push(*ti);
+        out.t.push(*ti + late);
         let p = x * data.frames[frame] * y;
         let r = nalgebra::Rotation3::new(n.fixed_rows::<3>(3).into_owned()) * p.rotation;
         out.poses.push(dvrk_kin::Pose::from_parts((p.translation.vector + n.fixed_rows::<3>(0)).into(), r));
@@ -532,7 +568,7 @@ pub fn hidden_effect(scene_name: &str, o: &HiddenOptions) -> Result<HiddenRecord
     // The truth with the effects `specs[keep]`.
     let truth_model = |specs: &[EffectSpec], keep: &[usize]| -> Result<Model> {
         let mut m = nominal.clone();
-        for &i in keep {
+        for &i in keep.iter().filter(|&&i| !applied_by_tracker(&specs[i])) {
             m = m.with_effect(&specs[i])?;
         }
         m.base = scene.arms[0].original_base;
@@ -583,14 +619,14 @@ pub fn hidden_effect(scene_name: &str, o: &HiddenOptions) -> Result<HiddenRecord
         // Each effect at least `target` times its joint's noise (two on one joint: the weaker sets
         // it); a length only the tracker sees keeps the effort noise.
         for j in 0..nq {
-            let on_j = shown.iter().zip(&specs).filter(|((k, _), e)| *k == j && e.name != EffectKind::LinkLength.name());
+            let on_j = shown.iter().zip(&specs).filter(|((k, _), e)| *k == j && !TRACKED_KINDS.iter().any(|t| t.name() == e.name));
             if let Some(r) = on_j.map(|((_, r), _)| *r).min_by(f64::total_cmp) {
                 effort_noise[j] = r / target;
             }
         }
     }
     let markers = match &o.marker {
-        Some(mo) => Some(track_marker(&truth_model(&specs, &all)?, &log.t, &link, mo, &mut rng)?),
+        Some(mo) => Some(track_marker(&truth_model(&specs, &all)?, &specs, &log.t, &link, mo, &mut rng)?),
         None => None,
     };
     let effects = specs

@@ -91,9 +91,9 @@ pub fn discrepancy(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog,
         samples: channel.samples,
         heldout_from: channel.heldout_from,
         kinematic: Some(channel),
-        notes: vec![
-            "no measured efforts in the recording: the kinematic channel alone (the torque channel needs efforts); a compliance's or play's deflection is taken under the model's predicted load".into(),
-        ],
+        notes: std::iter::once("no measured efforts in the recording: the kinematic channel alone (the torque channel needs efforts); a compliance's or play's deflection is taken under the model's predicted load".to_string())
+            .chain(kc.notes(&arm.model, named.as_ref(), &|k| strong(k.delta_bic, k.p_value, k.heldout_p, k.effect_to_noise)))
+            .collect(),
         steps: Vec::new(),
     };
     Ok(Outcome { report, named, residuals })

@@ -62,10 +62,15 @@ impl Registration {
         if n < 10 {
             return Err(CalibError::data("--marker-topic", format!("{n} tracked poses inside the analysed span (need at least 10)")));
         }
-        let start = Self::hand_eye(&f[..n], &m[..n])?;
-        let mut reg = start;
-        for _ in 0..8 {
-            let (j, r) = reg.linearised(&f[..n], &m[..n], sigma);
+        Self::hand_eye(&f[..n], &m[..n])?.refined(&f[..n], &m[..n], sigma, 8)
+    }
+
+    /// At most `passes` Gauss-Newton steps from this registration on link poses `f` and tracked
+    /// poses `m` (as [`Registration::fit`]'s).
+    pub fn refined(&self, f: &[Pose], m: &[Pose], sigma: [f64; 2], passes: usize) -> Result<Registration> {
+        let mut reg = self.clone();
+        for _ in 0..passes {
+            let (j, r) = reg.linearised(f, m, sigma);
             let step = match (j.transpose() * &j).cholesky() {
                 Some(c) => c.solve(&(j.transpose() * &r)),
                 None => return Err(CalibError::data("--marker-topic", "the tracker and marker transforms are not determined by this motion")),

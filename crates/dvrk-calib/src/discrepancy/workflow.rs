@@ -48,9 +48,15 @@ fn with_kinematic(scored: &mut Vec<Scored>, kc: &super::kinematic::KinematicChan
     use super::kinematic::{combine, Evidence};
     let mut used = vec![false; kc.candidates.len()];
     for s in scored.iter_mut() {
-        let Some(i) = kc.candidates.iter().position(|k| k.kind == s.kind && k.joint == s.joint && k.link.is_none()) else { continue };
+        // The joint stream late by L is, to the tracker, its clock L early: the torque channel's
+        // latency takes the clock offset's evidence at -L; the offset stays a candidate of its own
+        // (a tracker late against encoders and efforts alike the torque channel cannot see).
+        let clock = s.kind == EffectKind::Latency;
+        let same = |k: &super::kinematic::KinematicScore| if clock { k.kind == EffectKind::ClockOffset } else { k.kind == s.kind && k.joint == s.joint && k.link.is_none() };
+        let Some(i) = kc.candidates.iter().position(same) else { continue };
         let k = &kc.candidates[i];
-        used[i] = true;
+        used[i] = !clock;
+        let kv = if clock { -k.value } else { k.value };
         let sc = &mut s.score;
         // Compliance is linear in 1 / stiffness on the tracker: combine there.
         let compliance = s.kind == EffectKind::JointCompliance;
@@ -58,7 +64,7 @@ fn with_kinematic(scored: &mut Vec<Scored>, kc: &super::kinematic::KinematicChan
         let [lo, hi] = sc.ci[0];
         let (a, b) = (to(lo), to(hi));
         let torque = Evidence { value: to(sc.x[0]), variance: ((a - b).abs() / 3.92).powi(2), stat: sc.stat };
-        let both = combine(&torque, &Evidence { value: k.value, variance: k.variance, stat: k.stat }, k.lower());
+        let both = combine(&torque, &Evidence { value: kv, variance: k.variance, stat: k.stat }, if clock { Some(0.0) } else { k.lower() });
         let h = 1.96 * both.variance.sqrt();
         sc.delta_bic += both.stat - sc.stat;
         sc.stat = both.stat;
@@ -314,8 +320,10 @@ fn analyse(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog, prep: &
         kinematic: kin.as_ref().map(|kc| kc.report(&arm.model, named.as_ref(), "dvrk discrepancy", &strong_kinematic)),
         samples: prep.t.len(),
         heldout_from: prep.t[prep.split],
-        notes: match kin {
-            Some(_) => vec!["the kinematic channel's evidence is joined to the torque channel's per candidate; the torque residual after uses the torque channel's own fit".into()],
+        notes: match &kin {
+            Some(kc) => std::iter::once("the kinematic channel's evidence is joined to the torque channel's per candidate; the torque residual after uses the torque channel's own fit".to_string())
+                .chain(kc.notes(&arm.model, named.as_ref(), &|k| strong_kinematic(k.delta_bic, k.p_value, k.heldout_p, k.effect_to_noise)))
+                .collect(),
             None => vec!["kinematic channel not analysed: it needs a tracked marker (--marker-topic, --marker-link)".into()],
         }
         .into_iter()

@@ -76,7 +76,7 @@ fn main_parameter(truth: &dvrk_kin::effects::EffectSpec) -> String {
         "coulomb_friction" | "actuator_coulomb_friction" => "fc",
         "viscous_friction" | "actuator_viscous_friction" => "fv",
         "spring" => "k",
-        "latency" => "seconds",
+        "latency" | "clock_offset" => "seconds",
         "joint_offset" => "offset",
         "payload_mass" => "mass",
         "joint_compliance" => "stiffness",
@@ -600,6 +600,37 @@ fn a_length_only_the_tracker_sees_is_found() {
     let k = free.kinematic.as_ref().unwrap();
     assert_eq!(free.verdict, "none", "{:?}", free.candidates.first().map(|c| &c.label));
     assert!(k.rms_heldout_before < 1.1 && k.rms_before < 1.1, "{} {}", k.rms_before, k.rms_heldout_before);
+}
+
+/// A tracker's clock off either way and a cable drive's play by motion direction (issue 62 items
+/// 1 and 2; synth's tracker-only kinds, 12 s, a tracker on the tool shaft, the efforts removed):
+/// each named on the kinematic channel with its sign and joint, its interval holding the truth,
+/// the tracker's held-out residual brought to its noise, and the report saying which stream is
+/// late or which play and why. Measured (seed: truth -> estimate): clock 3: -29.07 -> -29.07 ms,
+/// clock 4: +14.06 -> +14.07 ms, play 3: outer_pitch 4.557 -> 4.556 mrad. The independent
+/// generator's table (tests/python/independent_psm.py): docs/discrepancy-validation.md.
+#[test]
+fn a_trackers_clock_either_way_and_a_motion_play_are_named_without_efforts() {
+    for (kind, seed, note) in [(EffectKind::ClockOffset, 3, "the joint stream is"), (EffectKind::ClockOffset, 4, "the tracker's poses"), (EffectKind::MotionPlay, 3, "play on outer_pitch: by motion direction")] {
+        use dvrk_calib::discrepancy::generate::MarkerOptions;
+        let mut h = hidden_effect("psm", &HiddenOptions { hidden: Hidden::Kind(kind), seed, duration: 12.0, marker: Some(MarkerOptions::default()), ..Default::default() }).unwrap();
+        for e in &mut h.log.effort {
+            e.clear();
+        }
+        let r = analyse(&h, false).report;
+        let truth = &h.answer.effects[0].spec;
+        let p = main_parameter(truth);
+        eprintln!("{kind:?} {seed}: {} {:?} truth {}", r.verdict, r.effects.first().map(|e| (&e.joint, e.parameters[&p], e.ci95[&p])), truth.parameters[&p]);
+        let top: Vec<_> = r.candidates.iter().take(3).map(|c| (&c.label, c.effect.delta_bic)).collect();
+        assert_eq!((r.verdict.as_str(), r.channel.as_str()), ("named", "kinematic"), "{kind:?} {seed}: {top:?}");
+        let e = &r.effects[0];
+        assert_eq!((&e.name, &e.joint), (&truth.name, &truth.joint), "{top:?}");
+        let [lo, hi] = e.ci95[&p];
+        assert!(lo <= truth.parameters[&p] && truth.parameters[&p] <= hi, "{p} {} in [{lo}, {hi}], truth {}", e.parameters[&p], truth.parameters[&p]);
+        let k = r.kinematic.as_ref().unwrap();
+        assert!(k.rms_heldout_before > 2.0 && k.rms_heldout_after < 1.1, "{} -> {}", k.rms_heldout_before, k.rms_heldout_after);
+        assert!(r.notes.iter().any(|n| n.contains(note)), "{:?}", r.notes);
+    }
 }
 
 /// The tool's actuator-space friction hidden (issue 40 items 4 and 6; seed 11, 12 s, ENR 5, on
