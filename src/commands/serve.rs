@@ -81,14 +81,16 @@ pub fn run(args: &ServeArgs) -> Result<()> {
         println!("{}", serde_json::to_string_pretty(&summary)?);
     } else {
         println!(
-            "served {:.3} s in {:.3} s of wall time: {} steps, {} messages per topic, {} commands applied, {} refused; worst lag {:.2} ms",
+            "served {:.3} s in {:.3} s of wall time: {} steps, {} messages per topic, {} commands applied, {} refused; worst lag {:.2} ms; warning lines dropped: {} on stderr, {} on /rosout",
             summary.simulated,
             summary.wall,
             summary.steps,
             summary.samples,
             summary.commands,
             summary.refused,
-            summary.worst_lag * 1e3
+            summary.worst_lag * 1e3,
+            summary.stderr_dropped,
+            summary.rosout_dropped
         );
     }
     Ok(())

@@ -43,6 +43,7 @@ mod options;
 mod rapier_build;
 mod rapier_world;
 pub mod trajectory;
+pub mod warnings;
 
 pub use control::{Actuator, Gains, Mode};
 pub use error::{Result, SimError};

@@ -22,7 +22,11 @@
 //! A message may name its joints (in any order: each must be one of the topic's) or leave the
 //! names empty (then it lists them in the arm's order). A command with an unknown name, the
 //! wrong number of values or a value that is not finite is refused with a `/rosout` warning and
-//! a line on stderr; the twin keeps running.
+//! a line on stderr; the twin keeps running. Neither ever blocks the loop ([`crate::warnings`]):
+//! a few lines a second are said as they are, a flood is summed up once a second by topic and
+//! reason, stderr is written by a thread of its own through a bounded queue (a line it has no
+//! room for is dropped and counted in [`ServeSummary::stderr_dropped`]) and `/rosout` is written
+//! with no blocking time.
 
 use crate::control::Mode;
 use crate::error::{Result, SimError};
@@ -33,6 +37,7 @@ use crate::ros2::{Ros2, Ros2Options};
 use crate::{RecordOptions, Recorder, Scene, Sim, SimOptions};
 use std::sync::atomic::{AtomicBool, Ordering};
 use crate::pace::Pacer;
+use crate::warnings::Warnings;
 use std::time::{SystemTime, UNIX_EPOCH};
 
 /// What to serve and for how long.
@@ -65,6 +70,12 @@ pub struct ServeSummary {
     /// Commands applied, and refused.
     pub commands: u64,
     pub refused: u64,
+    /// Refused commands said only in a once-a-second summary (a flood), not one by one.
+    pub refusals_summarised: u64,
+    /// Warning lines that did not reach stderr (it did not take them fast enough: nobody
+    /// reading the pipe) and that `/rosout` refused (a full send window); the loop never waits.
+    pub stderr_dropped: u64,
+    pub rosout_dropped: u64,
     /// The furthest the simulation fell behind the wall clock (s), after its first second.
     pub worst_lag: f64,
     /// Whether every state stayed finite.
@@ -104,33 +115,50 @@ struct StateTopic {
     joints: Vec<usize>,
 }
 
+/// Why a command is refused: a short, fixed `reason` that groups like refusals in the summary
+/// of a flood, and the `detail` said when the refusal is said on its own.
+#[derive(Debug, Clone, PartialEq)]
+struct Refusal {
+    reason: &'static str,
+    detail: String,
+}
+
+fn refusal(reason: &'static str, detail: impl Into<String>) -> Refusal {
+    Refusal { reason, detail: detail.into() }
+}
+
+/// The refusal of a command to an arm that is not enabled.
+fn not_enabled(state: &str) -> Refusal {
+    refusal("arm not enabled", format!("the arm is {state} (send `enable` on state_command)"))
+}
+
 /// The values of a command in the topic's joint order, or why it is refused.
-fn command_values(topic: &CommandTopic, msg: &JointState, kind: Kind) -> std::result::Result<(Vec<f64>, Vec<f64>), String> {
+fn command_values(topic: &CommandTopic, msg: &JointState, kind: Kind) -> std::result::Result<(Vec<f64>, Vec<f64>), Refusal> {
     let (values, field) = if kind == Kind::ServoJf { (&msg.effort, "effort") } else { (&msg.position, "position") };
     let n = topic.joints.len();
     if values.len() != n {
-        return Err(format!("{} {field} values for {n} joints ({})", values.len(), topic.names.join(", ")));
+        return Err(refusal("wrong length", format!("{} {field} values for {n} joints ({})", values.len(), topic.names.join(", "))));
     }
     let velocity = match (kind, msg.velocity.len()) {
         (Kind::ServoJp, len) if len == n => msg.velocity.clone(),
         (Kind::ServoJp, 0) | (Kind::ServoJr | Kind::ServoJf | Kind::MoveJp, _) => vec![0.0; n],
-        (_, len) => return Err(format!("{len} velocity values for {n} joints")),
+        (_, len) => return Err(refusal("wrong length", format!("{len} velocity values for {n} joints"))),
     };
     // Names, when given, say which value goes to which joint.
     let order: Vec<usize> = if msg.name.is_empty() {
         (0..n).collect()
     } else {
         if msg.name.len() != n {
-            return Err(format!("{} names for {n} {field} values", msg.name.len()));
+            return Err(refusal("wrong length", format!("{} names for {n} {field} values", msg.name.len())));
         }
         let mut seen = vec![false; n];
         let mut order = vec![0; n];
         for (i, name) in msg.name.iter().enumerate() {
             let Some(k) = topic.names.iter().position(|x| x == name) else {
-                return Err(format!("unknown joint `{name}` (this topic's: {})", topic.names.join(", ")));
+                return Err(refusal("unknown joint", format!("unknown joint `{name}` (this topic's: {})", topic.names.join(", "))));
             };
             if std::mem::replace(&mut seen[k], true) {
-                return Err(format!("joint `{name}` named twice"));
+                return Err(refusal("joint named twice", format!("joint `{name}` named twice")));
             }
             order[k] = i;
         }
@@ -139,7 +167,7 @@ fn command_values(topic: &CommandTopic, msg: &JointState, kind: Kind) -> std::re
     let (v, vd): (Vec<f64>, Vec<f64>) = order.iter().map(|&i| (values[i], velocity[i])).unzip();
     if let Some((k, x)) = v.iter().chain(&vd).enumerate().find(|(_, x)| !x.is_finite()) {
         let name = &topic.names[k % n];
-        return Err(format!("{x} for joint `{name}` is not a finite number"));
+        return Err(refusal("not finite", format!("{x} for joint `{name}` is not a finite number")));
     }
     Ok((v, vd))
 }
@@ -210,11 +238,15 @@ pub fn serve(scene: &Scene, sim_options: &SimOptions, options: &ServeOptions, st
     let mut summary = ServeSummary { finite: true, ..Default::default() };
     let steps = options.duration.map(|d| (d / sim.dt).round().max(1.0) as u64);
     let mut pacer = Pacer::new(1.0);
+    // Refusals go to stderr and /rosout without ever blocking this loop (`warnings`).
+    let mut warnings = Warnings::new("commands refused", std::io::stderr());
     let mut step = 0u64;
     while steps.is_none_or(|n| step < n) && !stop.load(Ordering::Relaxed) {
-        apply_states(&mut sim, &mut recorder, &states, &modes, &mut summary)?;
-        apply_commands(&mut sim, &mut recorder, &topics, &modes, &mut moves, &mut summary)?;
-        apply_cartesian(&mut sim, &mut recorder, &cartesian, &topics, &modes, &mut moves, &mut summary)?;
+        let mut said = Said { summary: &mut summary, warnings: &mut warnings };
+        apply_states(&mut sim, &mut recorder, &states, &modes, &mut said)?;
+        apply_commands(&mut sim, &mut recorder, &topics, &modes, &mut moves, &mut said)?;
+        apply_cartesian(&mut sim, &mut recorder, &cartesian, &topics, &modes, &mut moves, &mut said)?;
+        warnings.tick(|line| rosout_warning(&recorder, line));
         moves.advance(&mut sim, &mut recorder, &topics)?;
         sim.step();
         step += 1;
@@ -230,6 +262,10 @@ pub fn serve(scene: &Scene, sim_options: &SimOptions, options: &ServeOptions, st
     summary.simulated = step as f64 * sim.dt;
     summary.wall = pacer.elapsed();
     summary.samples = recorder.samples();
+    let counts = warnings.finish(|line| rosout_warning(&recorder, line));
+    summary.refusals_summarised = counts.summarised;
+    summary.stderr_dropped = counts.stderr_dropped;
+    summary.rosout_dropped = counts.rosout_dropped;
     let staged = recorder.finish_staged()?;
     if !summary.finite {
         return Err(SimError::Build(format!("the simulation went non-finite at {:.3} s", summary.simulated)));
@@ -295,7 +331,7 @@ impl Moves {
 }
 
 /// Take every waiting command and apply the valid ones.
-fn apply_commands(sim: &mut Sim, recorder: &mut Recorder, topics: &[CommandTopic], modes: &[Mode], moves: &mut Moves, summary: &mut ServeSummary) -> Result<()> {
+fn apply_commands(sim: &mut Sim, recorder: &mut Recorder, topics: &[CommandTopic], modes: &[Mode], moves: &mut Moves, said: &mut Said) -> Result<()> {
     for (slot, topic) in topics.iter().enumerate() {
         loop {
             let ros2 = recorder.ros2().expect("opened with ROS 2");
@@ -303,8 +339,9 @@ fn apply_commands(sim: &mut Sim, recorder: &mut Recorder, topics: &[CommandTopic
             let topic_name = ros2.command_topic(topic.subscription).to_string();
             let disabled = recorder.state(topic.arm).state != "ENABLED";
             let values = message
-                .and_then(|bytes| JointState::decode(&bytes).map_err(|e| format!("not a sensor_msgs/JointState: {e}")))
-                .and_then(|msg| if disabled { Err(format!("the arm is {} (send `enable` on state_command)", recorder.state(topic.arm).state)) } else { command_values(topic, &msg, topic.kind) });
+                .map_err(|e| refusal("not taken", e))
+                .and_then(|bytes| JointState::decode(&bytes).map_err(|e| refusal("not a JointState", format!("not a sensor_msgs/JointState: {e}"))))
+                .and_then(|msg| if disabled { Err(not_enabled(&recorder.state(topic.arm).state)) } else { command_values(topic, &msg, topic.kind) });
             match values {
                 Ok((v, _)) if topic.kind == Kind::MoveJp => {
                     for &i in &topic.joints {
@@ -317,7 +354,7 @@ fn apply_commands(sim: &mut Sim, recorder: &mut Recorder, topics: &[CommandTopic
                     let m = crate::joint_move::JointMove::new(topic.joints.clone(), start, &v, &pick(&moves.v_max), &pick(&moves.a_max), sim.time);
                     moves.active[slot] = Some(m);
                     moves.say_busy(sim, recorder, topics, topic.arm)?;
-                    summary.commands += 1;
+                    said.summary.commands += 1;
                 }
                 Ok((v, vd)) => {
                     // A servo command takes over the joints from a move under way.
@@ -339,9 +376,9 @@ fn apply_commands(sim: &mut Sim, recorder: &mut Recorder, topics: &[CommandTopic
                             Kind::MoveJp => {}
                         }
                     }
-                    summary.commands += 1;
+                    said.summary.commands += 1;
                 }
-                Err(why) => refuse(recorder, summary, &topic_name, &why),
+                Err(why) => said.refuse(recorder, &topic_name, why),
             }
         }
     }
@@ -349,7 +386,7 @@ fn apply_commands(sim: &mut Sim, recorder: &mut Recorder, topics: &[CommandTopic
 }
 
 /// Take every waiting `servo_cp` and servo the arm's joints to the IK's setpoints.
-fn apply_cartesian(sim: &mut Sim, recorder: &mut Recorder, cartesian: &[CartesianTopic], topics: &[CommandTopic], modes: &[Mode], moves: &mut Moves, summary: &mut ServeSummary) -> Result<()> {
+fn apply_cartesian(sim: &mut Sim, recorder: &mut Recorder, cartesian: &[CartesianTopic], topics: &[CommandTopic], modes: &[Mode], moves: &mut Moves, said: &mut Said) -> Result<()> {
     for topic in cartesian {
         loop {
             let ros2 = recorder.ros2().expect("opened with ROS 2");
@@ -357,9 +394,9 @@ fn apply_cartesian(sim: &mut Sim, recorder: &mut Recorder, cartesian: &[Cartesia
             let name = ros2.command_topic(topic.subscription).to_string();
             let state = &recorder.state(topic.arm).state;
             let q = match message {
-                Ok(_) if state != "ENABLED" => Err(format!("the arm is {state} (send `enable` on state_command)")),
-                Ok(bytes) => crate::serve_cp::setpoints(sim, recorder, topic.arm, &bytes),
-                Err(e) => Err(e),
+                Ok(_) if state != "ENABLED" => Err(not_enabled(state)),
+                Ok(bytes) => crate::serve_cp::setpoints(sim, recorder, topic.arm, &bytes).map_err(|e| refusal("pose refused", e)),
+                Err(e) => Err(refusal("not taken", e)),
             };
             match q {
                 Ok(q) => {
@@ -371,54 +408,67 @@ fn apply_cartesian(sim: &mut Sim, recorder: &mut Recorder, cartesian: &[Cartesia
                         }
                         sim.set_target(i, q[k], 0.0)?;
                     }
-                    summary.commands += 1;
+                    said.summary.commands += 1;
                 }
-                Err(why) => refuse(recorder, summary, &name, &why),
+                Err(why) => said.refuse(recorder, &name, why),
             }
         }
     }
     Ok(())
 }
 
-/// Count a refused command and say why, on stderr and `/rosout` (a warning).
-fn refuse(recorder: &Recorder, summary: &mut ServeSummary, topic: &str, why: &str) {
-    summary.refused += 1;
-    let line = format!("{topic}: command refused: {why}");
-    eprintln!("warning: {line}");
-    if let Some(r) = recorder.ros2() {
-        r.log_line(30, &line);
+/// Where the loop counts commands and says why it refused one.
+struct Said<'a> {
+    summary: &'a mut ServeSummary,
+    warnings: &'a mut Warnings,
+}
+
+impl Said<'_> {
+    /// Count a refused command and say why, on stderr and `/rosout` (a warning), rate-limited
+    /// and without waiting for either.
+    fn refuse(&mut self, recorder: &Recorder, topic: &str, why: Refusal) {
+        self.summary.refused += 1;
+        let line = format!("{topic}: command refused: {}", why.detail);
+        self.warnings.warn(&format!("{topic} ({})", why.reason), &line, |l| rosout_warning(recorder, l));
     }
 }
 
+/// A warning on `/rosout`; whether it was taken (it is never waited for).
+fn rosout_warning(recorder: &Recorder, line: &str) -> bool {
+    recorder.ros2().is_none_or(|r| r.log_line(30, line))
+}
+
 /// Take every waiting `state_command` and apply it.
-fn apply_states(sim: &mut Sim, recorder: &mut Recorder, states: &[StateTopic], modes: &[Mode], summary: &mut ServeSummary) -> Result<()> {
+fn apply_states(sim: &mut Sim, recorder: &mut Recorder, states: &[StateTopic], modes: &[Mode], said: &mut Said) -> Result<()> {
     for topic in states {
         loop {
             let ros2 = recorder.ros2().expect("opened with ROS 2");
             let Some(message) = ros2.take(topic.subscription) else { break };
             let name = ros2.command_topic(topic.subscription).to_string();
-            let command = message.and_then(|b| crate::recording::ros_msgs::decode_string_stamped(&b).map_err(|e| format!("not a crtk_msgs/StringStamped: {e}")));
+            let command = message
+                .map_err(|e| refusal("not taken", e))
+                .and_then(|b| crate::recording::ros_msgs::decode_string_stamped(&b).map_err(|e| refusal("not a StringStamped", format!("not a crtk_msgs/StringStamped: {e}"))));
             let mut state = recorder.state(topic.arm).clone();
             let outcome = command.and_then(|(_, c)| match c.trim().to_ascii_lowercase().as_str() {
                 "enable" => {
                     // Hold where the arm is now, under the controllers it started with.
                     for &i in &topic.joints {
-                        sim.set_mode(i, modes[i]).map_err(|e| e.to_string())?;
+                        sim.set_mode(i, modes[i]).map_err(|e| refusal("failed", e.to_string()))?;
                         let q = sim.q()[i];
-                        sim.set_target(i, q, 0.0).map_err(|e| e.to_string())?;
+                        sim.set_target(i, q, 0.0).map_err(|e| refusal("failed", e.to_string()))?;
                     }
                     state.state = "ENABLED".into();
                     Ok(())
                 }
                 "disable" => {
                     for &i in &topic.joints {
-                        sim.set_mode(i, Mode::Effort).map_err(|e| e.to_string())?;
-                        sim.set_effort(i, 0.0).map_err(|e| e.to_string())?;
+                        sim.set_mode(i, Mode::Effort).map_err(|e| refusal("failed", e.to_string()))?;
+                        sim.set_effort(i, 0.0).map_err(|e| refusal("failed", e.to_string()))?;
                     }
                     state.state = "DISABLED".into();
                     Ok(())
                 }
-                "home" if state.state != "ENABLED" => Err(format!("home: the arm is {} (enable it first)", state.state)),
+                "home" if state.state != "ENABLED" => Err(refusal("arm not enabled", format!("home: the arm is {} (enable it first)", state.state))),
                 "home" => {
                     state.homed = true;
                     Ok(())
@@ -427,14 +477,14 @@ fn apply_states(sim: &mut Sim, recorder: &mut Recorder, states: &[StateTopic], m
                     state.homed = false;
                     Ok(())
                 }
-                other => Err(format!("unknown state command `{other}` (valid: enable, disable, home, unhome)")),
+                other => Err(refusal("unknown state command", format!("unknown state command `{other}` (valid: enable, disable, home, unhome)"))),
             });
             match outcome {
                 Ok(()) => {
-                    summary.commands += 1;
+                    said.summary.commands += 1;
                     recorder.set_state(topic.arm, sim.time, state)?;
                 }
-                Err(why) => refuse(recorder, summary, &name, &why),
+                Err(why) => said.refuse(recorder, &name, why),
             }
         }
     }
@@ -456,13 +506,15 @@ mod tests {
         assert_eq!(command_values(&t, &js(&[], &[0.1, 0.2, 0.05]), Kind::ServoJp).unwrap().0, vec![0.1, 0.2, 0.05]);
         let named = js(&["outer_insertion", "outer_yaw", "outer_pitch"], &[0.05, 0.1, 0.2]);
         assert_eq!(command_values(&t, &named, Kind::ServoJp).unwrap().0, vec![0.1, 0.2, 0.05]);
-        let e = command_values(&t, &js(&[], &[0.1, 0.2]), Kind::ServoJp).unwrap_err();
+        let refused = command_values(&t, &js(&[], &[0.1, 0.2]), Kind::ServoJp).unwrap_err();
+        assert_eq!(refused.reason, "wrong length"); // what a flood's summary groups by
+        let e = refused.detail;
         assert_eq!(e, "2 position values for 3 joints (outer_yaw, outer_pitch, outer_insertion)");
-        let e = command_values(&t, &js(&["outer_yaw", "wrist", "outer_pitch"], &[0.0; 3]), Kind::ServoJp).unwrap_err();
+        let e = command_values(&t, &js(&["outer_yaw", "wrist", "outer_pitch"], &[0.0; 3]), Kind::ServoJp).unwrap_err().detail;
         assert!(e.starts_with("unknown joint `wrist`"), "{e}");
-        let e = command_values(&t, &js(&[], &[0.0, f64::NAN, 0.0]), Kind::ServoJp).unwrap_err();
+        let e = command_values(&t, &js(&[], &[0.0, f64::NAN, 0.0]), Kind::ServoJp).unwrap_err().detail;
         assert_eq!(e, "NaN for joint `outer_pitch` is not a finite number");
-        let e = command_values(&t, &js(&["outer_yaw", "outer_yaw", "outer_pitch"], &[0.0; 3]), Kind::ServoJp).unwrap_err();
+        let e = command_values(&t, &js(&["outer_yaw", "outer_yaw", "outer_pitch"], &[0.0; 3]), Kind::ServoJp).unwrap_err().detail;
         assert_eq!(e, "joint `outer_yaw` named twice");
     }
 }

@@ -63,6 +63,12 @@ fn rosout_qos() -> QosPolicies {
     reliable_qos(Durability::TransientLocal, 1000)
 }
 
+/// The `/rosout` writer's QoS: [`rosout_qos`], but a write never waits (no blocking time: a
+/// full send window refuses the line at once), for it is written from the real-time loop.
+fn rosout_writer_qos() -> QosPolicies {
+    rosout_qos().modify_by(&QosPolicyBuilder::new().reliability(Reliability::Reliable { max_blocking_time: rustdds::Duration::ZERO }).build())
+}
+
 /// A subscription to one command topic.
 struct Command {
     topic: String,
@@ -110,7 +116,7 @@ impl Ros2 {
         let topic = participant
             .create_topic(dds_topic_name("/rosout"), dds_type_name("rcl_interfaces/msg/Log").expect("a ROS type"), &rosout_qos(), TopicKind::NoKey)
             .map_err(|e| dds_error("/rosout", e))?;
-        let rosout = publisher.create_datawriter_no_key::<RawCdr, RawAdapter>(&topic, Some(rosout_qos())).map_err(|e| dds_error("/rosout", e))?;
+        let rosout = publisher.create_datawriter_no_key::<RawCdr, RawAdapter>(&topic, Some(rosout_writer_qos())).map_err(|e| dds_error("/rosout", e))?;
         Ok(Ros2 { participant, publisher, subscriber, qos, writers: Vec::new(), commands: Vec::new(), rosout, node: options.node.clone(), domain: options.domain })
     }
 
@@ -174,9 +180,11 @@ impl Ros2 {
         }
     }
 
-    /// A line on `/rosout`, stamped with the wall clock, at `level` (20 info, 30 warn, 40 error).
-    pub fn log_line(&self, level: u8, text: &str) {
+    /// A line on `/rosout`, stamped with the wall clock, at `level` (20 info, 30 warn, 40 error);
+    /// whether it was taken. It never waits: when the reliable send window is full (a reader
+    /// that does not acknowledge) the line is refused at once.
+    pub fn log_line(&self, level: u8, text: &str) -> bool {
         let t = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0.0, |d| d.as_secs_f64());
-        let _ = self.rosout.write(RawCdr(ros_msgs::encode_log(t, level, &self.node, text)), None);
+        self.rosout.write(RawCdr(ros_msgs::encode_log(t, level, &self.node, text)), None).is_ok()
     }
 }
