@@ -69,9 +69,18 @@ pub(super) struct EffectReporter<'a> {
     /// measured effort, on the training part.
     pub(super) before_rms: &'a [f64],
     pub(super) effort_rms: &'a [f64],
-    /// Where each payload's body turns about (m), and the spread of that point.
-    pivots: BTreeMap<String, ([f64; 3], f64)>,
+    /// Where each payload's body turns about (m), and the spread of that point; a translating
+    /// body's crank (m); its family ([`super::payload_family::family`]).
+    pivots: BTreeMap<String, Pivot>,
     ambiguity_bic: f64,
+}
+
+/// How a payload's body moves (see [`EffectReporter::pivots`]).
+struct Pivot {
+    point: [f64; 3],
+    rms: f64,
+    crank: Option<f64>,
+    family: Option<Vec<usize>>,
 }
 
 impl<'a> EffectReporter<'a> {
@@ -88,9 +97,14 @@ impl<'a> EffectReporter<'a> {
         ambiguity_bic: f64,
     ) -> Result<Self> {
         let mut pivots = BTreeMap::new();
+        let home = model.home();
         for link in scored.iter().filter(|e| e.kind == EffectKind::PayloadMass).filter_map(|e| e.candidate.and_then(|c| c.link.clone())) {
             if let Some(f) = model.frames.iter().position(|f| f.name == link) {
-                pivots.insert(link, super::payload::pivot(model, model.frames[f].body, &prep.q)?);
+                let body = model.frames[f].body;
+                let (point, rms) = super::payload::pivot(model, body, &prep.q)?;
+                let crank = super::payload_family::crank(model, body, &prep.q)?;
+                let family = super::payload_family::family(model, body, &home)?;
+                pivots.insert(link, Pivot { point, rms, crank, family });
             }
         }
         Ok(EffectReporter { model, prep, base, fit, r, scored, normals, before_rms: rms.0, effort_rms: rms.1, pivots, ambiguity_bic })
@@ -112,16 +126,46 @@ impl<'a> EffectReporter<'a> {
             .collect()
     }
 
-    /// The payloads on other bodies that explain as much as `best`'s (within the ambiguity).
+    /// The payloads on other bodies that explain as much as `best`'s (within the ambiguity), and
+    /// those of its family ([`super::payload_family`]) whose own delta BIC is above the
+    /// ambiguity threshold, each with how far behind the named one it is.
     fn equivalents(&self, best: &Scored) -> Vec<Placement> {
+        let family = |e: &Scored| e.candidate.and_then(|c| self.pivots.get(c.link.as_ref()?)).and_then(|p| p.family.clone());
+        let own = family(best);
         self.scored
             .iter()
-            .filter(|e| e.kind == EffectKind::PayloadMass && e.label != best.label && !e.score.at_edge && e.score.delta_bic > best.score.delta_bic - self.ambiguity_bic)
+            .filter(|e| e.kind == EffectKind::PayloadMass && e.label != best.label)
+            // A family member is listed with how far behind it is even where its place ran to a
+            // bound (its best placement then stands in for part of the load only).
+            .filter(|e| (!e.score.at_edge && e.score.delta_bic > best.score.delta_bic - self.ambiguity_bic) || (own.is_some() && family(e) == own && e.score.delta_bic > self.ambiguity_bic))
             .filter_map(|e| {
                 let c = e.candidate?;
-                Some(Placement { link: c.link.clone()?, mass: e.score.x[0], position: candidates::payload_at(&c.at, &e.score.x).unwrap_or([c.at[1], c.at[2], c.at[3]]), delta_bic: e.score.delta_bic })
+                let link = c.link.clone()?;
+                let position = candidates::payload_at(&c.at, &e.score.x).unwrap_or([c.at[1], c.at[2], c.at[3]]);
+                let first_moment = self.pivots.get(&link).map_or(f64::NAN, |p| e.score.x[0] * p.crank.unwrap_or_else(|| (nalgebra::Vector3::from(position) - nalgebra::Vector3::from(p.point)).norm()));
+                Some(Placement { link, mass: e.score.x[0], position, delta_bic: e.score.delta_bic, first_moment, behind_bic: best.score.delta_bic - e.score.delta_bic })
             })
             .collect()
+    }
+
+    /// The family's sentence: what its members share, and which the inertia prefers.
+    fn family_note(&self, link: &str, equivalent: &[Placement]) -> Option<String> {
+        let own = self.pivots.get(link)?.family.as_ref()?;
+        let members: Vec<&Placement> = equivalent.iter().filter(|p| self.pivots.get(&p.link).and_then(|q| q.family.as_ref()) == Some(own)).collect();
+        let joints: Vec<&str> = own.iter().map(|&j| self.model.joints[j].name.as_str()).collect();
+        let behind: Vec<String> = members.iter().map(|p| format!("{} (first moment {:.4} kg m, delta BIC {:.1} behind)", p.link, p.first_moment, p.behind_bic)).collect();
+        Some(match behind.is_empty() {
+            true => format!("a load on any body that moves with {} alone loads them through gravity alike up to its placement; the recording supports one on {link} only", joints.join(" and ")),
+            false => format!(
+                "a load on any body that moves with {} alone loads them through gravity alike up to its placement; the recording also supports one on {}; {link} is preferred{}",
+                joints.join(" and "),
+                behind.join(", "),
+                match members.iter().map(|p| p.behind_bic).fold(f64::INFINITY, f64::min) {
+                    b if b < self.ambiguity_bic => " but not decisively: the recording cannot tell them apart".to_string(),
+                    b => format!(" by delta BIC {b:.1} at least (what the load's inertia and the place its gravity acts at say)"),
+                }
+            ),
+        })
     }
 
     /// A scored candidate as a model-file effect and as the report's entry; `effect`: its fitted
@@ -133,23 +177,32 @@ impl<'a> EffectReporter<'a> {
             None => (fitted_spec(self.model, e.candidate, e.kind, e.joint, s), intervals(e.candidate, e.kind, s)),
         };
         let payload = match e.candidate {
-            Some(c) if c.kind == EffectKind::PayloadMass => c.link.as_ref().and_then(|l| Some((self.pivots.get(l)?, self.normals.get(l)?))).map(|((pv, spread), normal)| {
+            Some(c) if c.kind == EffectKind::PayloadMass => c.link.as_ref().and_then(|l| Some((l, self.pivots.get(l)?, self.normals.get(l)?))).map(|(link, pivot, normal)| {
+                let (pv, spread, crank) = (&pivot.point, &pivot.rms, pivot.crank);
+                let equivalent = self.equivalents(e);
+                let family = self.family_note(link, &equivalent);
                 let place = candidates::payload_at(&c.at, &s.x).unwrap_or([c.at[1], c.at[2], c.at[3]]);
-                let pr = super::payload::profile(normal, place, s.x[0].max(1e-6), *pv, s.chi2_unit);
+                let mut pr = super::payload::profile(normal, place, s.x[0].max(1e-6), *pv, s.chi2_unit);
+                // A translating body's place does not move its gravity: the mass's own interval
+                // (the fit's) is its first moment's, over the crank.
+                if crank.is_some() {
+                    pr.mass = [pr.mass[0].min(s.ci[0][0]), pr.mass[1].max(s.ci[0][1])];
+                }
                 // A mass at the vocabulary's bound: the lightest placement within the interval
                 // stands for it, in the report and the model file.
                 let upper = EffectKind::PayloadMass.range("mass").map_or(20.0, |r| r[1]);
-                if s.x[0] >= upper * (1.0 - 1e-9) && pr.mass[0] < s.x[0] {
+                let report = if s.x[0] >= upper * (1.0 - 1e-9) && pr.mass[0] < s.x[0] {
                     let (mass, at) = (pr.mass[0], pr.lightest_place);
                     spec.parameters.insert("mass".into(), mass);
                     for (k, axis) in ["x", "y", "z"].iter().enumerate() {
                         spec.parameters.insert((*axis).into(), at[k]);
                     }
                     let unbounded = (s.x[0], (nalgebra::Vector3::from(place) - nalgebra::Vector3::from(*pv)).norm());
-                    super::payload::report(at, mass, &pr, *pv, *spread, self.equivalents(e), Some(unbounded))
+                    super::payload::report(at, mass, &pr, *pv, *spread, crank, equivalent, Some(unbounded))
                 } else {
-                    super::payload::report(place, s.x[0], &pr, *pv, *spread, self.equivalents(e), None)
-                }
+                    super::payload::report(place, s.x[0], &pr, *pv, *spread, crank, equivalent, None)
+                };
+                super::payload::PayloadReport { family, ..report }
             }),
             _ => None,
         };

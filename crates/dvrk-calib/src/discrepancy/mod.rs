@@ -34,6 +34,7 @@ pub mod locate;
 pub mod nuisance;
 pub mod options;
 pub mod payload;
+pub mod payload_family;
 pub mod plot;
 mod profiles;
 pub mod registration;

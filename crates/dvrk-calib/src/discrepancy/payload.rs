@@ -306,8 +306,15 @@ pub struct PayloadReport {
     /// mass known to less than +-20%), in words.
     pub cannot_fix: Vec<String>,
     /// Bodies the recording cannot tell from this one (their payload explains as much, within
-    /// the ambiguity threshold in BIC), each with its own equivalent placement.
+    /// the ambiguity threshold in BIC) and the other bodies of its family whose payload the
+    /// recording supports on its own (same gravitational signature up to placement), each with
+    /// its own equivalent placement and how far behind it is.
     pub equivalent: Vec<Placement>,
+    /// The crank radius (m) of a body that translates (its first moment is the mass times it),
+    /// `None` for a body that turns.
+    pub crank: Option<f64>,
+    /// What the family's members share and which one the inertia prefers, in words.
+    pub family: Option<String>,
 }
 
 /// A payload's equivalent placement on another body.
@@ -318,6 +325,13 @@ pub struct Placement {
     pub mass: f64,
     pub position: [f64; 3],
     pub delta_bic: f64,
+    /// Its first moment (kg m) about its body's pivot, or the mass times the crank of a body
+    /// that translates ([`super::payload_family::crank`]).
+    pub first_moment: f64,
+    /// How much less this placement explains than the named one (delta BIC): what the load's
+    /// inertia (its gravity being the same) says against it; below the ambiguity threshold the
+    /// recording cannot tell them apart.
+    pub behind_bic: f64,
 }
 
 /// Half-width (m) beyond which a coordinate counts as not fixed, and the relative half-width of
@@ -330,13 +344,25 @@ const FIXED_RELATIVE: f64 = 0.2;
 ///
 /// `unbounded`: the best fit's mass (kg) and distance from the pivot (m) when that mass ran to the
 /// vocabulary's bound; `place` and `mass` are then an equivalent placement within the interval.
-pub fn report(place: [f64; 3], mass: f64, pr: &Profile, pivot: [f64; 3], pivot_rms: f64, equivalent: Vec<Placement>, unbounded: Option<(f64, f64)>) -> PayloadReport {
-    let distance = (Vector3::from(place) - Vector3::from(pivot)).norm();
+///
+/// `crank`: the crank radius (m) of a body that translates: every point of it circles on it, so
+/// the first moment is the mass times it, wherever on the link the weight sits.
+#[allow(clippy::too_many_arguments)]
+pub fn report(place: [f64; 3], mass: f64, pr: &Profile, pivot: [f64; 3], pivot_rms: f64, crank: Option<f64>, equivalent: Vec<Placement>, unbounded: Option<(f64, f64)>) -> PayloadReport {
+    let (distance, distance_ci95, moment_ci95) = match crank {
+        Some(r) => (r, [r; 2], [pr.mass[0] * r, pr.mass[1] * r]),
+        None => ((Vector3::from(place) - Vector3::from(pivot)).norm(), pr.distance, pr.first_moment),
+    };
     let moment = mass * distance;
     let half = |r: [f64; 2]| 0.5 * (r[1] - r[0]);
     let mut cannot_fix = Vec::new();
     let unfixed_mass = half(pr.mass) > FIXED_RELATIVE * mass;
-    if let Some(best) = unbounded {
+    if let Some(r) = crank {
+        cannot_fix.push(format!(
+            "the place on the link: the body translates (its orientation is fixed while the pitch moves) and every point of it circles on the crank's {r:.4} m: gravity fixes the mass times the crank, {moment:.4} kg m [{:.4}, {:.4}], wherever on the link the weight sits",
+            moment_ci95[0], moment_ci95[1]
+        ));
+    } else if let Some(best) = unbounded {
         cannot_fix.push(format!(
             "the mass: the fit runs to the vocabulary's {:.0} kg at {:.3} m from the pivot (a first moment and almost no inertia: this motion does not excite the payload's inertia, or the model's inertia is off by more); gravity fixes the first moment, {moment:.4} kg m [{:.4}, {:.4}], and any mass of at least {mass:.3} kg placed to give it (here: the lightest within the 95% interval)",
             best.0, best.1, pr.first_moment[0], pr.first_moment[1]
@@ -349,7 +375,7 @@ pub fn report(place: [f64; 3], mass: f64, pr: &Profile, pivot: [f64; 3], pivot_r
     } else if unfixed_mass {
         cannot_fix.push(format!("mass: {mass:.3} kg [{:.3}, {:.3}]", pr.mass[0], pr.mass[1]));
     }
-    for (k, axis) in ["x", "y", "z"].iter().enumerate() {
+    for (k, axis) in ["x", "y", "z"].iter().enumerate().filter(|_| crank.is_none()) {
         if half(pr.position[k]) > FIXED_POSITION {
             cannot_fix.push(format!("{axis}: {:.3} m [{:.3}, {:.3}]", place[k], pr.position[k][0], pr.position[k][1]));
         }
@@ -362,11 +388,13 @@ pub fn report(place: [f64; 3], mass: f64, pr: &Profile, pivot: [f64; 3], pivot_r
         pivot,
         pivot_motion_rms: pivot_rms,
         first_moment: moment,
-        first_moment_ci95: pr.first_moment,
+        first_moment_ci95: moment_ci95,
         distance,
-        distance_ci95: pr.distance,
+        distance_ci95,
         cannot_fix,
         equivalent,
+        crank,
+        family: None,
     }
 }
 

@@ -1,0 +1,109 @@
+//! What gravity cannot tell apart among payloads: bodies that move with the same outer joints
+//! (the PSM's pitch linkage: the parallelogram's back, bottom, top and front links, `pitch_end`,
+//! the insertion stage and the counterweight all move with the yaw and the pitch, and no joint
+//! beyond the insertion moves them) carry a load with the same gravitational signature up to its
+//! placement; what tells them apart is the load's inertia. And a body that only translates
+//! against the arm's first moving body (the parallelogram's bottom and top links, whose
+//! orientation is fixed while the pitch moves) carries every point of it on one circle, the
+//! crank's: gravity fixes the mass times the crank wherever on the link the weight sits.
+
+use crate::error::Result;
+use dvrk_kin::{JointType, Model, Pose};
+use nalgebra::{Matrix3, SymmetricEigen, Vector3};
+
+/// A body's family: the revolute joints before the first prismatic one that move it, when no
+/// joint from the prismatic one's successor on does (`None` for a body a later joint moves, or
+/// that none of those moves). Bodies of one family share their load's gravitational signature.
+pub fn family(model: &Model, body: usize, q: &[f64]) -> Result<Option<Vec<usize>>> {
+    let frame = model.bodies[body].frames[0];
+    let at = |q: &[f64]| -> Result<Pose> { Ok(model.fk(q).map_err(|e| crate::error::CalibError::context("payload family", e))?[frame]) };
+    let home = at(q)?;
+    let last = model.joints.iter().position(|j| j.kind == JointType::Prismatic).unwrap_or(model.nq());
+    let mut moved = Vec::new();
+    for j in 0..model.nq() {
+        let mut qs = q.to_vec();
+        qs[j] += 1e-3;
+        let p = at(&qs)?;
+        // A real dependency moves it by about the step (1e-4 and up); a closed loop solved numerically
+        // moves it by round-off (the rotation compared as matrices: an angle from a cosine near 1
+        // carries 1e-8 of round-off).
+        let moves = (p.translation.vector - home.translation.vector).norm() > 1e-9 || (p.rotation.matrix() - home.rotation.matrix()).norm() > 1e-9;
+        match (moves, j) {
+            (true, j) if j > last => return Ok(None),
+            (true, j) if j < last && model.joints[j].kind == JointType::Revolute => moved.push(j),
+            _ => {}
+        }
+    }
+    Ok((!moved.is_empty()).then_some(moved))
+}
+
+/// The crank radius (m) of a body that only translates against the arm's first moving body
+/// (its orientation there stays within 1 urad over the recorded joints `q`, its origin moves):
+/// the radius of the circle its origin follows in that body's frame. `None` for a body that
+/// turns, or that does not move against it.
+pub fn crank(model: &Model, body: usize, q: &[Vec<f64>]) -> Result<Option<f64>> {
+    let Some(first) = model.frames.iter().position(|f| f.is_moving()) else { return Ok(None) };
+    let reference = model.frames[first].body;
+    if reference == body || q.is_empty() {
+        return Ok(None);
+    }
+    let (fr, fb) = (model.bodies[reference].frames[0], model.bodies[body].frames[0]);
+    let stride = (q.len() / 400).max(1);
+    let mut rel = Vec::new();
+    for qi in q.iter().step_by(stride) {
+        let f = model.fk(qi).map_err(|e| crate::error::CalibError::context("payload crank", e))?;
+        rel.push(f[fr].inverse() * f[fb]);
+    }
+    let r0 = rel[0].rotation;
+    if rel.iter().any(|p| (r0.inverse() * p.rotation).angle() > 1e-6) {
+        return Ok(None);
+    }
+    let pts: Vec<Vector3<f64>> = rel.iter().map(|p| p.translation.vector).collect();
+    let mean = pts.iter().sum::<Vector3<f64>>() / pts.len() as f64;
+    let cov = pts.iter().fold(Matrix3::zeros(), |c, p| c + (p - mean) * (p - mean).transpose()) / pts.len() as f64;
+    let eig = SymmetricEigen::new(cov);
+    let mut order = [0usize, 1, 2];
+    order.sort_by(|a, b| eig.eigenvalues[*b].total_cmp(&eig.eigenvalues[*a]));
+    if eig.eigenvalues[order[0]].sqrt() < 1e-4 {
+        return Ok(None);
+    }
+    // The circle in the plane of the motion (Kasa's algebraic fit: |x|^2 = 2 c.x + k).
+    let (u, v) = (eig.eigenvectors.column(order[0]).into_owned(), eig.eigenvectors.column(order[1]).into_owned());
+    let mut a = nalgebra::DMatrix::zeros(pts.len(), 3);
+    let mut b = nalgebra::DVector::zeros(pts.len());
+    for (i, p) in pts.iter().enumerate() {
+        let (x, y) = ((p - mean).dot(&u), (p - mean).dot(&v));
+        a[(i, 0)] = 2.0 * x;
+        a[(i, 1)] = 2.0 * y;
+        a[(i, 2)] = 1.0;
+        b[i] = x * x + y * y;
+    }
+    let Ok(s) = a.svd(true, true).solve(&b, 1e-12) else { return Ok(None) };
+    let r2 = s[2] + s[0] * s[0] + s[1] * s[1];
+    Ok((r2 > 0.0).then(|| r2.sqrt()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The PSM's pitch linkage is one family (yaw and pitch), the yaw link and the tool are not
+    /// in it; the parallelogram's bottom link translates on its crank, frame 6's a = 0.150 m
+    /// (Table 4), and `pitch_end` turns.
+    #[test]
+    fn the_psms_pitch_linkage_is_one_family_and_its_bottom_link_translates_on_its_crank() {
+        let model = dvrk_kin::load("psm", None).unwrap();
+        let home = model.home();
+        let body = |frame: &str| model.frames[model.frames.iter().position(|f| f.name == frame).unwrap()].body;
+        let fam = |frame: &str| family(&model, body(frame), &home).unwrap();
+        for f in ["pitch_back", "pitch_bottom", "pitch_end", "main_insertion", "counterweight"] {
+            assert_eq!(fam(f), Some(vec![0, 1]), "{f}");
+        }
+        assert_eq!(fam("yaw"), Some(vec![0]));
+        assert_eq!(fam("tool_roll"), None);
+        let q: Vec<Vec<f64>> = (0..50).map(|i| { let mut q = home.clone(); q[0] = 0.3 * (0.1 * i as f64).sin(); q[1] = 0.5 * (0.13 * i as f64).cos(); q[2] = 0.1 + 0.05 * (0.07 * i as f64).sin(); q }).collect();
+        let r = crank(&model, body("pitch_bottom"), &q).unwrap().unwrap();
+        assert!((r - 0.150).abs() < 1e-9, "{r}");
+        assert_eq!(crank(&model, body("pitch_end"), &q).unwrap(), None);
+    }
+}
