@@ -69,10 +69,8 @@ impl Message<'_> {
 pub fn container(path: &Path) -> Result<Option<Container>> {
     use std::io::Read;
     let mut head = [0u8; 13];
-    let mut f = std::fs::File::open(path).map_err(|e| match e.kind() {
-        std::io::ErrorKind::NotFound => CalibError::file(path, "no such file"),
-        _ => CalibError::file(path, format!("cannot read: {e}")),
-    })?;
+    // A regular file only: a FIFO would wait for a writer forever, a device never end.
+    let mut f = dvrk_kin::text_file::open_input(path)?;
     let n = f.read(&mut head).map_err(|e| CalibError::file(path, format!("cannot read: {e}")))?;
     Ok(container_of(&head[..n]))
 }
@@ -114,7 +112,7 @@ pub fn for_each(path: &Path, visit: impl FnMut(&Message) -> Result<()>) -> Resul
         Some(Container::Mcap) => {
             // Read as the reader asks, not whole: a 5-minute recording's file is 60 MB.
             let cannot = |e: std::io::Error| CalibError::file(path, format!("cannot read: {e}"));
-            let file = std::fs::File::open(path).map_err(cannot)?;
+            let file = dvrk_kin::text_file::open_input(path)?;
             let len = file.metadata().map_err(cannot)?.len();
             for_each_mcap_from(file, usize::try_from(len).unwrap_or(usize::MAX), path, visit)
         }
@@ -298,7 +296,7 @@ fn for_each_bag(path: &Path, mut visit: impl FnMut(&Message) -> Result<()>) -> R
         // The header record (4 kB in bags rosbag writes) is all the check needs.
         use std::io::Read;
         let cannot = |e: std::io::Error| CalibError::file(path, format!("cannot read: {e}"));
-        let f = std::fs::File::open(path).map_err(cannot)?;
+        let f = dvrk_kin::text_file::open_input(path)?;
         let file_len = f.metadata().map_err(cannot)?.len() as usize;
         let mut head = Vec::new();
         f.take(1 << 16).read_to_end(&mut head).map_err(cannot)?;
