@@ -25,10 +25,17 @@ pub fn stage(path: &Path, contents: &[u8]) -> Result<dvrk_kin::atomic::Staged> {
     Ok(dvrk_kin::atomic::Staged::write(path, contents)?)
 }
 
-/// Check a command's outputs before any work (see [`dvrk_kin::atomic::check_outputs`]).
+/// Check a command's outputs before any work (see [`dvrk_kin::atomic::check_outputs`]) and
+/// reserve them ([`dvrk_kin::atomic::reserve`]).
 pub fn check_outputs(inputs: &[(&str, &Path)], outputs: &[(&str, Option<&Path>)]) -> Result<()> {
     let outputs: Vec<(&str, &Path)> = outputs.iter().filter_map(|(f, p)| p.map(|p| (*f, p))).collect();
-    Ok(dvrk_kin::atomic::check_outputs(inputs, &outputs)?)
+    dvrk_kin::atomic::check_outputs(inputs, &outputs)?;
+    // Held until the outputs are committed (or removed at exit): a second run writing one of them
+    // is refused at its start.
+    for (flag, path) in outputs {
+        dvrk_kin::atomic::reserve(path).map_err(|e| anyhow!("{flag}: {e}"))?;
+    }
+    Ok(())
 }
 
 /// Refuse a `--plot` whose image format is unknown (.png and .svg are drawn) before any work.

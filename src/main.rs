@@ -24,21 +24,28 @@ impl std::fmt::Display for CheckFailed {
 
 impl std::error::Error for CheckFailed {}
 
+/// The longest error message printed (characters).
+const MAX_MESSAGE_CHARS: usize = 600;
+
 fn main() -> ExitCode {
     let args = cli::Cli::parse();
     signals::install();
-    match commands::run(args) {
+    let result = commands::run(args);
+    // Outputs reserved but not written (an error, or an optional output not produced).
+    dvrk_kin::atomic::remove_all_staged();
+    match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) if e.is::<CheckFailed>() => {
             eprintln!("error: {e}");
             ExitCode::from(3)
         }
         Err(e) => {
-            let top = e.to_string();
+            // A message quoting file content is cut (readers quote short excerpts; this is the net).
+            let top = dvrk_kin::text_file::excerpt(&e.to_string(), MAX_MESSAGE_CHARS);
             eprintln!("error: {top}");
             // Causes whose text the message already quotes are not repeated.
             for cause in e.chain().skip(1).map(|c| c.to_string()).filter(|c| !top.contains(c.as_str())) {
-                eprintln!("  caused by: {cause}");
+                eprintln!("  caused by: {}", dvrk_kin::text_file::excerpt(&cause, MAX_MESSAGE_CHARS));
             }
             ExitCode::from(1)
         }

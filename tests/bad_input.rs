@@ -214,3 +214,50 @@ fn calib_refuses_a_plot_format_before_reading_the_recording() {
     assert_one_line(&dvrk_err(&["calib", "pivot", "--recording", r, "--plot", jpg]), &["p.jpg", "--plot", "unknown image format"]);
     assert_one_line(&dvrk_err(&["calib", "axes", "--recording", r, "--config", c, "--plot", jpg]), &["p.jpg", "--plot", "unknown image format"]);
 }
+
+/// Issue 63 item 3: inputs that never end or never start (`/dev/zero`, a FIFO) are refused at
+/// once with one line naming the file, by every reader (they grew to GBs, or waited forever).
+#[cfg(unix)]
+#[test]
+fn a_device_or_fifo_input_is_refused_at_once() {
+    let dir = tempdir();
+    let fifo = dir.path().join("in.fifo");
+    assert!(std::process::Command::new("mkfifo").arg(&fifo).status().unwrap().success());
+    let report = dir.path().join("r.json");
+    for input in ["/dev/zero", fifo.to_str().unwrap()] {
+        let cases: [Vec<&str>; 6] = [
+            vec!["identify", "--recording", input, "--model", "psm"],
+            vec!["discrepancy", "--model", "psm", "--recording", input, "--report", report.to_str().unwrap()],
+            vec!["sim", "--scene", input, "--duration", "0.01"],
+            vec!["serve", "--scene", input],
+            vec!["model", "check", input],
+            vec!["fk", input, "--q", "0"],
+        ];
+        for args in &cases {
+            let out = crate::util::dvrk_within(5.0, args);
+            let e = String::from_utf8_lossy(&out.stderr);
+            assert_eq!(out.status.code(), Some(1), "{args:?}: {e}");
+            assert!(e.contains(input) && e.contains("not a regular file") && !e.contains("panicked"), "{args:?}: {e}");
+        }
+    }
+}
+
+/// A recording that is one long line (a file of zeros or of one character) is refused after
+/// its first MiB, and an error never quotes more than a short excerpt of the file (the whole
+/// header line used to be repeated: 1 GB to stderr).
+#[test]
+fn a_long_line_is_refused_and_quoted_short() {
+    let dir = tempdir();
+    let report = dir.path().join("r.json");
+    let endless = dir.path().join("endless.csv");
+    std::fs::write(&endless, vec![b'a'; 3 << 20]).unwrap();
+    let wide = dir.path().join("wide.csv");
+    std::fs::write(&wide, format!("time,{}\n0,1\n", (0..60_000).map(|k| format!("x{k}")).collect::<Vec<_>>().join(","))).unwrap();
+    for (file, format, want) in [(&endless, "auto", "line 1 is longer than 1048576 bytes"), (&endless, "csv", "line 1 is longer than 1048576 bytes"), (&wide, "csv", "the header is: time,x0,x1")] {
+        let out = crate::util::dvrk_within(5.0, &["discrepancy", "--model", "psm", "--recording", file.to_str().unwrap(), "--format", format, "--report", report.to_str().unwrap()]);
+        let e = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{}", &e[..e.len().min(300)]);
+        assert!(e.len() < 400, "a short message, not {} bytes: {}", e.len(), &e[..300]);
+        assert_one_line(&e, &[file.to_str().unwrap(), want]);
+    }
+}

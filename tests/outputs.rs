@@ -165,3 +165,83 @@ fn a_signal_to_another_command_leaves_nothing_half_written() {
     assert_eq!(status.code(), Some(130));
     assert!(listing(dir.path()).is_empty(), "{:?}", listing(dir.path()));
 }
+
+fn mkfifo(p: &Path) {
+    assert!(std::process::Command::new("mkfifo").arg(p).status().unwrap().success());
+}
+
+/// Issue 63 item 2: an output through a symbolic link replaces the link's target and keeps the
+/// link (it used to replace the link with a file, its target left as it was).
+#[cfg(unix)]
+#[test]
+fn a_symlinked_output_replaces_its_target_and_keeps_the_link() {
+    let dir = tempdir();
+    let (real, link) = (dir.path().join("real.urdf"), dir.path().join("link.urdf"));
+    std::fs::write(&real, "old").unwrap();
+    std::os::unix::fs::symlink("real.urdf", &link).unwrap();
+    dvrk_ok(&["export", "urdf", "psm", "-o", link.to_str().unwrap()]);
+    assert!(std::fs::symlink_metadata(&link).unwrap().file_type().is_symlink(), "the link is kept");
+    assert_eq!(std::fs::read_link(&link).unwrap(), Path::new("real.urdf"));
+    assert!(std::fs::read_to_string(&real).unwrap().starts_with("<?xml"), "its target is replaced");
+    assert_eq!(listing(dir.path()), ["link.urdf", "real.urdf"], "no temporary file left");
+}
+
+/// A FIFO, a socket or a device (here through a link to /dev/null) as an output is refused with
+/// one line and left as it is (renaming over it replaced it with a file; as root, /dev/full).
+#[cfg(unix)]
+#[test]
+fn a_fifo_socket_or_device_output_is_refused() {
+    use std::os::unix::fs::FileTypeExt;
+    let dir = tempdir();
+    let fifo = dir.path().join("out.urdf");
+    mkfifo(&fifo);
+    let e = dvrk_err(&["export", "urdf", "psm", "-o", fifo.to_str().unwrap()]);
+    assert!(e.contains("-o: is a FIFO") && e.contains("not a regular file") && e.trim_end().lines().count() == 1, "{e}");
+    assert!(std::fs::metadata(&fifo).unwrap().file_type().is_fifo(), "the FIFO is left as it was");
+    let sock = dir.path().join("out.mcap");
+    let _listener = std::os::unix::net::UnixListener::bind(&sock).unwrap();
+    let e = dvrk_err(&["sim", "--scene", "psm", "--duration", "0.01", "--out", sock.to_str().unwrap()]);
+    assert!(e.contains("--out: is a socket"), "{e}");
+    assert!(std::fs::metadata(&sock).unwrap().file_type().is_socket());
+    let dev = dir.path().join("dev.json");
+    std::os::unix::fs::symlink("/dev/null", &dev).unwrap();
+    let e = dvrk_err(&["synth", "hidden-effect", "--seed", "1", "--duration", "1", "-o", dir.path().join("h.mcap").to_str().unwrap(), "--answer", dev.to_str().unwrap()]);
+    assert!(e.contains("--answer: is a character device (the link's target /dev/null)"), "{e}");
+    assert!(std::fs::symlink_metadata(&dev).unwrap().file_type().is_symlink());
+    assert_eq!(listing(dir.path()), ["dev.json", "out.mcap", "out.urdf"], "nothing written");
+}
+
+/// Two runs writing one `--out` at once: the second is refused at its start (both used to exit 0
+/// and one recording vanished).
+#[cfg(unix)]
+#[test]
+fn a_second_writer_of_the_same_output_is_refused() {
+    let dir = tempdir();
+    let out = dir.path().join("run.mcap");
+    let first = std::process::Command::new(crate::util::dvrk_bin())
+        .args(["sim", "--scene", "psm", "--duration", "600", "--out", out.to_str().unwrap(), "--json"])
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let started = std::time::Instant::now();
+    while listing(dir.path()).is_empty() && started.elapsed().as_secs() < 30 {
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    let second = crate::util::dvrk_within(20.0, &["sim", "--scene", "psm", "--duration", "0.1", "--out", out.to_str().unwrap()]);
+    // Through a symlink too: the same target.
+    let link = dir.path().join("link.mcap");
+    std::os::unix::fs::symlink(&out, &link).unwrap();
+    let third = crate::util::dvrk_within(20.0, &["export", "urdf", "psm", "-o", link.to_str().unwrap()]);
+    std::process::Command::new("kill").args(["-KILL", &first.id().to_string()]).status().unwrap();
+    let mut first = first;
+    first.wait().unwrap();
+    for (run, what) in [(second, "sim --out"), (third, "export -o through a link")] {
+        let e = String::from_utf8_lossy(&run.stderr).to_string();
+        assert_eq!(run.status.code(), Some(1), "{what}: {e}");
+        assert!(e.contains("another process is writing it now") && e.trim_end().lines().count() == 1, "{what}: {e}");
+    }
+    // The killed run's temporary file is not locked any more: the next run takes it over.
+    dvrk_ok(&["export", "urdf", "psm", "-o", out.to_str().unwrap()]);
+    assert_eq!(listing(dir.path()), ["link.mcap", "run.mcap"], "the stale temporary file was taken over");
+}

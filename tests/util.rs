@@ -24,9 +24,32 @@ pub fn external(rel: &str) -> Option<PathBuf> {
     }
 }
 
+/// The `dvrk` binary under test: this build's, or `DVRK_TEST_BIN` (to show a test fails on an
+/// older binary).
+pub fn dvrk_bin() -> PathBuf {
+    std::env::var_os("DVRK_TEST_BIN").map_or_else(|| PathBuf::from(env!("CARGO_BIN_EXE_dvrk")), PathBuf::from)
+}
+
 /// Run the real `dvrk` binary.
 pub fn dvrk(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_dvrk")).args(args).output().expect("the dvrk binary runs")
+    Command::new(dvrk_bin()).args(args).output().expect("the dvrk binary runs")
+}
+
+/// Run `dvrk` with a time limit: a run still going after `secs` is killed and fails the test
+/// (a regression that waits on a FIFO or reads `/dev/zero` cannot hang the suite).
+pub fn dvrk_within(secs: f64, args: &[&str]) -> Output {
+    use std::process::Stdio;
+    let mut child = Command::new(dvrk_bin()).args(args).stdin(Stdio::null()).stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().expect("the dvrk binary runs");
+    let start = std::time::Instant::now();
+    while child.try_wait().expect("wait").is_none() {
+        if start.elapsed().as_secs_f64() > secs {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("dvrk {args:?} still running after {secs} s");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    child.wait_with_output().expect("output")
 }
 
 /// Stdout of a successful `dvrk` run (fails the test otherwise, showing stderr).

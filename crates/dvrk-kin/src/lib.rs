@@ -46,7 +46,7 @@ pub mod sdf;
 pub mod so3;
 pub mod exact;
 pub mod spec;
-mod text_file;
+pub mod text_file;
 pub mod urdf;
 
 pub use dynamics::{frame_bias_forces, gravity_torque, inverse_dynamics, mass_matrix, mass_matrix_and_bias, mass_matrix_and_bias_placed, regressor, BodyInertia, DynamicsData, DynamicsModel};

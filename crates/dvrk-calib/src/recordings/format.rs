@@ -27,12 +27,26 @@ pub fn resolve(path: &Path, format: &str) -> Result<&'static str> {
         Some(Container::Bag) => return Ok("bag"),
         None => {}
     }
-    use std::io::{BufRead, BufReader};
-    let f = std::fs::File::open(path).map_err(|e| CalibError::file(path, format!("cannot read: {e}")))?;
-    for line in BufReader::new(f).lines().take(50) {
-        let Ok(line) = line else {
+    // The first data line tells; read with a bound (a file without newlines is not read whole).
+    use std::io::Read;
+    let max = dvrk_kin::text_file::MAX_LINE_BYTES;
+    let mut head = Vec::new();
+    dvrk_kin::text_file::open_input(path)?.take(max as u64 + 1).read_to_end(&mut head).map_err(|e| CalibError::file(path, format!("cannot read: {e}")))?;
+    let full = head.len() > max;
+    let mut lines = head.split(|&b| b == b'\n').enumerate().peekable();
+    while let Some((i, line)) = lines.next() {
+        if i >= 50 {
+            break;
+        }
+        if full && lines.peek().is_none() {
+            return Err(CalibError::file(path, format!("line {} is longer than {max} bytes: not a CSV recording (neither MCAP nor a ROS 1 bag); give --format", i + 1)));
+        }
+        let Ok(line) = std::str::from_utf8(line) else {
             return Err(CalibError::file(path, "neither MCAP, a ROS 1 bag nor text (CSV); give --format"));
         };
+        if line.contains('\0') {
+            return Err(CalibError::file(path, "neither MCAP, a ROS 1 bag nor text (CSV: it holds NUL bytes); give --format"));
+        }
         let line = line.trim();
         if line.is_empty() || line.starts_with('#') {
             continue;

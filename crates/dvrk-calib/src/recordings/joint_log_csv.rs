@@ -34,7 +34,7 @@ pub struct CsvLog {
 
 /// Read the CSV joint log at `path` for `model`'s joints.
 pub fn read(path: &Path, model: &dvrk_kin::Model) -> Result<CsvLog> {
-    let text = std::fs::read_to_string(path).map_err(|e| CalibError::file(path, format!("cannot read: {e}")))?;
+    let text = crate::recordings::read_csv_text(path)?;
     parse(&text, path, model)
 }
 
@@ -58,7 +58,7 @@ pub fn parse(text: &str, path: &Path, model: &dvrk_kin::Model) -> Result<CsvLog>
     let missing: Vec<&String> = required.iter().chain(if has_setpoints { &setpoints[..] } else { &[] }).filter(|c| col(c).is_none()).collect();
     if !missing.is_empty() {
         let list: Vec<&str> = missing.iter().map(|s| s.as_str()).collect();
-        return Err(CalibError::file(path, format!("no column(s) {} for the model's {n} joints; the header is: {}", list.join(", "), header.join(","))));
+        return Err(CalibError::file(path, format!("no column(s) {} for the model's {n} joints; the header is: {}", list.join(", "), dvrk_kin::text_file::excerpt(&header.join(","), 80))));
     }
     let index = |names: &[String]| names.iter().map(|c| col(c).unwrap_or(0)).collect::<Vec<usize>>();
     let (time, q, tau) = (col("time").unwrap_or(0), index(&required[1..=n]), index(&required[n + 1..]));
@@ -86,7 +86,7 @@ pub fn parse(text: &str, path: &Path, model: &dvrk_kin::Model) -> Result<CsvLog>
             match s.parse::<f64>() {
                 Ok(v) if v.is_finite() => Ok(v),
                 _ if s.is_empty() => Err(err(line, format!("column `{}` is empty", header[i]))),
-                _ => Err(err(line, format!("column `{}`: `{s}` is not a finite number", header[i]))),
+                _ => Err(err(line, format!("column `{}`: `{}` is not a finite number", dvrk_kin::text_file::excerpt(&header[i], 80), dvrk_kin::text_file::excerpt(s, 80)))),
             }
         };
         let row = |cols: &[usize]| cols.iter().map(|&i| cell(i)).collect::<Result<Vec<f64>>>();
@@ -169,7 +169,7 @@ pub fn write(log: &JointLog) -> String {
 /// The tracked marker body `name` of the CSV joint log at `path`, on model frame `frame`: its
 /// pose columns on the rows that have them. A row with some but not all of them is an error.
 pub fn read_markers(path: &Path, name: &str, frame: usize) -> Result<super::marker_log::MarkerLog> {
-    let text = std::fs::read_to_string(path).map_err(|e| CalibError::file(path, format!("cannot read: {e}")))?;
+    let text = crate::recordings::read_csv_text(path)?;
     let name = marker_name(name);
     let mut reader = csv::ReaderBuilder::new().comment(Some(b'#')).flexible(false).trim(csv::Trim::All).from_reader(text.as_bytes());
     let header: Vec<String> = reader.headers().map_err(|e| CalibError::file(path, format!("cannot read the header: {e}")))?.iter().map(String::from).collect();
@@ -188,7 +188,7 @@ pub fn read_markers(path: &Path, name: &str, frame: usize) -> Result<super::mark
         if cells.iter().all(|c| c.is_empty()) {
             continue;
         }
-        let v: Vec<f64> = cells.iter().map(|c| c.parse::<f64>().ok().filter(|x| x.is_finite())).collect::<Option<_>>().ok_or_else(|| CalibError::file(path, format!("line {line}: {name}'s pose columns hold {cells:?}: all seven finite numbers, or all empty")))?;
+        let v: Vec<f64> = cells.iter().map(|c| c.parse::<f64>().ok().filter(|x| x.is_finite())).collect::<Option<_>>().ok_or_else(|| CalibError::file(path, format!("line {line}: {name}'s pose columns hold {}: all seven finite numbers, or all empty", dvrk_kin::text_file::excerpt(&format!("{cells:?}"), 80))))?;
         let t: f64 = rec.get(time).unwrap_or("").parse().map_err(|_| CalibError::file(path, format!("line {line}: column `time` is not a number")))?;
         let q = crate::recordings::plain_csv::unit_quaternion(v[3], v[4], v[5], v[6]).map_err(|e| CalibError::file(path, format!("line {line}: {name}: {e}")))?;
         out.t.push(t);

@@ -69,10 +69,8 @@ impl Message<'_> {
 pub fn container(path: &Path) -> Result<Option<Container>> {
     use std::io::Read;
     let mut head = [0u8; 13];
-    let mut f = std::fs::File::open(path).map_err(|e| match e.kind() {
-        std::io::ErrorKind::NotFound => CalibError::file(path, "no such file"),
-        _ => CalibError::file(path, format!("cannot read: {e}")),
-    })?;
+    // A regular file only: a FIFO would wait for a writer forever, a device never end.
+    let mut f = dvrk_kin::text_file::open_input(path)?;
     let n = f.read(&mut head).map_err(|e| CalibError::file(path, format!("cannot read: {e}")))?;
     Ok(container_of(&head[..n]))
 }
@@ -114,7 +112,7 @@ pub fn for_each(path: &Path, visit: impl FnMut(&Message) -> Result<()>) -> Resul
         Some(Container::Mcap) => {
             // Read as the reader asks, not whole: a 5-minute recording's file is 60 MB.
             let cannot = |e: std::io::Error| CalibError::file(path, format!("cannot read: {e}"));
-            let file = std::fs::File::open(path).map_err(cannot)?;
+            let file = dvrk_kin::text_file::open_input(path)?;
             let len = file.metadata().map_err(cannot)?.len();
             for_each_mcap_from(file, usize::try_from(len).unwrap_or(usize::MAX), path, visit)
         }
@@ -137,7 +135,9 @@ pub fn for_each_mcap(bytes: &[u8], path: &Path, visit: impl FnMut(&Message) -> R
 fn for_each_mcap_from(mut source: impl std::io::Read, len: usize, path: &Path, mut visit: impl FnMut(&Message) -> Result<()>) -> Result<usize> {
     use mcap::records::Record;
     use mcap::sans_io::linear_reader::{LinearReadEvent, LinearReader, LinearReaderOptions};
-    let options = LinearReaderOptions::default().with_record_length_limit(record_length_limit(len));
+    // CRCs checked (the writer's, where it wrote them: a zero CRC is none): a flipped bit in a
+    // chunk is an error, not a wrong number (Python's `mcap` raises CRCValidationError).
+    let options = LinearReaderOptions::default().with_record_length_limit(record_length_limit(len)).with_validate_chunk_crcs(true).with_validate_data_section_crc(true);
     let mut reader = LinearReader::new_with_options(options);
     // The file's first bytes (whether it is an MCAP at all, for the error).
     let mut head: Vec<u8> = Vec::with_capacity(MCAP_MAGIC.len());
@@ -157,6 +157,12 @@ fn for_each_mcap_from(mut source: impl std::io::Read, len: usize, path: &Path, m
     loop {
         let want = match reader.next_event() {
             None => break,
+            Some(Err(mcap::McapError::BadChunkCrc { saved, calculated })) => {
+                return Err(CalibError::file(path, format!("a chunk ending by byte {fed} is damaged: its CRC is {saved:08x}, its content's {calculated:08x} ({count} message(s) read up to there); nothing was used (recover the rest with `mcap recover`)")));
+            }
+            Some(Err(mcap::McapError::BadDataCrc { saved, calculated })) => {
+                return Err(CalibError::file(path, format!("the data section is damaged: its CRC is {saved:08x}, its content's {calculated:08x}; nothing was read (recover the file with `mcap recover`)")));
+            }
             Some(Err(e)) => return Err(damaged(count, &head, &e)),
             Some(Ok(LinearReadEvent::ReadRequest(n))) => n,
             Some(Ok(LinearReadEvent::Record { data, opcode })) => {
@@ -298,7 +304,7 @@ fn for_each_bag(path: &Path, mut visit: impl FnMut(&Message) -> Result<()>) -> R
         // The header record (4 kB in bags rosbag writes) is all the check needs.
         use std::io::Read;
         let cannot = |e: std::io::Error| CalibError::file(path, format!("cannot read: {e}"));
-        let f = std::fs::File::open(path).map_err(cannot)?;
+        let f = dvrk_kin::text_file::open_input(path)?;
         let file_len = f.metadata().map_err(cannot)?.len() as usize;
         let mut head = Vec::new();
         f.take(1 << 16).read_to_end(&mut head).map_err(cannot)?;
@@ -362,5 +368,23 @@ mod tests {
         assert_eq!(bag_index_pos(&b, 6000, Path::new("whole.bag")).unwrap(), 5000);
         let e = bag_index_pos(&b[..20], 6000, Path::new("cut.bag")).unwrap_err().to_string();
         assert!(e.contains("header record is damaged"), "{e}");
+    }
+
+    #[test]
+    fn a_chunk_whose_crc_does_not_match_is_an_error() {
+        let mut w = mcap::WriteOptions::new().compression(None).create(std::io::Cursor::new(Vec::new())).unwrap();
+        let schema = w.add_schema("std_msgs/msg/String", "ros2msg", b"string data").unwrap();
+        let channel = w.add_channel(schema, "/x", "cdr", &BTreeMap::new()).unwrap();
+        for i in 0..20u64 {
+            let header = mcap::records::MessageHeader { channel_id: channel, sequence: i as u32, log_time: i, publish_time: i };
+            w.write_to_known_channel(&header, format!("hello {i:03}").as_bytes()).unwrap();
+        }
+        w.finish().unwrap();
+        let mut bytes = w.into_inner().into_inner();
+        assert_eq!(for_each_mcap(&bytes, Path::new("good.mcap"), |_| Ok(())).unwrap(), 20);
+        let at = bytes.windows(9).position(|x| x == b"hello 010").unwrap();
+        bytes[at + 6] = b'9';
+        let e = for_each_mcap(&bytes, Path::new("bad.mcap"), |_| Ok(())).unwrap_err().to_string();
+        assert!(e.starts_with("bad.mcap: a chunk ending by byte") && e.contains("is damaged: its CRC is"), "{e}");
     }
 }

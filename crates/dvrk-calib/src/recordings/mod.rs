@@ -35,6 +35,13 @@ pub(crate) mod read;
 pub(crate) mod tracks;
 pub(crate) mod wpi_csv;
 
+/// A text (CSV) recording whole, bounded ([`dvrk_kin::text_file::read_recording_text`]: a
+/// regular file, at most 2 GiB, lines of at most 1 MiB, no NUL byte); errors name the file.
+pub(crate) fn read_csv_text(path: &std::path::Path) -> crate::error::Result<String> {
+    use dvrk_kin::text_file::{read_recording_text, MAX_LINE_BYTES, MAX_RECORDING_TEXT_BYTES};
+    Ok(read_recording_text(path, MAX_RECORDING_TEXT_BYTES, MAX_LINE_BYTES)?)
+}
+
 // Any recording, by format.
 pub use format::{auto_note, resolve as resolve_format, FORMATS};
 pub use read::{read_joint_log, read_joint_log_parts, read_recording, Parts};

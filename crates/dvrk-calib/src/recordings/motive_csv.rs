@@ -22,7 +22,7 @@ pub fn looks_like_motive(text: &str) -> bool {
 
 /// Read a Motive CSV export.
 pub fn read(path: &Path) -> Result<Recording> {
-    let text = std::fs::read_to_string(path).map_err(|e| CalibError::file(path, format!("cannot read: {e}")))?;
+    let text = crate::recordings::read_csv_text(path)?;
     parse(&text, path)
 }
 
@@ -145,7 +145,7 @@ pub fn parse(text: &str, path: &Path) -> Result<Recording> {
             if s.is_empty() {
                 return Ok(None);
             }
-            s.parse::<f64>().map(Some).map_err(|_| err(line, format!("column {} ({} {}): `{s}` is not a number", i + 1, names.get(i).unwrap_or(""), axes.get(i).unwrap_or(""))))
+            s.parse::<f64>().map(Some).map_err(|_| err(line, format!("column {} ({} {}): `{}` is not a number", i + 1, dvrk_kin::text_file::excerpt(names.get(i).unwrap_or(""), 80), dvrk_kin::text_file::excerpt(axes.get(i).unwrap_or(""), 80), dvrk_kin::text_file::excerpt(s, 80))))
         };
         let t = cell(time_col)?.filter(|t| t.is_finite()).ok_or_else(|| err(line, "empty or non-finite time".into()))?;
         for (b, tr) in bodies.iter().zip(tracks.iter_mut()) {

@@ -36,7 +36,7 @@ pub(crate) fn unit_quaternion(x: f64, y: f64, z: f64, w: f64) -> std::result::Re
 
 /// Read a plain CSV recording.
 pub fn read(path: &Path) -> Result<Recording> {
-    let text = std::fs::read_to_string(path).map_err(|e| CalibError::file(path, format!("cannot read: {e}")))?;
+    let text = crate::recordings::read_csv_text(path)?;
     parse(&text, path)
 }
 
@@ -46,7 +46,7 @@ pub fn parse(text: &str, path: &Path) -> Result<Recording> {
     let mut reader = csv::ReaderBuilder::new().comment(Some(b'#')).flexible(false).trim(csv::Trim::All).from_reader(text.as_bytes());
     let header: Vec<String> = reader.headers().map_err(|e| CalibError::file(path, format!("cannot read the header: {e}")))?.iter().map(String::from).collect();
     let col = |name: &str| header.iter().position(|h| h == name);
-    let time = col("time").ok_or_else(|| CalibError::file(path, format!("no `time` column; the header is: {}", header.join(","))))?;
+    let time = col("time").ok_or_else(|| CalibError::file(path, format!("no `time` column; the header is: {}", dvrk_kin::text_file::excerpt(&header.join(","), 80))))?;
     // Group columns.
     let mut bodies: BTreeMap<String, [Option<usize>; 7]> = BTreeMap::new();
     let mut markers: BTreeMap<String, BTreeMap<usize, [Option<usize>; 3]>> = BTreeMap::new();
@@ -115,7 +115,7 @@ pub fn parse(text: &str, path: &Path) -> Result<Recording> {
             if s.is_empty() {
                 return Ok(None);
             }
-            s.parse::<f64>().map(Some).map_err(|_| err(line, format!("column `{}`: `{s}` is not a number", header[i])))
+            s.parse::<f64>().map(Some).map_err(|_| err(line, format!("column `{}`: `{}` is not a number", dvrk_kin::text_file::excerpt(&header[i], 80), dvrk_kin::text_file::excerpt(s, 80))))
         };
         let t = match cell(time)? {
             Some(t) if t.is_finite() => t,

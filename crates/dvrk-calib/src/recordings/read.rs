@@ -19,7 +19,7 @@ pub fn read_recording(path: &Path, options: &McapOptions) -> Result<Recording> {
     match ext.as_str() {
         "mcap" | "bag" => crate::recordings::mcap_io::read(path, options),
         "csv" | "txt" => {
-            let text = std::fs::read_to_string(path).map_err(|e| CalibError::file(path, format!("cannot read: {e}")))?;
+            let text = crate::recordings::read_csv_text(path)?;
             let rec = if crate::recordings::motive_csv::looks_like_motive(&text) { crate::recordings::motive_csv::parse(&text, path)? } else { crate::recordings::plain_csv::parse(&text, path)? };
             if let Some(t) = &options.joint_topic {
                 if rec.joints.is_none() {

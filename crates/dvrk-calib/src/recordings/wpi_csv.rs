@@ -16,7 +16,7 @@ pub const WPI_RATE: f64 = 200.0;
 
 /// Read a wpi-csv recording for `model` (which must have 7 joints and a tool coupling).
 pub fn read(path: &Path, model: &Model) -> Result<JointLog> {
-    let text = std::fs::read_to_string(path).map_err(|e| CalibError::file(path, format!("cannot read: {e}")))?;
+    let text = crate::recordings::read_csv_text(path)?;
     parse(&text, path, model)
 }
 
