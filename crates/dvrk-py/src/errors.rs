@@ -135,7 +135,7 @@ fn class_of<'a>(ex: &'a Exceptions, e: &KinError) -> &'a Py<PyType> {
         KinError::Unknown { what, .. } if what == "model" => &ex.not_found,
         // A file that cannot be read because it is not there (a tool file, a referenced model).
         KinError::File { path, message }
-            if message.starts_with("cannot read") && !path.exists() =>
+            if (message.starts_with("cannot read") || message.starts_with("no such file")) && !path.exists() =>
         {
             &ex.not_found
         }

@@ -303,6 +303,6 @@ mod tests {
         let e = parse(rows[2], p, &m).unwrap_err().to_string();
         assert!(e.contains("no data row"), "{e}");
         let e = read(Path::new("/nonexistent/rec.csv"), &m).unwrap_err().to_string();
-        assert!(e.contains("/nonexistent/rec.csv: cannot read"), "{e}");
+        assert!(e.contains("/nonexistent/rec.csv: no such file"), "{e}");
     }
 }
