@@ -249,7 +249,10 @@ def test_ten_clients_coming_and_going_neither_slow_the_simulation_nor_grow_its_m
     rtf_soaked, early, late, connections = fast_run(free_port(), 30, 10)
     print(f"real-time factor alone {rtf_alone:.1f}, with 10 clients {rtf_soaked:.1f}; {connections} connections; RSS {early} -> {late} kB")
     assert connections >= 100, connections
-    assert rtf_soaked > 0.9 * rtf_alone, (rtf_alone, rtf_soaked)
+    # A 10 s run's real-time factor varies by +-20% on a 2-core machine (session 40: alone 266,
+    # 326 and 358 in three runs; 0.86 of alone once in CI-like conditions): a client that blocked
+    # the loop would take it far lower.
+    assert rtf_soaked > 0.7 * rtf_alone, (rtf_alone, rtf_soaked)
     # Flat: the last three quarters of the soak grow the memory by less than 10% (no per-client
     # or per-message leak: 30 s is thousands of connections and millions of messages).
     assert late < 1.1 * early, (early, late)
