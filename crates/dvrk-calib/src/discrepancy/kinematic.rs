@@ -243,10 +243,16 @@ impl KinematicChannel {
     }
 }
 
+/// The samples of `t` (increasing) that bracket time `x` and the weight of the later one:
+/// `x` is `i - 1` and `i` mixed `1 - w : w`, held at the ends.
+fn bracket(t: &[f64], x: f64) -> (usize, f64) {
+    let i = t.partition_point(|v| *v <= x).clamp(1, t.len() - 1);
+    (i, ((x - t[i - 1]) / (t[i] - t[i - 1])).clamp(0.0, 1.0))
+}
+
 /// Linear interpolation of `table[sample][k]` (sampled at `t`) at time `x`, held at the ends.
 fn interp(t: &[f64], table: &[Vec<f64>], x: f64, out: &mut [f64]) {
-    let i = t.partition_point(|v| *v <= x).clamp(1, t.len() - 1);
-    let w = ((x - t[i - 1]) / (t[i] - t[i - 1])).clamp(0.0, 1.0);
+    let (i, w) = bracket(t, x);
     for (k, o) in out.iter_mut().enumerate() {
         *o = table[i - 1][k] + w * (table[i][k] - table[i - 1][k]);
     }
@@ -640,9 +646,7 @@ impl PlayProbe {
     fn at(&mut self, b: f64, t_log: &[f64], tk: &[f64], shift: f64) {
         dvrk_kin::effects::motion_play(b, &self.motor, &mut self.link, &mut self.side_log);
         for (s, t) in tk.iter().enumerate() {
-            let x = t + shift;
-            let i = t_log.partition_point(|v| *v <= x).clamp(1, t_log.len() - 1);
-            let w = ((x - t_log[i - 1]) / (t_log[i] - t_log[i - 1])).clamp(0.0, 1.0);
+            let (i, w) = bracket(t_log, t + shift);
             let lag = |k: usize| self.link[k] - self.motor[k];
             self.lag[s] = lag(i - 1) + w * (lag(i) - lag(i - 1));
             self.side[s] = self.side_log[i - 1] + w * (self.side_log[i] - self.side_log[i - 1]);
