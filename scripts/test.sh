@@ -19,9 +19,11 @@ py="$venv/bin/python"
 "$py" -m pip install --quiet --disable-pip-version-check mujoco \
     || echo "note: could not install mujoco from PyPI: the MuJoCo cross-check will skip"
 
-# Rust: every crate but the Python binding (release: the simulation tests are heavy). The venv
-# comes first on PATH so tests that write fixtures with Python's mcap packages find them.
-PATH="$venv/bin:$PATH" cargo test --release
+# Rust: every crate's tests (release: the simulation tests are heavy). `--workspace` puts the
+# Python binding, which has no Rust tests, into the feature resolution, so that the wheel's build
+# below reuses every dependency compiled here (see crates/dvrk-py/Cargo.toml). The venv comes
+# first on PATH so tests that write fixtures with Python's mcap packages find them.
+PATH="$venv/bin:$PATH" cargo test --release --workspace
 
 # Python: build the wheel as a user would, install it, test it.
 rm -rf target/wheels

@@ -88,7 +88,7 @@ pub struct SimArgs {
 
 /// The engine a run uses: the flag's, the scene file's, rapier when a rapier option is given,
 /// else the reduced engine (the fastest that holds the scene's physics: the cross-checks of
-/// `crates/dvrk-sim/tests/reduced.rs`).
+/// `crates/dvrk-sim/tests/sim/reduced.rs`).
 fn engine(args: &SimArgs, scene: &Scene) -> Engine {
     match (args.engine.as_deref(), scene.engine) {
         (Some("reduced"), _) => Engine::Reduced,

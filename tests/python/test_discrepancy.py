@@ -8,9 +8,10 @@ import dvrk_twin
 
 def test_a_hidden_viscous_friction_is_named(tmp_path):
     rec = tmp_path / "hidden.mcap"
-    answer = dvrk_twin.synth_hidden_effect(rec, effect="viscous_friction", seed=3)
+    # 12 s, two rounds, as the CSV test below: the binding's MCAP path, not the workflow's power.
+    answer = dvrk_twin.synth_hidden_effect(rec, effect="viscous_friction", seed=3, duration=12.0)
     assert answer["effects"][0]["name"] == "viscous_friction"
-    report = dvrk_twin.discrepancy(rec, model="psm", arm="PSM1", tracking=False)
+    report = dvrk_twin.discrepancy(rec, model="psm", arm="PSM1", tracking=False, max_rounds=2)
     assert report["verdict"] == "named", report["verdict"]
     named = report["effects"][0]
     assert named["name"] == "viscous_friction"

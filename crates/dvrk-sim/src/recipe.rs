@@ -1,6 +1,6 @@
 //! How `models/inertials/{psm,ecm}.toml` were made from the paper's SDF figures: the base
 //! transform of each model, the bodies the SDF lacks, and the notes written into the file.
-//! `tests/inertials.rs` regenerates the files from `../shared/data/external/dvrk-env-inertials`
+//! `tests/sim/inertials.rs` regenerates the files from `../shared/data/external/dvrk-env-inertials`
 //! and checks they match (set `DVRK_REGEN_INERTIALS=1` to rewrite them).
 
 use crate::error::{Result, SimError};
@@ -12,7 +12,7 @@ use nalgebra::{Rotation3, Translation3, Vector3};
 /// puts it at -y, a half turn about z. ECM: a quarter turn about z (dvrk-kin +y is the SDF's +x)
 /// and the SDF origin sits 0.5444 m (twice the 0.2722 m yaw-to-pitch offset) along x and
 /// 0.10146 m (the yaw link's height) up. Both were read off the link origins at zero
-/// configuration; `tests/inertials.rs` checks every SDF joint axis against the model's.
+/// configuration; `tests/sim/inertials.rs` checks every SDF joint axis against the model's.
 pub fn base_transform(model: &str) -> Option<Pose> {
     match model {
         "psm" => Some(Pose::from_parts(Translation3::identity(), Rotation3::from_axis_angle(&Vector3::z_axis(), std::f64::consts::PI))),

@@ -14,8 +14,26 @@ fn env_or<T: std::str::FromStr>(name: &str, default: T) -> T {
     std::env::var(name).ok().and_then(|s| s.parse().ok()).unwrap_or(default)
 }
 
-fn trial(hidden: Hidden, seed: u64, enr: Option<f64>, duration: f64) -> HiddenRecording {
-    hidden_effect("psm", &HiddenOptions { hidden, seed, enr, duration, ..Default::default() }).unwrap()
+/// The hidden-effect recording of these settings, generated once per test binary: tests that
+/// ask for the same one (seed 11's latency: the named-with-its-parameter sweep and the repeated
+/// workflow) share it, the first caller generating while the others wait. The generator's truth
+/// (rapier at 8 kHz) is most of these tests' time: about 1.2 s of CPU a recorded second.
+fn trial(hidden: Hidden, seed: u64, enr: Option<f64>, duration: f64) -> std::sync::Arc<HiddenRecording> {
+    type Slot = std::sync::Arc<std::sync::OnceLock<std::sync::Arc<HiddenRecording>>>;
+    static MADE: std::sync::Mutex<Vec<(String, Slot)>> = std::sync::Mutex::new(Vec::new());
+    let key = format!("{hidden:?} {seed} {enr:?} {duration}");
+    let slot = {
+        let mut made = MADE.lock().unwrap();
+        match made.iter().find(|(k, _)| *k == key) {
+            Some((_, slot)) => slot.clone(),
+            None => {
+                let slot = Slot::default();
+                made.push((key, slot.clone()));
+                slot
+            }
+        }
+    };
+    slot.get_or_init(|| std::sync::Arc::new(hidden_effect("psm", &HiddenOptions { hidden, seed, enr, duration, ..Default::default() }).unwrap())).clone()
 }
 
 /// A truth whose controller sits at an effort limit is not a recording the dVRK makes: seed
@@ -86,14 +104,17 @@ fn main_parameter(truth: &dvrk_kin::effects::EffectSpec) -> String {
     .to_string()
 }
 
-/// Measured (seed 11, 20 s, ENR 5): every class below named on its true joint or link, its main
-/// parameter within 6% of the truth (10% for an offset), held-out band RMS
-/// cut by at least half.
+/// Measured (seed 11, ENR 5, 12 s; 20 s for the offset): every class below named on its true
+/// joint or link, its main parameter within 6% of the truth (10% for an offset), held-out band
+/// RMS cut by at least half. At 12 s the eight others are within 2% (at most 0.1 of the held-out
+/// RMS left); the offset, whose gravity term shares the refitted mass moments, is +13.9% at
+/// 12 s (the test fails, as it should) and +6.6% at 20 s.
 #[test]
 fn each_supported_effect_is_named_with_its_parameter() {
     let kinds = HIDDEN_KINDS;
     for kind in kinds {
-        let h = trial(Hidden::Kind(kind), 11, Some(5.0), 20.0);
+        let seconds = if kind == EffectKind::JointOffset { 20.0 } else { 12.0 };
+        let h = trial(Hidden::Kind(kind), 11, Some(5.0), seconds);
         let out = analyse(&h, false);
         let r = &out.report;
         let truth = &h.answer.effects[0].spec;
@@ -401,12 +422,13 @@ fn a_latency_is_not_moved_by_the_inertias_error() {
 
 /// The repeated workflow: a hidden latency is named in round one, the model with it (whose
 /// prediction the workflow then shifts) leaves nothing to name in round two, and the named
-/// latency is within 5% of the truth (measured 10.00 ms against 10 ms, interval +-0.16%; it
-/// was 2.5% short while the generator paired each state with the next step's effort).
+/// latency is within 5% of the truth (measured 3.987 ms against 4 ms on this 12 s recording,
+/// the one the sweep above names; 10.00 ms against 10 ms on 20 s; it was 2.5% short while the
+/// generator paired each state with the next step's effort).
 #[test]
 fn the_repeated_workflow_adds_the_effect_and_stops() {
     use dvrk_calib::discrepancy::discrepancy_repeated;
-    let h = trial(Hidden::Kind(EffectKind::Latency), 11, Some(5.0), 20.0);
+    let h = trial(Hidden::Kind(EffectKind::Latency), 11, Some(5.0), 12.0);
     let scene = dvrk_sim::Scene::load("psm").unwrap();
     let model = dvrk_kin::load("psm", None).unwrap();
     let out = discrepancy_repeated(&model, &scene, "PSM1", &h.log, &Options { tracking: false, ..Default::default() }, 3).unwrap();
@@ -470,7 +492,7 @@ fn two_hidden_effects_are_named_one_round_each() {
 }
 
 /// The repeated workflow on `hidden` (seed 11, 20 s, ENR 5 each), up to 4 rounds.
-fn repeated_pair(a: EffectKind, b: EffectKind) -> (HiddenRecording, dvrk_calib::discrepancy::Report) {
+fn repeated_pair(a: EffectKind, b: EffectKind) -> (std::sync::Arc<HiddenRecording>, dvrk_calib::discrepancy::Report) {
     use dvrk_calib::discrepancy::discrepancy_repeated;
     let h = trial(Hidden::Pair(a, b), 11, Some(5.0), 20.0);
     let scene = dvrk_sim::Scene::load("psm").unwrap();

@@ -67,7 +67,7 @@ fn arms_stand_where_the_cart_puts_them() {
 /// A carried arm must name an arm listed before it; the error names the field and the value.
 #[test]
 fn unknown_parent_arm_is_rejected() {
-    let text = include_str!("../../../models/scenes/full.toml").replace("parent = \"SUJ-PSM3\"", "parent = \"SUJ-PSM9\"");
+    let text = include_str!("../../../../models/scenes/full.toml").replace("parent = \"SUJ-PSM3\"", "parent = \"SUJ-PSM9\"");
     let e = Scene::parse(&text, "full.toml", None).unwrap_err().to_string();
     assert!(e.contains("parent") && e.contains("SUJ-PSM9"), "{e}");
 }
@@ -101,8 +101,8 @@ fn parallel_step_matches_sequential() {
 fn an_inertials_file_labelled_for_another_model_is_noted() {
     let dir = std::env::temp_dir().join(format!("dvrk-scene-label-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
-    let psm = include_str!("../../../models/inertials/psm.toml");
-    let scene = include_str!("../../../models/scenes/psm.toml").replace("inertials = \"psm\"", "inertials = \"labelled.toml\"");
+    let psm = include_str!("../../../../models/inertials/psm.toml");
+    let scene = include_str!("../../../../models/scenes/psm.toml").replace("inertials = \"psm\"", "inertials = \"labelled.toml\"");
     for (label, noted) in [("ecm", true), ("psm", false)] {
         std::fs::write(dir.join("labelled.toml"), psm.replace("model = \"psm\"", &format!("model = \"{label}\""))).unwrap();
         let s = Scene::parse(&scene, "psm.toml", Some(&dir)).unwrap();

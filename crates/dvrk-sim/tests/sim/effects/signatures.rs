@@ -1,4 +1,4 @@
-// The signature tests, included once per engine by `tests/effects.rs`.
+// The signature tests, included once per engine by `tests/sim/effects.rs`.
 
 use dvrk_sim::{Gains, Scene, Sim, SimOptions};
 

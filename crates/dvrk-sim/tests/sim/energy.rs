@@ -5,7 +5,7 @@
 //! Gravity is off: under gravity every arm of these scenes falls onto a joint limit within a
 //! second (the PSM pitch onto +0.93 rad, the ECM pitch likewise), and a limit is an inelastic
 //! contact that takes energy out by design. The gravity side of the dynamics is checked against
-//! the independent inverse dynamics in `tests/sim.rs` (steady PID efforts = gravity torques).
+//! the independent inverse dynamics in the `sim` module (steady PID efforts = gravity torques).
 //! Each joint gets a 0.1 s effort kick sized so that nothing reaches a limit in 10 s; the motion
 //! then runs free: the yaw spins the pitch loops, the insertion drives the counterweight cable,
 //! the wrist and both jaw blades move (the second blade by its cable).

@@ -1,5 +1,5 @@
 //! The reduced-coordinate engine (issue 42) against rapier on the same scenes: tracking, exact
-//! loops, and what it refuses (its energy: `tests/energy.rs`). Units: m, rad, s.
+//! loops, and what it refuses (its energy: the `energy` module). Units: m, rad, s.
 
 use dvrk_sim::run::TrajectoryKind;
 use dvrk_sim::{Colliders, Engine, RunOptions, Scene, Sim, SimOptions};

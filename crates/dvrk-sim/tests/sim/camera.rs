@@ -129,7 +129,7 @@ fn the_camera_projection_equals_the_analytic_pinhole() {
 }
 
 fn camera_error(field: &str, value: &str) -> String {
-    let text = Scene::load("full-camera").map(|_| include_str!("../../../models/scenes/full-camera.toml")).unwrap();
+    let text = Scene::load("full-camera").map(|_| include_str!("../../../../models/scenes/full-camera.toml")).unwrap();
     let line = text.lines().find(|l| l.starts_with(&format!("{field} ="))).unwrap();
     let bad = text.replacen(line, &format!("{field} = {value}"), 1);
     Scene::parse(&bad, "bad.toml", None).expect_err("rejected").to_string()
