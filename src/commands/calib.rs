@@ -4,8 +4,8 @@
 use crate::outln;
 use anyhow::{anyhow, bail, Result};
 use clap::{Args, Subcommand};
-use dvrk_calib::axis_distances::AxesReport;
-use dvrk_calib::psm_dh::{psm_dh, PsmDh, PSM_AXES};
+use dvrk_calib::mocap::axis_distances::AxesReport;
+use dvrk_calib::mocap::psm_dh::{psm_dh, PsmDh, PSM_AXES};
 use dvrk_calib::{calibrate_axes, pivot_calibration, read_recording, AxesConfig, AxesOptions, McapOptions, PivotMethod, PivotOptions};
 use std::path::{Path, PathBuf};
 
@@ -125,7 +125,7 @@ fn pivot(a: &PivotArgs) -> Result<()> {
         dvrk_kin::atomic::write_atomic(p, &image.encode(p)?)?;
     }
     if a.json {
-        let mut v = dvrk_calib::report_json::pivot_json(&fit);
+        let mut v = dvrk_calib::mocap::report_json::pivot_json(&fit);
         v["warnings"] = serde_json::json!(warnings);
         outln!("{}", serde_json::to_string(&v)?);
         return Ok(());
@@ -159,7 +159,7 @@ fn axes(a: &AxesArgs) -> Result<()> {
     spinner.finish();
     let has_psm = PSM_AXES.iter().all(|n| report.axis(n).is_some());
     let dh = if has_psm { Some(psm_dh(&report).map_err(|e| anyhow!("{}: {e}", a.recording.display()))?) } else { None };
-    let v = dvrk_calib::report_json::axes_json(&report, dh.as_ref());
+    let v = dvrk_calib::mocap::report_json::axes_json(&report, dh.as_ref());
     let text = serde_json::to_string_pretty(&v)?;
     let mut staged = Vec::new();
     if let Some(o) = &a.output {
@@ -217,10 +217,10 @@ fn print_axes(r: &AxesReport, dh: Option<&PsmDh>, path: &Path) {
 fn apply(a: &ApplyArgs) -> Result<()> {
     crate::io::check_outputs(&[("--axes", &a.axes), ("--model", std::path::Path::new(&a.model))], &[("-o", Some(&a.output))])?;
     let text = dvrk_kin::load::read_text(&a.axes)?;
-    let update = dvrk_calib::report_json::psm_update_from_json(&text, &a.axes)?;
+    let update = dvrk_calib::mocap::report_json::psm_update_from_json(&text, &a.axes)?;
     let model = dvrk_kin::load(&a.model, None)?;
     let name = a.output.file_stem().and_then(|s| s.to_str()).unwrap_or("psm-calibrated").to_string();
-    let applied = dvrk_calib::apply::apply_psm(&model.spec, &update, &name).map_err(|e| anyhow!("--model {}: {e}", a.model))?;
+    let applied = dvrk_calib::mocap::apply::apply_psm(&model.spec, &update, &name).map_err(|e| anyhow!("--model {}: {e}", a.model))?;
     let toml = applied.spec.to_toml()?;
     let header = format!("# {name}: {} calibrated by `dvrk calib apply --axes {}`.\n# Units: m, rad.\n", a.model, a.axes.display());
     dvrk_kin::atomic::write_atomic(&a.output, format!("{header}{toml}").as_bytes())?;

@@ -6,7 +6,7 @@ use crate::outln;
 use anyhow::{anyhow, bail, Result};
 use clap::{Args, Subcommand};
 use dvrk_calib::recordings::McapLayout;
-use dvrk_calib::synth::{Scenario, SynthMotion, SynthOptions};
+use dvrk_calib::mocap::synth::{Scenario, SynthMotion, SynthOptions};
 use serde_json::json;
 use std::path::PathBuf;
 

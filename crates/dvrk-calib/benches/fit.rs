@@ -5,7 +5,7 @@
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
 use dvrk_calib::recordings::{McapLayout, McapOptions};
 use dvrk_calib::recordings::common_samples;
-use dvrk_calib::synth::{Scenario, SynthMotion, SynthOptions};
+use dvrk_calib::mocap::synth::{Scenario, SynthMotion, SynthOptions};
 use dvrk_calib::{fit_axis, pivot_calibration, AxisMethod, AxisOptions, PivotMethod, PivotOptions};
 use dvrk_kin::Pose;
 use std::path::Path;

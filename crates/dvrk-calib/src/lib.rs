@@ -2,7 +2,7 @@
 //!
 //! What a real robot's recordings tell about its model, in three products over shared readers:
 //!
-//! - motion-capture calibration (Gondokaryono et al., sections 2.4 and 4.1): joint axes, the axis
+//! - [`mocap`], motion-capture calibration (Gondokaryono et al., sections 2.4 and 4.1): joint axes, the axis
 //!   distances of Table 6 and the DH parameters they imply, the RCM by pivot calibration (eq.
 //!   3-5, Table 7), an updated model file, and a synthetic tracker that writes what a real one
 //!   would record;
@@ -15,7 +15,7 @@
 //! [`filter`]; none of them imports another.
 //!
 //! ```
-//! use dvrk_calib::{pivot_calibration, PivotOptions, synth};
+//! use dvrk_calib::{pivot_calibration, PivotOptions, mocap::synth};
 //! let model = dvrk_calib::dvrk_kin::load("psm", None).unwrap();
 //! let options = synth::SynthOptions { noise: 0.0, duration: 10.0, ..Default::default() };
 //! let scenario = synth::Scenario::new(&model, &options).unwrap();
@@ -26,21 +26,13 @@
 //!
 //! Units: metres, radians, seconds. Poses are `dvrk_kin::Pose` (rotation matrix + translation).
 
-pub mod apply;
-pub mod axis_distances;
-pub mod axes_config;
-pub mod axis_fit;
 pub mod discrepancy;
 mod error;
 pub mod filter;
 pub mod identify;
-pub mod motion_range;
-pub mod pivot;
-pub mod psm_dh;
+pub mod mocap;
 pub mod recordings;
 pub mod replay;
-pub mod report_json;
-pub mod synth;
 
 // The CDR codec and the ROS 2 messages live in dvrk-sim (which records them); re-exported here so
 // `dvrk_calib::cdr` and `dvrk_calib::ros_msgs` keep working.
@@ -51,7 +43,7 @@ pub use dvrk_sim::recording::{cdr, ros_msgs};
 pub mod plot {
     pub use dvrk_sim::plot::*;
 
-    use crate::axis_distances::AxesReport;
+    use crate::mocap::axis_distances::AxesReport;
     use crate::error::{CalibError, Result};
 
     /// Per-sample residual (mm) of every axis against the sample number.
@@ -77,10 +69,10 @@ pub mod plot {
     }
 }
 
-pub use axis_distances::{calibrate_axes, AxesOptions, AxesReport};
-pub use axes_config::AxesConfig;
-pub use axis_fit::{fit_axis, AxisFit, AxisMethod, AxisOptions};
+pub use mocap::axis_distances::{calibrate_axes, AxesOptions, AxesReport};
+pub use mocap::axes_config::AxesConfig;
+pub use mocap::axis_fit::{fit_axis, AxisFit, AxisMethod, AxisOptions};
 pub use error::{CalibError, Result};
 pub use recordings::{read_recording, BodyTrack, JointTrack, MarkerTrack, McapOptions, Recording};
-pub use pivot::{pivot_calibration, PivotFit, PivotMethod, PivotOptions};
+pub use mocap::pivot::{pivot_calibration, PivotFit, PivotMethod, PivotOptions};
 pub use dvrk_kin;

@@ -53,7 +53,7 @@ pub fn pivot<'py>(py: Python<'py>, poses: PyArrayLikeDyn<'py, f64, AllowTypeChan
     };
     let p = poses_from_array(&poses, "poses")?;
     let fit = py.detach(|| pivot_calibration(&p, &PivotOptions { method, ..Default::default() }))?;
-    to_py_json(py, &dvrk_calib::report_json::pivot_json(&fit))
+    to_py_json(py, &dvrk_calib::mocap::report_json::pivot_json(&fit))
 }
 
 /// Axis of rotation of a `moving` marker cluster about a `reference` cluster, from their poses

@@ -4,7 +4,7 @@
 
 use crate::util::{config, psm, scenario};
 use dvrk_calib::recordings::{McapLayout, McapOptions};
-use dvrk_calib::synth::{Scenario, SynthMotion, SynthOptions};
+use dvrk_calib::mocap::synth::{Scenario, SynthMotion, SynthOptions};
 use dvrk_calib::{calibrate_axes, pivot_calibration, read_recording, AxesOptions, PivotOptions};
 use std::path::Path;
 

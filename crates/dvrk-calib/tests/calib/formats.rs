@@ -3,7 +3,7 @@
 
 use crate::util::{psm, scenario};
 use dvrk_calib::recordings::{McapLayout, McapOptions};
-use dvrk_calib::synth::SynthMotion;
+use dvrk_calib::mocap::synth::SynthMotion;
 use std::path::Path;
 
 fn max_pose_difference(a: &[dvrk_kin::Pose], b: &[dvrk_kin::Pose]) -> f64 {
@@ -40,9 +40,9 @@ fn every_mcap_layout_round_trips() {
 #[test]
 fn raw_markers_give_the_trackers_poses_and_drop_ghost_frames() {
     let model = psm();
-    let s = dvrk_calib::synth::Scenario::new(
+    let s = dvrk_calib::mocap::synth::Scenario::new(
         &model,
-        &dvrk_calib::synth::SynthOptions { noise: 1e-4, duration: 10.0, occlusion: 0.01, outliers: 0.01, ..Default::default() },
+        &dvrk_calib::mocap::synth::SynthOptions { noise: 1e-4, duration: 10.0, occlusion: 0.01, outliers: 0.01, ..Default::default() },
     )
     .unwrap();
     let rec = s.record(21);

@@ -20,8 +20,8 @@
 //!    normal to the axis, where the estimated line crosses the plane through the true point.
 
 use crate::util::{config, psm, scenario, true_axis};
-use dvrk_calib::axes_config::TRACKER;
-use dvrk_calib::synth::{Cluster, SynthMotion};
+use dvrk_calib::mocap::axes_config::TRACKER;
+use dvrk_calib::mocap::synth::{Cluster, SynthMotion};
 use dvrk_calib::{calibrate_axes, pivot_calibration, AxesOptions, PivotOptions};
 use dvrk_kin::Pose;
 use nalgebra::{DMatrix, Matrix3, Point3, Vector3};
@@ -189,10 +189,10 @@ fn gamage_lasenby_bias_correction_removes_the_noise_bias() {
     // the raw markers of the back link, seen from the tracker while q2 sweeps 15 degrees (q1 = 0,
     // so axis 3 is fixed in the tracker frame). 1 mm of marker noise makes the bias of the
     // uncompensated fit large against its spread.
-    use dvrk_calib::axis_fit::gamage_lasenby_points;
-    use dvrk_calib::synth::SynthOptions;
+    use dvrk_calib::mocap::axis_fit::gamage_lasenby_points;
+    use dvrk_calib::mocap::synth::SynthOptions;
     let model = psm();
-    let s = dvrk_calib::synth::Scenario::new(
+    let s = dvrk_calib::mocap::synth::Scenario::new(
         &model,
         &SynthOptions { motion: SynthMotion::Q2Sweep, noise: 1e-3, amplitude: [0.0, 0.13], duration: 10.0, occlusion: 0.0, ..Default::default() },
     )

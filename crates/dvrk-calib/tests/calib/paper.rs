@@ -3,8 +3,8 @@
 
 use crate::util::{config, distance_to_line, model_table6, psm, scenario, true_axis};
 use dvrk_calib::recordings::{McapLayout, McapOptions};
-use dvrk_calib::psm_dh::psm_dh;
-use dvrk_calib::synth::SynthMotion;
+use dvrk_calib::mocap::psm_dh::psm_dh;
+use dvrk_calib::mocap::synth::SynthMotion;
 use dvrk_calib::{calibrate_axes, pivot_calibration, AxesOptions, AxisMethod, PivotMethod, PivotOptions};
 use nalgebra::Point3;
 use std::path::Path;

@@ -3,10 +3,10 @@
 //! robot's.
 
 use crate::util::{config, psm};
-use dvrk_calib::apply::apply_psm;
-use dvrk_calib::psm_dh::psm_dh;
-use dvrk_calib::report_json::{axes_json, psm_update_from_json};
-use dvrk_calib::synth::{Scenario, SynthMotion, SynthOptions};
+use dvrk_calib::mocap::apply::apply_psm;
+use dvrk_calib::mocap::psm_dh::psm_dh;
+use dvrk_calib::mocap::report_json::{axes_json, psm_update_from_json};
+use dvrk_calib::mocap::synth::{Scenario, SynthMotion, SynthOptions};
 use dvrk_calib::{calibrate_axes, pivot_calibration, AxesOptions, PivotOptions};
 use dvrk_kin::spec::Value;
 use dvrk_kin::{Model, ModelSpec};
@@ -118,14 +118,14 @@ fn a_perturbed_robot_is_recovered_and_its_rcm_followed() {
 
 #[test]
 fn apply_refuses_a_model_that_is_not_the_psm_layout() {
-    let u = dvrk_calib::apply::PsmUpdate { l34: 0.096, a6: 0.15, a7: 0.1842, a8: 0.516, beta_difference: -0.0767, source: "r.json".into() };
+    let u = dvrk_calib::mocap::apply::PsmUpdate { l34: 0.096, a6: 0.15, a7: 0.1842, a8: 0.516, beta_difference: -0.0767, source: "r.json".into() };
     let ecm = dvrk_kin::load("ecm", None).unwrap();
     let e = apply_psm(&ecm.spec, &u, "x").unwrap_err().to_string();
     assert_eq!(e, "field `frames (index 3).parent`: model `ecm` is not the PSM layout calib apply edits (frame 3 must hang from frame 2; parents 3, 4, 5 <- 2, 6 <- 3, 7 <- 5, 8 <- 6, 9 <- 8)");
     // An a6 shorter than the insertion offset a9 = 0.043 m has no beta1.
-    let e = apply_psm(&psm().spec, &dvrk_calib::apply::PsmUpdate { a6: 0.04, ..u.clone() }, "x").unwrap_err().to_string();
+    let e = apply_psm(&psm().spec, &dvrk_calib::mocap::apply::PsmUpdate { a6: 0.04, ..u.clone() }, "x").unwrap_err().to_string();
     assert!(e.starts_with("field `dh.a6`: 0.04 m is not longer than the insertion offset a9 = 0.043 m"), "{e}");
     // The nominal figures give back the nominal model.
-    let same = apply_psm(&psm().spec, &dvrk_calib::apply::PsmUpdate { l34: 0.096, a6: 0.150, a7: 0.1842, a8: 0.516, beta_difference: psm().spec.parameters["beta2"].value - psm().spec.parameters["beta1"].value, ..u }, "psm").unwrap();
+    let same = apply_psm(&psm().spec, &dvrk_calib::mocap::apply::PsmUpdate { l34: 0.096, a6: 0.150, a7: 0.1842, a8: 0.516, beta_difference: psm().spec.parameters["beta2"].value - psm().spec.parameters["beta1"].value, ..u }, "psm").unwrap();
     assert!((same.model.rcm.unwrap().point - psm().rcm.unwrap().point).norm() < 1e-15);
 }

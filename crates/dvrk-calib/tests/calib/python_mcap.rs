@@ -186,7 +186,7 @@ fn python_reads_the_synthetic_trackers_mcap() {
     if !python_ready() {
         return;
     }
-    let s = crate::util::scenario(&crate::util::psm(), dvrk_calib::synth::SynthMotion::Q1Q2Sweep, 1e-4, 2.0, 0.02);
+    let s = crate::util::scenario(&crate::util::psm(), dvrk_calib::mocap::synth::SynthMotion::Q1Q2Sweep, 1e-4, 2.0, 0.02);
     let rec = s.record(4);
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("synth.mcap");

@@ -1,7 +1,7 @@
 //! Helpers: the PSM, synthetic scenarios, and the true axes of a model.
 
-use dvrk_calib::axes_config::AxesConfig;
-use dvrk_calib::synth::{Scenario, SynthMotion, SynthOptions};
+use dvrk_calib::mocap::axes_config::AxesConfig;
+use dvrk_calib::mocap::synth::{Scenario, SynthMotion, SynthOptions};
 use dvrk_kin::{FrameRef, Model, Pose};
 use nalgebra::{Point3, Vector3};
 use std::path::Path;

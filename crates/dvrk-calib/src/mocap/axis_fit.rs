@@ -17,12 +17,12 @@
 //! The point reported is the one closest to the origin of `a` (the axis has no preferred point).
 
 use crate::error::{CalibError, Result};
-use crate::motion_range::{motion_range, MotionRange};
+use crate::mocap::motion_range::{motion_range, MotionRange};
 use dvrk_kin::Pose;
 use nalgebra::{Matrix3, Matrix6, Rotation3, SymmetricEigen, Vector3, Vector6};
 
 // The motion thresholds are shared by the axis and pivot fits.
-pub use crate::motion_range::{MIN_RANGE, MIN_SAMPLES, WARN_RANGE};
+pub use crate::mocap::motion_range::{MIN_RANGE, MIN_SAMPLES, WARN_RANGE};
 
 /// Which estimator.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]

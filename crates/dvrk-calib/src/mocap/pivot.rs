@@ -14,12 +14,12 @@
 //! the sums keep their digits), with no per-sample allocation.
 
 use crate::error::{CalibError, Result};
-use crate::motion_range::{motion_range, MotionRange};
+use crate::mocap::motion_range::{motion_range, MotionRange};
 use dvrk_kin::Pose;
 use nalgebra::{Matrix3, Matrix4, Matrix6, Rotation3, SymmetricEigen, Vector3, Vector4, Vector6};
 
 // The motion thresholds are shared by the axis and pivot fits.
-pub use crate::motion_range::{MIN_RANGE, MIN_SAMPLES, WARN_RANGE};
+pub use crate::mocap::motion_range::{MIN_RANGE, MIN_SAMPLES, WARN_RANGE};
 
 /// Which estimator.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]

@@ -2,11 +2,11 @@
 //! script against them: keys are only ever added), and reading the axes result back for
 //! `dvrk calib apply`. Metres, radians, in the recording's frames.
 
-use crate::apply::PsmUpdate;
-use crate::axis_distances::AxesReport;
+use crate::mocap::apply::PsmUpdate;
+use crate::mocap::axis_distances::AxesReport;
 use crate::error::{CalibError, Result};
-use crate::pivot::PivotFit;
-use crate::psm_dh::{Estimate, PsmDh};
+use crate::mocap::pivot::PivotFit;
+use crate::mocap::psm_dh::{Estimate, PsmDh};
 use nalgebra::Vector3;
 use serde_json::{json, Value};
 use std::path::Path;

@@ -5,10 +5,10 @@
 //! length is the mean of the two measured opposite sides, and the difference between them is
 //! reported (a real arm whose sides differ by more than the noise is not a parallelogram).
 //! `beta1` itself is not taken from the angles: it is fixed by the RCM condition
-//! `a6 sin(beta1) = a9` (note 2), which [`crate::apply`] enforces; what the axes give
+//! `a6 sin(beta1) = a9` (note 2), which [`crate::mocap::apply`] enforces; what the axes give
 //! configuration-free is `beta2 - beta1`, the angle 6-3-7 on the back link.
 
-use crate::axis_distances::{AxesReport, Line};
+use crate::mocap::axis_distances::{AxesReport, Line};
 use crate::error::{CalibError, Result};
 use nalgebra::{Matrix3, Vector3};
 

@@ -7,8 +7,8 @@
 //! going through the tracker frame would add the noise of the one pose at joint zero (a few
 //! tenths of a millimetre for a three-marker cluster). Other pairs use the tracker frame.
 
-use crate::axes_config::{AxesConfig, TRACKER};
-use crate::axis_fit::{fit_axis, AxisFit, AxisMethod, AxisOptions};
+use crate::mocap::axes_config::{AxesConfig, TRACKER};
+use crate::mocap::axis_fit::{fit_axis, AxisFit, AxisMethod, AxisOptions};
 use crate::error::{CalibError, Result};
 use crate::recordings::tracks::{common_samples, BodyTrack, Recording};
 use dvrk_kin::Pose;

@@ -18,7 +18,7 @@
 //! moving = "back"
 //! ```
 
-use crate::axis_fit::AxisMethod;
+use crate::mocap::axis_fit::AxisMethod;
 use crate::error::{CalibError, Result};
 use serde::Deserialize;
 use std::path::Path;
