@@ -189,6 +189,24 @@ fn serve_and_fk_check_their_flags_before_loading_the_scene_or_model() {
     assert_one_line(&dvrk_err(&["fk", "no-such-model", "--actuators"]), &["--actuators", "--q"]);
 }
 
+/// Issue 63: a rate that is not one sample every whole number of time steps was served or
+/// recorded at the nearest whole number (`--rate 300` at 1 ms steps: every 3 steps, 333.3 Hz,
+/// with nothing said). It is refused, naming the rates on either side; rates that divide are
+/// served as asked.
+#[test]
+fn a_rate_the_time_step_does_not_divide_is_refused_with_the_rates_on_either_side() {
+    let dir = crate::util::tempdir();
+    let out = dir.path().join("r.mcap");
+    let o = out.to_str().unwrap();
+    assert_one_line(&dvrk_err(&["sim", "--scene", "psm", "--duration", "0.05", "--out", o, "--rate", "300"]), &["300", "333.333 Hz (every 3 steps)", "250 Hz (every 4 steps)"]);
+    assert!(!out.exists());
+    assert_one_line(&dvrk_err(&["sim", "--scene", "psm", "--duration", "0.05", "--out", o, "--rate", "700"]), &["700", "1000 Hz (every step)", "500 Hz (every 2 steps)"]);
+    // Before any DDS participant starts: the serve loop's check comes first.
+    assert_one_line(&dvrk_err(&["serve", "--scene", "psm", "--domain", "231", "--duration", "0.05", "--rate", "300"]), &["publishing rate (Hz) = 300", "333.333 Hz", "250 Hz"]);
+    crate::util::dvrk_ok(&["sim", "--scene", "psm", "--duration", "0.05", "--out", o, "--rate", "250"]);
+    assert!(out.exists());
+}
+
 #[test]
 fn synth_mocap_checks_its_flags_before_loading_the_model() {
     let dir = crate::util::tempdir();

@@ -15,7 +15,8 @@ pub struct ServeArgs {
     /// DDS domain (0..=232); default: ROS_DOMAIN_ID, else 0.
     #[arg(long)]
     pub domain: Option<u16>,
-    /// Messages per second on every topic (Hz), up to one per time step (1000).
+    /// Messages per second on every topic (Hz): one every whole number of time steps (1000, 500,
+    /// 333.333, 250, 200, ... at 1 ms steps); another rate is refused.
     #[arg(long, default_value_t = 200.0)]
     pub rate: f64,
     /// Physics engine: reduced (default) or rapier.

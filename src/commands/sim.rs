@@ -25,7 +25,8 @@ pub struct SimArgs {
     /// Record the run as MCAP (ROS 2 CDR on the dVRK's CRTK topics, Foxglove transforms).
     #[arg(long)]
     pub out: Option<std::path::PathBuf>,
-    /// Recording rate (Hz of simulated time), with --out.
+    /// Recording rate (Hz of simulated time), with --out or --live: one sample every whole number
+    /// of time steps (another rate is refused, naming the two on either side).
     #[arg(long, default_value_t = dvrk_sim::RecordOptions::DEFAULT_RATE)]
     pub rate: f64,
     /// sine (the paper's section 4.3 tracking test), hold (home), or replay:FILE (the joint

@@ -262,10 +262,12 @@ def test_bad_commands_are_refused_with_a_log_line_and_the_twin_keeps_running():
     rosout = peer.reader("/rosout", Log_, Qos(Policy.Reliability.Reliable(duration(milliseconds=100)), Policy.Durability.TransientLocal, Policy.History.KeepLast(100)))
     servo = peer.writer("/PSM1/servo_jp")
     jaw = peer.writer("/PSM1/jaw/servo_jp")
+    move = peer.writer("/PSM1/move_jp")
     proc = serve(domain, 4)
     try:
         first_sample(peer, "/PSM1/measured_js")
         time.sleep(0.3)
+        move.write(command(PSM_JOINTS, [3.0, 0.0, 0.1, 0.0, 0.0, 0.0]))  # the yaw's limit is 1.6 rad
         servo.write(command(PSM_JOINTS[:5], [0.0] * 5))  # wrong length
         servo.write(command(PSM_JOINTS, [0.0, float("nan"), 0.1, 0.0, 0.0, 0.0]))  # NaN
         servo.write(command(["outer_yaw", "elbow", "outer_insertion", "outer_roll", "outer_wrist_pitch", "outer_wrist_yaw"], [0.0] * 6))
@@ -277,14 +279,15 @@ def test_bad_commands_are_refused_with_a_log_line_and_the_twin_keeps_running():
         logs = [s for s in rosout.take(N=100) if isinstance(s, Log_)]
     finally:
         summary, err = finish(proc)
-    assert (summary["refused"], summary["commands"]) == (3, 1), summary
+    assert (summary["refused"], summary["commands"]) == (4, 1), summary
     lines = [l for l in err.splitlines() if "command refused" in l]
-    assert len(lines) == 3, err
+    assert len(lines) == 4, err
+    assert any("goal 3 rad for joint `outer_yaw` is outside its limits" in l for l in lines), lines
     assert any("5 position values for 6 joints" in l for l in lines)
     assert any("NaN for joint `outer_pitch`" in l for l in lines)
     assert any("unknown joint `elbow`" in l for l in lines)
     warned = [l for l in logs if l.level == 30 and "command refused" in l.msg]
-    assert len(warned) == 3 and all(l.name == "dvrk_twin" for l in warned), logs
+    assert len(warned) == 4 and all(l.name == "dvrk_twin" for l in warned), logs
 
 
 def test_ctrl_c_stops_the_twin_and_leaves_no_process():

@@ -172,6 +172,21 @@ fn command_values(topic: &CommandTopic, msg: &JointState, kind: Kind) -> std::re
     Ok((v, vd))
 }
 
+/// A `move_jp` goal past a joint's limits (by more than a micrometre or microradian, a client's
+/// rounding) is refused: the move interpolated to it would reach the limit early and then sit
+/// there while the arm still says busy, and the client would never learn why.
+fn goal_within_limits(sim: &Sim, topic: &CommandTopic, goal: &[f64]) -> std::result::Result<(), Refusal> {
+    const TOLERANCE: f64 = 1e-6;
+    for (&i, &x) in topic.joints.iter().zip(goal) {
+        let j = sim.joint(i).map_err(|e| refusal("not taken", e.to_string()))?;
+        if x < j.lower - TOLERANCE || x > j.upper + TOLERANCE {
+            let unit = j.unit();
+            return Err(refusal("goal outside the limits", format!("goal {x} {unit} for joint `{}` is outside its limits [{}, {}] {unit}", j.name, j.lower, j.upper)));
+        }
+    }
+    Ok(())
+}
+
 /// Serve `scene` on ROS 2 until `options.duration` of simulated time has run or `stop` is set.
 /// `ready` is called once the topics exist (before the first step), with the node.
 pub fn serve(scene: &Scene, sim_options: &SimOptions, options: &ServeOptions, stop: &AtomicBool, live: Option<Live>, ready: impl FnOnce(&Ros2)) -> Result<(ServeSummary, Option<dvrk_kin::atomic::Staged>)> {
@@ -191,9 +206,7 @@ pub fn serve(scene: &Scene, sim_options: &SimOptions, options: &ServeOptions, st
         false => scene,
     };
     let mut sim = Sim::new(scene, sim_options)?;
-    if !(options.rate.is_finite() && options.rate > 0.0 && options.rate <= 1.0 / sim.dt + 1e-9) {
-        return Err(SimError::value("publishing rate (Hz)", options.rate, format!("must be in (0, {}] (one message per step of {} s at most)", 1.0 / sim.dt, sim.dt)));
-    }
+    crate::recording::sample_stride("publishing rate (Hz)", options.rate, sim.dt)?;
     let node = Ros2::start(&options.ros2)?;
     let mut recorder = Recorder::open_with(&sim, options.record.as_ref(), live, Some(node), options.rate)?;
     let epoch = SystemTime::now().duration_since(UNIX_EPOCH).map(|d| d.as_secs_f64()).unwrap_or(0.0);
@@ -341,7 +354,8 @@ fn apply_commands(sim: &mut Sim, recorder: &mut Recorder, topics: &[CommandTopic
             let values = message
                 .map_err(|e| refusal("not taken", e))
                 .and_then(|bytes| JointState::decode(&bytes).map_err(|e| refusal("not a JointState", format!("not a sensor_msgs/JointState: {e}"))))
-                .and_then(|msg| if disabled { Err(not_enabled(&recorder.state(topic.arm).state)) } else { command_values(topic, &msg, topic.kind) });
+                .and_then(|msg| if disabled { Err(not_enabled(&recorder.state(topic.arm).state)) } else { command_values(topic, &msg, topic.kind) })
+                .and_then(|(v, vd)| if topic.kind == Kind::MoveJp { goal_within_limits(sim, topic, &v).map(|()| (v, vd)) } else { Ok((v, vd)) });
             match values {
                 Ok((v, _)) if topic.kind == Kind::MoveJp => {
                     for &i in &topic.joints {

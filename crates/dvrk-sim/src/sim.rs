@@ -125,6 +125,12 @@ impl Sim {
         Err(SimError::value("joint index", i as f64, format!("the scene has {} joints", self.nq())))
     }
 
+    /// The model joint of scene joint `i`: its name, kind, limits (rad or m) and effort limit.
+    pub fn joint(&self, i: usize) -> Result<&dvrk_kin::Joint> {
+        let (a, k) = self.locate(i)?;
+        Ok(&self.arms[a].model.joints[k])
+    }
+
     /// The actuator of scene joint `i`.
     pub fn actuator(&self, i: usize) -> Result<&Actuator> {
         let (a, k) = self.locate(i)?;

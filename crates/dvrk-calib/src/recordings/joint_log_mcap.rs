@@ -99,13 +99,19 @@ pub fn read(path: &Path, model: &Model, arm: &str, setpoints: bool) -> Result<(J
         if !without_efforts && meas.effort[i].len() != nr {
             return Err(CalibError::file(path, format!("{source} at t = {t} s: {} efforts for {nr} joints (a message carries an effort for every joint or none)", meas.effort[i].len())));
         }
-        let (q, tau) = (pick(&mut meas.position[i]), pick(&mut meas.effort[i]));
-        if let Some(x) = q.iter().chain(&tau).find(|x| !x.is_finite()) {
+        // Velocities are optional message by message (a jaw merged from its own topic has them
+        // only where both topics do), but a message that carries some carries one per joint.
+        let nv = meas.velocity[i].len();
+        if nv != 0 && nv != nr {
+            return Err(CalibError::file(path, format!("{source} at t = {t} s: {nv} velocities for {nr} joints (a message carries a velocity for every joint or none)")));
+        }
+        let (q, tau, qd) = (pick(&mut meas.position[i]), pick(&mut meas.effort[i]), pick(&mut meas.velocity[i]));
+        if let Some(x) = q.iter().chain(&tau).chain(&qd).find(|x| !x.is_finite()) {
             return Err(CalibError::file(path, format!("{source} at t = {t} s: {x} is not finite")));
         }
         log.position.push(q);
         log.effort.push(tau);
-        log.velocity.push(if meas.velocity[i].len() == nr { pick(&mut meas.velocity[i]) } else { Vec::new() });
+        log.velocity.push(qd);
         if let Some((set, k)) = &set {
             while j + 1 < set.t.len() && set.t[j + 1] <= t + 1e-9 {
                 j += 1;

@@ -257,6 +257,46 @@ fn joint_logs_round_trip_and_bad_recordings_are_refused() {
     assert!(e.contains("enr") && e.contains("-1"), "{e}");
 }
 
+/// Issue 63: velocities were kept only where a message had one per joint and dropped silently
+/// otherwise, and a NaN velocity went on into the identification's filters. A message with some
+/// velocities but not one per joint, or a non-finite one, is refused as efforts are, naming the
+/// topic and time; messages without velocities still read.
+#[test]
+fn malformed_velocities_are_refused_as_efforts_are() {
+    use dvrk_calib::ros_msgs::{joint_state_schema, Header, JointState};
+    use dvrk_sim::recording::mcap_out::{ros2_schema, McapOut};
+    let psm = dvrk_kin::load("psm", None).unwrap();
+    let names: Vec<String> = psm.joints.iter().map(|j| j.name.clone()).collect();
+    let dir = tempfile::tempdir().unwrap();
+    // 200 messages at 100 Hz with their setpoints (the reader wants 100 at least); message
+    // 100's velocities as `bad` makes them, every other message's none.
+    let write = |file: &str, bad: Vec<f64>| {
+        let mut w = McapOut::new(std::io::Cursor::new(Vec::new())).unwrap();
+        let (n, d) = joint_state_schema();
+        let set = w.add_channel("/PSM1/setpoint_js", ros2_schema(n, &d), "cdr").unwrap();
+        let meas = w.add_channel("/PSM1/measured_js", ros2_schema(n, &d), "cdr").unwrap();
+        for i in 0..200 {
+            let t = 0.01 * i as f64;
+            let velocity = if i == 100 { bad.clone() } else if i % 2 == 0 { vec![0.1; 7] } else { vec![] };
+            let js = |velocity: Vec<f64>, effort: Vec<f64>| JointState { header: Header::at(t, ""), name: names.clone(), position: vec![0.1; 7], velocity, effort }.encode();
+            w.log(set, (t * 1e9).round() as u64, &js(vec![], vec![]));
+            w.log(meas, (t * 1e9).round() as u64, &js(velocity, vec![0.0; 7]));
+        }
+        let path = dir.path().join(file);
+        std::fs::write(&path, w.finish().unwrap().into_inner()).unwrap();
+        path
+    };
+    let read = |path: &std::path::Path| dvrk_calib::discrepancy::read_log(path, "mcap", &psm, "PSM1").map(|(log, _)| log).map_err(|e| e.to_string());
+    let good = read(&write("good.mcap", vec![0.1; 7])).unwrap();
+    assert_eq!(good.len(), 200);
+    let e = read(&write("short.mcap", vec![0.1; 3])).unwrap_err();
+    assert!(e.contains("short.mcap") && e.contains("/PSM1/measured_js at t = 1 s") && e.contains("3 velocities for 7 joints"), "{e}");
+    let mut nan = vec![0.1; 7];
+    nan[2] = f64::NAN;
+    let e = read(&write("nan.mcap", nan)).unwrap_err();
+    assert!(e.contains("nan.mcap") && e.contains("at t = 1 s") && e.contains("NaN is not finite"), "{e}");
+}
+
 /// The detection-rate table: TRIALS seeded trials per class at ENR drawn in [3, 8], and
 /// effect-free trials. `DVRK_TRIALS=60 cargo test --release -p dvrk-calib --test calib
 /// detection_rate_table -- --ignored --nocapture` (about 16 s a trial on 2 cores).

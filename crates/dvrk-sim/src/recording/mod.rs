@@ -12,4 +12,4 @@ pub mod ros_msgs;
 pub mod scene_msgs;
 pub mod writer;
 
-pub use writer::{Recorder, RecordOptions};
+pub use writer::{sample_stride, Recorder, RecordOptions};

@@ -25,7 +25,8 @@
 //! (foxglove.CompressedImage, PNG colour), `/camera/left/depth` (foxglove.CompressedImage, 16-bit
 //! PNG depth in mm, ROS `16UC1`), `/camera/left/calibration` (foxglove.CameraCalibration), all in
 //! the frame `camera_left`, whose pose in `world` goes on `/tf` with each frame; the same for `right`.
-//! Samples are taken every whole number of steps nearest `1 / rate`. The file is written beside
+//! Samples are taken every `1 / (rate dt)` steps, a whole number or the rate is refused
+//! ([`sample_stride`]). The file is written beside
 //! its destination and renamed over it by [`Recorder::finish`], so a reader never sees half a file.
 
 use crate::error::{Result, SimError};
@@ -251,6 +252,25 @@ fn io_error(path: &Path, e: std::io::Error) -> SimError {
     SimError::Io { path: path.display().to_string(), source: e }
 }
 
+/// Steps of `dt` seconds between two samples at `rate_hz`: the rate must be one sample every
+/// whole number of steps (1e-6 relative), so that what a client receives is what it asked for.
+/// Anything else is refused with the two rates on either side (`what` names the option).
+pub fn sample_stride(what: &str, rate_hz: f64, dt: f64) -> Result<u64> {
+    // Rates as a user reads them: to 1 mHz (1 / 0.001 s is 1000, not 1000.0000000000001).
+    let hz = |x: f64| dvrk_kin::fmt_number((x * 1e3).round() / 1e3);
+    let top = 1.0 / dt;
+    if !(rate_hz.is_finite() && rate_hz > 0.0 && rate_hz <= top * (1.0 + 1e-9)) {
+        return Err(SimError::value(what, rate_hz, format!("must be in (0, {}] (one sample per step of {} s at most)", hz(top), dvrk_kin::fmt_number(dt))));
+    }
+    let steps = top / rate_hz;
+    let stride = steps.round().max(1.0);
+    if (steps - stride).abs() > 1e-6 * steps {
+        let near = |k: f64| if k == 1.0 { format!("{} Hz (every step)", hz(top)) } else { format!("{} Hz (every {k} steps)", hz(top / k)) };
+        return Err(SimError::value(what, rate_hz, format!("not one sample every whole number of {} s steps; the rates on either side are {} and {}", dvrk_kin::fmt_number(dt), near(steps.floor().max(1.0)), near(steps.ceil()))));
+    }
+    Ok(stride as u64)
+}
+
 impl Recorder {
     /// Open a recording of `sim` (channels for each of its arms). Nothing appears at `options.path`
     /// until [`Recorder::finish`].
@@ -267,10 +287,7 @@ impl Recorder {
     /// [`Recorder::open`] with a ROS 2 domain too ([`Ros2`]): it gets the CRTK topics and, on
     /// `/tf`, a tf2_msgs/msg/TFMessage of every body.
     pub fn open_with(sim: &Sim, file: Option<&RecordOptions>, live: Option<Live>, ros2: Option<Ros2>, rate: f64) -> Result<Recorder> {
-        if !(rate.is_finite() && rate > 0.0 && rate <= 1.0 / sim.dt + 1e-9) {
-            return Err(SimError::value("recording rate (Hz)", rate, format!("must be in (0, {}] (one sample per step of {} s at most)", 1.0 / sim.dt, sim.dt)));
-        }
-        let stride = (1.0 / (rate * sim.dt)).round().max(1.0) as u64;
+        let stride = sample_stride("recording rate (Hz)", rate, sim.dt)?;
         let (staged, path, tmp, writer) = match file {
             Some(options) => {
                 let path = options.path.clone();
