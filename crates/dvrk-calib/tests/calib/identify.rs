@@ -18,6 +18,7 @@ pub(crate) fn wpi(file: &str) -> Option<PathBuf> {
 }
 
 /// The CAD PSM identified on `one`, with both recordings (None, with a message, without them).
+#[derive(Clone)]
 struct Fitted {
     model: dvrk_kin::Model,
     prior: Vec<dvrk_kin::BodyInertia>,
@@ -27,7 +28,13 @@ struct Fitted {
     id: dvrk_calib::identify::Identification,
 }
 
+/// [`Fitted`], identified once per test binary and shared by the tests that start from it.
 fn fitted_on_one() -> Option<Fitted> {
+    static FITTED: std::sync::OnceLock<Option<Fitted>> = std::sync::OnceLock::new();
+    FITTED.get_or_init(fit_on_one).clone()
+}
+
+fn fit_on_one() -> Option<Fitted> {
     let (one, two) = (wpi("psm_one_results.csv")?, wpi("psm_two_results.csv")?);
     let model = psm();
     let prior = dvrk_sim::scene::builtin_inertials("psm", &model).unwrap().body_inertias(&model).unwrap();

@@ -2,7 +2,8 @@
 //! `cargo test -p dvrk-sim --release`). The allocation count is its own binary
 //! (`tests/reduced_alloc.rs`: a process-wide counting allocator).
 //!
-//! - `sim`: the engine's commands, limits, gains and loop modes; a million random commands.
+//! - `sim`: the engine's commands, limits, gains and loop modes.
+//! - `endurance`: a million steps of random commands.
 //! - `reduced`: the reduced-coordinate engine against rapier on the same scenes.
 //! - `energy`: energy conserved with the actuators and damping off.
 //! - `dynamics_crosscheck`: steady PID efforts against dvrk-kin's Newton-Euler gravity torques.
@@ -17,6 +18,7 @@
 mod camera;
 mod dynamics_crosscheck;
 mod effects;
+mod endurance;
 mod energy;
 mod inertials;
 mod mjcf;
