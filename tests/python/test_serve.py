@@ -641,6 +641,9 @@ def test_servo_cp_moves_the_tip_through_the_ik_and_refuses_a_pose_out_of_reach()
         reached = np.array([p.x, p.y, p.z])
         far = PoseStamped_(Header_(Time_(0, 0), "PSM1_base"), Pose_(Point_(2.0, 0.0, 0.0), now.pose.orientation))
         servo.write(far)
+        # Issue 63: a pose in another frame was read as if in the base frame.
+        elsewhere = PoseStamped_(Header_(Time_(0, 0), "world"), Pose_(Point_(*reached), now.pose.orientation))
+        servo.write(elsewhere)
         time.sleep(0.3)
     finally:
         summary, err = finish(proc)
@@ -649,8 +652,9 @@ def test_servo_cp_moves_the_tip_through_the_ik_and_refuses_a_pose_out_of_reach()
     # compensation: millimetres).
     assert np.linalg.norm(reached - goal) < 0.003
     assert np.dot(reached - start, goal - start) / np.dot(goal - start, goal - start) > 0.8
-    assert (summary["commands"], summary["refused"]) == (1, 1), summary
+    assert (summary["commands"], summary["refused"]) == (1, 2), summary
     assert any("/PSM1/servo_cp: command refused" in l for l in err.splitlines()), err
+    assert any("frame `world`" in l and "PSM1_base" in l for l in err.splitlines()), err
 
 
 def test_a_flood_of_refused_commands_with_stderr_unread_never_stalls_the_twin():

@@ -1,7 +1,8 @@
 //! `servo_cp` for the served twin ([`crate::serve`]): a tool-tip pose in the arm's base frame
 //! (`PSM1_base`, what `measured_cp` reports), taken to joint setpoints through the model's IK
 //! from the current setpoints, as the dVRK console servos in Cartesian space. A pose the IK
-//! cannot reach within the joint limits is refused with the IK's reason.
+//! cannot reach within the joint limits is refused with the IK's reason, and so is a pose in
+//! another frame.
 
 use crate::recording::ros_msgs::PoseStamped;
 use crate::{Recorder, Sim};
@@ -18,6 +19,13 @@ fn servo_ik() -> IkOptions {
 /// in `bytes` (geometry_msgs/msg/PoseStamped, m, in the base frame), or why not.
 pub fn setpoints(sim: &Sim, recorder: &Recorder, a: usize, bytes: &[u8]) -> Result<Vec<f64>, String> {
     let msg = PoseStamped::decode(bytes).map_err(|e| format!("not a geometry_msgs/PoseStamped: {e}"))?;
+    // The pose is taken in the frame `measured_cp` reports; another frame is refused, not
+    // silently read as this one (an empty frame_id is taken to mean it, as the dVRK does).
+    let base = recorder.base_frame_id(a);
+    if !msg.header.frame_id.is_empty() && msg.header.frame_id != base {
+        let shown: String = msg.header.frame_id.chars().take(64).collect();
+        return Err(format!("the pose is in frame `{shown}`; servo_cp takes poses in `{base}` (measured_cp's frame) or with an empty frame_id"));
+    }
     let [x, y, z] = msg.position;
     let [qx, qy, qz, qw] = msg.orientation;
     if !msg.position.iter().chain(&msg.orientation).all(|v| v.is_finite()) {

@@ -398,6 +398,11 @@ impl Recorder {
         Ok(())
     }
 
+    /// The `frame_id` of arm `a`'s `measured_cp` (`PSM1_base`).
+    pub fn base_frame_id(&self, a: usize) -> &str {
+        &self.arms[a].base_frame_id
+    }
+
     /// World pose of arm `a`'s base frame (the `frame_id` of its `measured_cp`).
     pub fn base_pose(&self, sim: &Sim, a: usize) -> Pose {
         match &self.arms[a].base {
