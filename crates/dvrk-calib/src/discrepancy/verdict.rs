@@ -88,7 +88,7 @@ pub(super) fn verdict(scored: &[Scored], gates: Gates, fit: &Fitter, r: &Table, 
     // jaw's friction beside a payload on the arm: both real, named in turn).
     for s in winners.iter().skip(1).map(|&i| &scored[i]) {
         if s.label != best.label
-            && (best.score.delta_bic - s.score.delta_bic).abs() < o.ambiguity_bic
+            && (best.score.delta_bic - s.score.delta_bic).abs() < o.ambiguity_bic.max(o.ambiguity_share * best.score.delta_bic.abs())
             && !(best.kind == EffectKind::PayloadMass && s.kind == EffectKind::PayloadMass)
             && overlap(prep, &best_own, &s.efforts(fit, r)?.1) > RIVAL_OVERLAP
         {
