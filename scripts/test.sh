@@ -9,7 +9,7 @@ venv="${DVRK_VENV:-.venv}"
 [ -x "$venv/bin/python" ] || python3 -m venv "$venv"
 venv="$(cd "$venv" && pwd)"
 py="$venv/bin/python"
-"$py" -m pip install --quiet --disable-pip-version-check "maturin>=1.5,<2" "pytest>=7" "numpy>=1.21" mcap mcap-ros2-support mcap-protobuf-support foxglove-schemas-protobuf rosbags websockets
+"$py" -m pip install --quiet --disable-pip-version-check "maturin>=1.5,<2" "pytest>=7" pytest-xdist "numpy>=1.21" mcap mcap-ros2-support mcap-protobuf-support foxglove-schemas-protobuf rosbags websockets
 # Eclipse Cyclone DDS, the independent ROS 2 peer of `dvrk serve`'s tests (tests/python/test_serve.py);
 # optional like MuJoCo: where no wheel installs, those tests say so and skip.
 "$py" -m pip install --quiet --disable-pip-version-check cyclonedds \
@@ -29,4 +29,7 @@ PATH="$venv/bin:$PATH" cargo test --release --workspace
 rm -rf target/wheels
 "$venv/bin/maturin" build --release --quiet -m crates/dvrk-py/Cargo.toml -o target/wheels
 "$py" -m pip install --quiet --disable-pip-version-check --force-reinstall --no-deps target/wheels/*.whl
-DVRK_BIN="$PWD/target/release/dvrk" "$py" -m pytest tests/python -q
+# Two passes: the tests with wall-clock assertions (marked `realtime`, tests/python/conftest.py)
+# alone, one at a time; the others on as many workers as there are cores (pytest-xdist).
+DVRK_BIN="$PWD/target/release/dvrk" "$py" -m pytest tests/python -q -m "not realtime" -n auto
+DVRK_BIN="$PWD/target/release/dvrk" "$py" -m pytest tests/python -q -m realtime

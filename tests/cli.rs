@@ -309,13 +309,13 @@ fn discrepancy_reads_the_wpi_recording() {
 /// tracked marker on the tool shaft; `dvrk discrepancy --marker-topic T --marker-link 12` (the
 /// paper's frame number of tool_roll) reads it, joins its evidence to the torque channel's and
 /// names the hidden play with the tracker's figures in the report. Bad marker flags are refused
-/// with the flag and value.
+/// with the flag and value. (The truth on the reduced engine, as in `hidden_viscous_friction`.)
 #[test]
 fn discrepancy_reads_a_tracked_marker() {
     let dir = tempdir();
     let (rec, answer, report) = (dir.path().join("rec.mcap"), dir.path().join("a.json"), dir.path().join("r.json"));
     let p = |x: &std::path::Path| x.to_str().unwrap().to_string();
-    dvrk_ok(&["synth", "hidden-effect", "--effect", "backlash", "--seed", "11", "--enr", "5", "--duration", "20", "--marker-link", "tool_roll", "-o", &p(&rec), "--answer", &p(&answer)]);
+    dvrk_ok(&["synth", "hidden-effect", "--effect", "backlash", "--seed", "11", "--enr", "5", "--duration", "20", "--engine", "reduced", "--marker-link", "tool_roll", "-o", &p(&rec), "--answer", &p(&answer)]);
     let a: Value = serde_json::from_slice(&std::fs::read(&answer).unwrap()).unwrap();
     let topic = a["marker_topic"].as_str().unwrap().to_string();
     let text = dvrk_ok(&["discrepancy", "--model", "psm", "--recording", &p(&rec), "--marker-topic", &topic, "--marker-link", "12", "--report", &p(&report), "--no-tracking", "--max-rounds", "1"]);
@@ -336,7 +336,7 @@ fn discrepancy_reads_a_tracked_marker() {
     assert!(e.contains("/nope") && e.contains("rec.mcap"), "{e}");
     // The same recording as a CSV with the marker's pose columns: the same named effect.
     let (csv, report2) = (dir.path().join("rec.csv"), dir.path().join("r2.json"));
-    dvrk_ok(&["synth", "hidden-effect", "--effect", "backlash", "--seed", "11", "--enr", "5", "--duration", "20", "--marker-link", "tool_roll", "-o", &p(&csv), "--answer", &p(&answer)]);
+    dvrk_ok(&["synth", "hidden-effect", "--effect", "backlash", "--seed", "11", "--enr", "5", "--duration", "20", "--engine", "reduced", "--marker-link", "tool_roll", "-o", &p(&csv), "--answer", &p(&answer)]);
     assert!(std::fs::read_to_string(&csv).unwrap().lines().nth(2).unwrap().ends_with("marker_tool_roll.qw"));
     dvrk_ok(&["discrepancy", "--model", "psm", "--recording", &p(&csv), "--format", "csv", "--marker-topic", "marker_tool_roll", "--marker-link", "tool_roll", "--report", &p(&report2), "--no-tracking", "--max-rounds", "1"]);
     let r2: Value = serde_json::from_slice(&std::fs::read(&report2).unwrap()).unwrap();
@@ -345,11 +345,12 @@ fn discrepancy_reads_a_tracked_marker() {
     assert!((b1 - b2).abs() < 1e-6 * b1, "{b1} {b2}");
 }
 
-/// `dvrk synth hidden-effect` (viscous friction, 12 s) to `rec.<ext>`; its path.
+/// `dvrk synth hidden-effect` (viscous friction, 12 s, the truth on the reduced engine: 16x
+/// rapier's speed; `tests/outputs.rs` runs the default) to `rec.<ext>`; its path.
 fn hidden_viscous_friction(dir: &std::path::Path, ext: &str) -> String {
     let rec = dir.join(format!("rec.{ext}"));
     let answer = dir.join(format!("answer-{ext}.json"));
-    dvrk_ok(&["synth", "hidden-effect", "--effect", "viscous_friction", "--seed", "3", "--duration", "12", "-o", rec.to_str().unwrap(), "--answer", answer.to_str().unwrap()]);
+    dvrk_ok(&["synth", "hidden-effect", "--effect", "viscous_friction", "--seed", "3", "--duration", "12", "--engine", "reduced", "-o", rec.to_str().unwrap(), "--answer", answer.to_str().unwrap()]);
     rec.to_str().unwrap().to_string()
 }
 

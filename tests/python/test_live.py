@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 
 websockets = pytest.importorskip("websockets")
+pytestmark = pytest.mark.realtime  # see conftest.py
 from rosbags.typesys import Stores, get_typestore  # noqa: E402
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]

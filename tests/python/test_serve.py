@@ -19,6 +19,7 @@ os.environ["CYCLONEDDS_URI"] = (
     "<AllowMulticast>false</AllowMulticast></General></Domain></CycloneDDS>"
 )
 cyclonedds = pytest.importorskip("cyclonedds")
+pytestmark = pytest.mark.realtime  # see conftest.py
 from cyclonedds.domain import DomainParticipant  # noqa: E402
 from cyclonedds.idl import IdlStruct  # noqa: E402
 from cyclonedds.idl.types import float64, int32, sequence, uint8, uint32  # noqa: E402

@@ -1,0 +1,11 @@
+"""pytest settings shared by the package's tests.
+
+``realtime``: a test whose assertions are about wall-clock behaviour (a twin's publishing rate,
+the live view's real-time factor under clients). `scripts/test.sh` runs the other tests on
+several workers (pytest-xdist) and these alone, one at a time, so that no other test's CPU load
+sits in their measurements.
+"""
+
+
+def pytest_configure(config):
+    config.addinivalue_line("markers", "realtime: wall-clock assertions; run alone, not beside other tests")
