@@ -250,6 +250,10 @@ fn identify_json_and_output_file() {
     assert!(model.spec.effects.iter().any(|e| e.name == "motor_inertia" && e.actuator == Some(5)));
     let left = v["not_expressed_as_effects"].as_array().unwrap();
     assert!(left.iter().all(|s| !s.as_str().unwrap().contains("actuator.fv =") && !s.as_str().unwrap().contains("actuator.im =")), "{left:?}");
+    // The winding terms are effects too (issue 62 item 4): what is left is the presliding
+    // levels' transition and the cross springs fitted next to it.
+    assert!(left.iter().all(|s| s.as_str().unwrap().contains(".fd = ") || s.as_str().unwrap().contains(".k from ")), "{left:?}");
+    assert!(model.spec.effects.iter().any(|e| e.name == "coulomb_friction" && e.parameters.get("fq").is_some_and(|x| *x != 0.0)));
     let sim: Value = serde_json::from_str(&dvrk_ok(&["sim", "--scene", "psm", "--model", &format!("PSM1={}", out.display()), "--duration", "0.5", "--json"])).unwrap();
     assert!(sim.is_object(), "{sim}");
     // A CSV given as MCAP, and an unknown format, are named.

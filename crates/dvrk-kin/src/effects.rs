@@ -8,14 +8,18 @@
 //!   `a`, `d` metres), `base_registration` (the base frame moved by `x y z`, rotation vector
 //!   `rx ry rz`);
 //! - dynamics (dvrk-kin's [`effort`] and [`effect_inertias`], and dvrk-sim's physics):
-//!   `coulomb_friction`, `viscous_friction`, `spring`, `payload_mass`;
+//!   `coulomb_friction` (its level `fc`, with optional winding `fq q^2` and Stribeck
+//!   `fs exp(-(qd / vs)^2)` terms: [`coulomb_level`]), `viscous_friction`, `spring`, `payload_mass`;
 //! - both: `counterweight_error` (the counterweight's travel per unit insertion `mu`, replacing
 //!   the model's parameter of that name, and its mass `mass`, the body's inertia scaled with it:
 //!   the same block, heavier or lighter); the counterweight is the body a frame moving by `mu`
 //!   carries;
 //! - actuator space (the tool's cable-driven wrist, the MTM's elbow and platform): friction and
 //!   springs at an actuator, `actuator_coulomb_friction`, `actuator_viscous_friction`,
-//!   `actuator_spring`, and its motor's reflected inertia, `motor_inertia`, each on `actuator`
+//!   `actuator_spring`, a spring from other actuators' positions, `actuator_cross_spring` (`kN`:
+//!   N·m/rad from actuator N, `-sum kN a_N`: a cable routed over another's pulley, the tool's
+//!   cross-channel springs `dvrk identify` fits), and its motor's reflected inertia,
+//!   `motor_inertia`, each on `actuator`
 //!   (1-based, a column of the model's coupling `q = C a`). An actuator moves by
 //!   `a = (C^-1 q)_k` and its force reaches the joints by virtual work as `C^-T f`: one actuator's
 //!   friction loads every joint its cables couple. A model without a coupling has its actuators
@@ -49,7 +53,7 @@ use crate::JointType;
 use std::collections::BTreeMap;
 
 pub use crate::spec::EffectSpec;
-pub use crate::vocabulary::{coupling_entry_name, coupling_error_range, Effect, EffectKind, ParameterInfo, Target, COUPLING_ERROR_FRACTION};
+pub use crate::vocabulary::{coupling_entry_name, coupling_error_range, cross_spring_source, Effect, EffectKind, ParameterInfo, Target, COUPLING_ERROR_FRACTION, CROSS_SPRING_RANGE};
 pub(crate) use crate::vocabulary::coupling_entry;
 pub use crate::play::motion_play;
 
@@ -89,7 +93,31 @@ pub fn check_effects(model: &Model) -> Result<Vec<Effect>> {
         // PSM's third actuator is the insertion's, in m and N).
         let prismatic = joint.or(actuator).is_some_and(|j| model.joints[j].kind == JointType::Prismatic);
         let mut parameters = BTreeMap::new();
-        if kind == EffectKind::CouplingError {
+        let mut cross = Vec::new();
+        if kind == EffectKind::ActuatorCrossSpring {
+            let n = model.nq();
+            let mut u = vec![0.0; n];
+            for (name, v) in &e.parameters {
+                // (N = its own actuator: a spring on its own position, as an actuator_spring at rest 0;
+                // an identification's cross terms mapped through a coupling give those too.)
+                let source = cross_spring_source(name).filter(|s| (1..=n).contains(s)).ok_or_else(|| {
+                    KinError::field(field(&format!("parameters.{name}")), format!("{v}: expected kN, N an actuator (1..={n}): the stiffness from actuator N's position"))
+                })?;
+                let [lo, hi] = CROSS_SPRING_RANGE;
+                if !(v.is_finite() && (lo..=hi).contains(v)) {
+                    return Err(KinError::field(field(&format!("parameters.{name}")), format!("{v} is outside its physical bounds [{lo}, {hi}]")));
+                }
+                let (_, w) = actuator_transmission(model, source).map_err(|m| KinError::field(field(&format!("parameters.{name}")), m))?;
+                for (j, c) in w {
+                    u[j] += v * c;
+                }
+                parameters.insert(name.clone(), *v);
+            }
+            if parameters.is_empty() {
+                return Err(KinError::field(field("parameters"), "missing: at least one kN (the stiffness from actuator N's position)"));
+            }
+            cross = u.into_iter().enumerate().filter(|(_, x)| *x != 0.0).collect();
+        } else if kind == EffectKind::CouplingError {
             let c = model.coupling_matrix().ok_or_else(|| KinError::field(field("name"), format!("model `{}` has no actuator coupling to be in error", model.name)))?;
             for (name, v) in &e.parameters {
                 match coupling_entry(name) {
@@ -137,7 +165,7 @@ pub fn check_effects(model: &Model) -> Result<Vec<Effect>> {
             })?),
             _ => frame,
         };
-        out.push(Effect { kind, joint, frame, actuator, transmission, parameters });
+        out.push(Effect { kind, joint, frame, actuator, transmission, cross, parameters });
     }
     Ok(out)
 }
@@ -191,11 +219,23 @@ pub(crate) fn apply_counterweight(spec: &mut crate::ModelSpec) -> Result<()> {
     Ok(())
 }
 
+/// A Coulomb friction's level (N·m, N) at its joint's or actuator's position `a` (rad, m) and
+/// velocity `v` (rad/s, m/s): `fc + fq a^2 + fs exp(-(v / vs)^2)` (its winding and Stribeck
+/// terms), never below 0 (friction does not push).
+pub fn coulomb_level(e: &Effect, a: f64, v: f64) -> f64 {
+    let fs = e.get("fs");
+    let stribeck = if fs == 0.0 { 0.0 } else { fs * (-(v / e.get("vs")).powi(2)).exp() };
+    (e.get("fc") + e.get("fq") * a * a + stribeck).max(0.0)
+}
+
 /// Joint-space effort (N·m, N) of the friction and spring effects at `q`, `qd`, added to `out`:
-/// `-(fc sign(qd) + offset) - fv qd - k (q - rest)` per joint, the force the effect exerts on the
-/// joint; an actuator's the same law in its position `a = w . q` and velocity, reaching joint
-/// `j` as `w_j f` ([`Effect::transmission`]). The sign is smoothed, `tanh(qd / v)`, with `v` the
-/// larger of `velocity_scale` and the effect's `smoothing` (rad/s, m/s; both 0: a hard sign).
+/// `-(level sign(qd) + offset) - fv qd - k (q - rest)` per joint, the force the effect exerts on
+/// the joint, with the Coulomb level `fc + fq q^2 + fs exp(-(qd / vs)^2)` (winding and Stribeck
+/// terms; never below 0: friction does not push); an actuator's the same law in its position
+/// `a = w . q` and velocity, reaching joint `j` as `w_j f` ([`Effect::transmission`]), and an
+/// `actuator_cross_spring`'s force `-u . q` ([`Effect::cross`]) the same way. The sign is
+/// smoothed, `tanh(qd / v)`, with `v` the larger of `velocity_scale` and the effect's
+/// `smoothing` (rad/s, m/s; both 0: a hard sign).
 pub fn effort(effects: &[Effect], q: &[f64], qd: &[f64], velocity_scale: f64, out: &mut [f64]) {
     let dot = |w: &[(usize, f64)], x: &[f64]| w.iter().map(|(j, c)| c * x[*j]).sum::<f64>();
     let sign = |e: &Effect, v: f64| {
@@ -209,7 +249,7 @@ pub fn effort(effects: &[Effect], q: &[f64], qd: &[f64], velocity_scale: f64, ou
     for e in effects {
         if let Some(j) = e.joint {
             match e.kind {
-                EffectKind::CoulombFriction => out[j] -= e.get("fc") * sign(e, qd[j]) + e.get("offset"),
+                EffectKind::CoulombFriction => out[j] -= coulomb_level(e, q[j], qd[j]) * sign(e, qd[j]) + e.get("offset"),
                 EffectKind::ViscousFriction => out[j] -= e.get("fv") * qd[j],
                 EffectKind::Spring => out[j] -= e.get("k") * (q[j] - e.get("rest")),
                 _ => {}
@@ -218,9 +258,13 @@ pub fn effort(effects: &[Effect], q: &[f64], qd: &[f64], velocity_scale: f64, ou
         }
         let w = &e.transmission;
         let f = match e.kind {
-            EffectKind::ActuatorCoulombFriction => -(e.get("fc") * sign(e, dot(w, qd)) + e.get("offset")),
+            EffectKind::ActuatorCoulombFriction => {
+                let v = dot(w, qd);
+                -(coulomb_level(e, dot(w, q), v) * sign(e, v) + e.get("offset"))
+            }
             EffectKind::ActuatorViscousFriction => -e.get("fv") * dot(w, qd),
             EffectKind::ActuatorSpring => -e.get("k") * (dot(w, q) - e.get("rest")),
+            EffectKind::ActuatorCrossSpring => -dot(&e.cross, q),
             _ => continue,
         };
         for (j, c) in w {

@@ -27,6 +27,7 @@ pub enum EffectKind {
     ActuatorViscousFriction,
     ActuatorSpring,
     MotorInertia,
+    ActuatorCrossSpring,
 }
 
 /// What an effect is attached to.
@@ -69,7 +70,7 @@ const fn p(name: &'static str, unit: &'static str, prismatic_unit: &'static str,
 
 impl EffectKind {
     /// The whole vocabulary.
-    pub const ALL: [EffectKind; 18] = [
+    pub const ALL: [EffectKind; 19] = [
         EffectKind::JointOffset,
         EffectKind::LinkLength,
         EffectKind::BaseRegistration,
@@ -88,6 +89,7 @@ impl EffectKind {
         EffectKind::ActuatorViscousFriction,
         EffectKind::ActuatorSpring,
         EffectKind::MotorInertia,
+        EffectKind::ActuatorCrossSpring,
     ];
 
     /// The name model files use.
@@ -111,6 +113,7 @@ impl EffectKind {
             EffectKind::ActuatorViscousFriction => "actuator_viscous_friction",
             EffectKind::ActuatorSpring => "actuator_spring",
             EffectKind::MotorInertia => "motor_inertia",
+            EffectKind::ActuatorCrossSpring => "actuator_cross_spring",
         }
     }
 
@@ -127,12 +130,13 @@ impl EffectKind {
             }
             EffectKind::LinkLength | EffectKind::PayloadMass => Target::Link,
             EffectKind::BaseRegistration | EffectKind::Latency | EffectKind::ClockOffset | EffectKind::CouplingError | EffectKind::CounterweightError => Target::Model,
-            EffectKind::ActuatorCoulombFriction | EffectKind::ActuatorViscousFriction | EffectKind::ActuatorSpring | EffectKind::MotorInertia => Target::Actuator,
+            EffectKind::ActuatorCoulombFriction | EffectKind::ActuatorViscousFriction | EffectKind::ActuatorSpring | EffectKind::MotorInertia | EffectKind::ActuatorCrossSpring => Target::Actuator,
         }
     }
 
     /// Its parameters (a `coupling_error` takes `dRC`, 1-based row and column of the coupling
-    /// matrix, checked against the model's, instead).
+    /// matrix, checked against the model's, instead; an `actuator_cross_spring` takes `kN`, the
+    /// stiffness from 1-based actuator N's position, [`CROSS_SPRING_RANGE`]).
     pub fn parameters(self) -> &'static [ParameterInfo] {
         match self {
             EffectKind::JointOffset => JOINT_OFFSET,
@@ -153,6 +157,7 @@ impl EffectKind {
             EffectKind::ActuatorViscousFriction => VISCOUS,
             EffectKind::ActuatorSpring => SPRING,
             EffectKind::MotorInertia => MOTOR_INERTIA,
+            EffectKind::ActuatorCrossSpring => &[],
         }
     }
 
@@ -207,6 +212,12 @@ const COULOMB: &[ParameterInfo] = &[
     // Velocity scale of the smoothed sign, tanh(qd / smoothing) (0: the user's default); an
     // identification's Coulomb level belongs with the smoothing it was fitted with.
     p("smoothing", "rad/s", "m/s", 0.0, 1.0, Some(0.0)),
+    // Winding: the level grows by fq q^2 (cables that tighten as the joint winds away from its
+    // zero; `dvrk identify`'s winding term). Either sign: the level never goes below 0.
+    p("fq", "N·m/rad^2", "N/m^2", -1e5, 1e5, Some(0.0)),
+    // Stribeck: fs more at rest, fading as exp(-(qd / vs)^2) (either sign: what the fit found).
+    p("fs", "N·m", "N", -100.0, 100.0, Some(0.0)),
+    p("vs", "rad/s", "m/s", 1e-4, 10.0, Some(0.05)),
 ];
 const VISCOUS: &[ParameterInfo] = &[p("fv", "N·m s/rad", "N s/m", 0.0, 1000.0, None)];
 const PAYLOAD: &[ParameterInfo] =
@@ -216,6 +227,15 @@ const SPRING: &[ParameterInfo] = &[p("k", "N·m/rad", "N/m", 0.0, 1e5, None), p(
 /// A dVRK motor's rotor reflected through its gearhead is 1e-6..1e-3 kg m^2 at the actuator
 /// (the WPI fit: 2e-5..1e-4); 1 kg m^2 is a flywheel.
 const MOTOR_INERTIA: &[ParameterInfo] = &[p("inertia", "kg m^2", "kg", 0.0, 1.0, None)];
+
+/// The range of an `actuator_cross_spring`'s stiffness `kN` (N·m/rad, N/m; either sign: a cable
+/// routed over another's pulley pulls or slackens it).
+pub const CROSS_SPRING_RANGE: [f64; 2] = [-1e5, 1e5];
+
+/// The 1-based source actuator an `actuator_cross_spring` parameter `kN` names.
+pub fn cross_spring_source(name: &str) -> Option<usize> {
+    name.strip_prefix('k')?.parse().ok()
+}
 
 /// A checked effect of a compiled model.
 #[derive(Debug, Clone, PartialEq)]
@@ -231,6 +251,9 @@ pub struct Effect {
     /// it moves with: the actuator's position is `sum w q_j`, its force `f` loads joint `j` with
     /// `w f`. Empty for other effects.
     pub transmission: Vec<(usize, f64)>,
+    /// An `actuator_cross_spring`'s stretch as joint weights, `sum_N kN (C^-1 q)_N = u . q`
+    /// (N·m, N per unit joint motion): its force is `-u . q`. Empty for other effects.
+    pub cross: Vec<(usize, f64)>,
     /// Every parameter, defaults filled in.
     pub parameters: BTreeMap<String, f64>,
 }

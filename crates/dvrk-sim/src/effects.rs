@@ -209,7 +209,8 @@ impl ArmEffects {
                 | EffectKind::Spring
                 | EffectKind::ActuatorCoulombFriction
                 | EffectKind::ActuatorViscousFriction
-                | EffectKind::ActuatorSpring => {
+                | EffectKind::ActuatorSpring
+                | EffectKind::ActuatorCrossSpring => {
                     // The smoothed Coulomb force acts like a damper of fc / v below v: keep its
                     // explicit step stable on the drive's inertia (c dt / I <= 0.5); an
                     // actuator's damps joint j by w_j^2 fc / v.
@@ -218,9 +219,14 @@ impl ArmEffects {
                         (EffectKind::ActuatorCoulombFriction, _) => e.transmission.clone(),
                         _ => Vec::new(),
                     };
+                    // Its level at rest, where the joints furthest from their zero (the winding term).
+                    // (An unlimited joint: ten units.)
+                    let reach_limit = |j: usize| model.joints[j].lower.abs().max(model.joints[j].upper.abs()).min(10.0);
+                    let far: f64 = reach.iter().map(|(j, w)| (w * reach_limit(*j)).abs()).sum();
+                    let level = dvrk_kin::effects::coulomb_level(e, far, 0.0).max(dvrk_kin::effects::coulomb_level(e, 0.0, 0.0));
                     for (j, w) in reach {
                         if armature[j] > 0.0 {
-                            out.velocity_scale = out.velocity_scale.max(2.0 * e.get("fc") * w * w * dt / armature[j]);
+                            out.velocity_scale = out.velocity_scale.max(2.0 * level * w * w * dt / armature[j]);
                         }
                     }
                     out.forces.push(e.clone());

@@ -143,8 +143,9 @@ impl<'a> Baseline<'a> {
 }
 
 /// `base` (the model's prediction, inverse dynamics with its effects) with each of the model's
-/// Coulomb frictions replaced by its candidate's signature: `fc` times
-/// [`candidates::friction_sign`] at its smoothing, plus its offset.
+/// Coulomb frictions replaced by its candidate's signature: its level (`fc` and any winding and
+/// Stribeck terms, [`dvrk_kin::effects::coulomb_level`]) times [`candidates::friction_sign`] at
+/// its smoothing, plus its offset.
 fn coulomb_as_fitted(base: &mut Table, model: &Model, prep: &Prepared) {
     let nq = model.nq();
     let mut kin = vec![0.0; nq];
@@ -155,8 +156,11 @@ fn coulomb_as_fitted(base: &mut Table, model: &Model, prep: &Prepared) {
             kin.fill(0.0);
             dvrk_kin::effects::effort(std::slice::from_ref(e), q, qd, COULOMB_SMOOTHING_DEFAULT, &mut kin);
             // The offset reaches the joints as the friction does: w_j offset.
+            let a: f64 = e.transmission.iter().map(|(j, w)| w * q[*j]).sum();
+            let v: f64 = e.transmission.iter().map(|(j, w)| w * qd[*j]).sum();
+            let level = dvrk_kin::effects::coulomb_level(e, a, v);
             for (j, w) in &e.transmission {
-                row[*j] += kin[*j] + e.get("fc") * sign.at(i, *j) + w * e.get("offset");
+                row[*j] += kin[*j] + level * sign.at(i, *j) + w * e.get("offset");
             }
         }
     }
@@ -168,7 +172,7 @@ fn coulomb_as_fitted(base: &mut Table, model: &Model, prep: &Prepared) {
             // dvrk-kin's term (`effort` writes the joint's force on the link: its negative).
             kin[j] = 0.0;
             dvrk_kin::effects::effort(std::slice::from_ref(e), q, qd, COULOMB_SMOOTHING_DEFAULT, &mut kin);
-            row[j] += kin[j] + e.get("fc") * sign.at(i, j) + e.get("offset");
+            row[j] += kin[j] + dvrk_kin::effects::coulomb_level(e, q[j], qd[j]) * sign.at(i, j) + e.get("offset");
         }
     }
 }

@@ -247,6 +247,17 @@ fn identify_output_is_a_model_file_the_simulator_loads() {
     dvrk_kin::effects::effort(&loaded.effects, &loaded.home(), &qd, 0.0, &mut tau);
     let expected = (est("outer_yaw.fc") + est("outer_yaw.fd")) * (0.5 / options.processing.coulomb_velocity_of(0)).tanh() + est("outer_yaw.fo") + est("outer_yaw.fv") * 0.5;
     assert!((-tau[0] - expected).abs() < 1e-12, "{} vs {expected}", -tau[0]);
+    // The pitch's winding term (issue 62 item 4): its Coulomb level grows by fq q^2 (and its
+    // spring pulls it back to 0).
+    let mut q = loaded.home();
+    q[1] = -0.5;
+    let mut qd = vec![0.0; 7];
+    qd[1] = 0.3;
+    let mut tau = vec![0.0; 7];
+    dvrk_kin::effects::effort(&loaded.effects, &q, &qd, 0.0, &mut tau);
+    let level = est("outer_pitch.fc") + est("outer_pitch.fd") + est("outer_pitch.fq") * 0.25;
+    let expected = level * (0.3 / options.processing.coulomb_velocity_of(1)).tanh() + est("outer_pitch.fo") + est("outer_pitch.fv") * 0.3 + est("outer_pitch.k") * -0.5;
+    assert!(est("outer_pitch.fq") != 0.0 && (-tau[1] - expected).abs() < 1e-12, "{} vs {expected}", -tau[1]);
     // The wrist actuators' friction and springs are actuator effects (issue 40 item 4): their
     // joint efforts are to_joint^-T of the channels' identified efforts, (fc + fd) tanh(a' / vc)
     // + fo + fv a' + k a at the actuators' positions a and velocities a' (to_joint^-1 q, q').
@@ -269,6 +280,9 @@ fn identify_output_is_a_model_file_the_simulator_loads() {
         assert!((-tau[j] - expected[j]).abs() < 1e-12, "joint {j}: {} vs {}", -tau[j], expected[j]);
     }
     assert!(!loaded.spec.notes.contains("actuator.fv = "), "no actuator friction is left in the notes: {}", loaded.spec.notes);
+    // The winding terms are in the Coulomb effects; the cross springs, fitted next to the
+    // wrist's presliding states, are left in the notes (`cross_springs_are_effects_where_no_presliding_state_was_fitted`).
+    assert!(!loaded.spec.notes.contains(".fq = ") && loaded.spec.notes.contains("outer_wrist_yaw actuator.k from "), "{}", loaded.spec.notes);
     assert!(loaded.spec.notes.contains("outer_wrist_yaw actuator.fd = "), "the presliding level is listed: {}", loaded.spec.notes);
     assert!(loaded.spec.notes.contains("outer_yaw.fd = "), "the presliding friction is listed: {}", loaded.spec.notes);
     // In the simulator, as `dvrk sim --model PSM1=FILE` puts it: the file's [drive] replaces
@@ -386,4 +400,37 @@ fn a_simulated_recording_gives_back_the_simulators_damping_and_armature() {
     // A missing topic and a wrong arm name are named.
     let e = read_log(&path, "mcap", &model, "PSM2").unwrap_err().to_string();
     assert!(e.contains("no topic /PSM2/measured_js; topics:"), "{e}");
+}
+
+/// The tool's cross-channel springs (issue 62 item 4) fitted without presliding states (the
+/// identification's Dahl terms off): the model file carries them as `actuator_cross_spring`s,
+/// exactly. Each channel's effort (roll's included: its channel is a joint, its actuator's a
+/// scaled copy) takes `k x_s` from every other channel's position `x_s`, and the file's effects
+/// give `to_joint^-T` of that to 1e-12.
+#[test]
+fn cross_springs_are_effects_where_no_presliding_state_was_fitted() {
+    use dvrk_calib::identify::output::identified_model;
+    let Some(Fitted { model, prior, r1, options, .. }) = fitted_on_one() else { return };
+    let mut options = options.clone();
+    options.terms.dahl_channels.clear();
+    let (id, _) = identify(&model, &prior, &r1, &options).unwrap();
+    let identified = identified_model(&model, &id, &options.processing, &r1.joint_map(), &prior, "one").unwrap();
+    let mut spec = model.spec.clone();
+    spec.effects = identified.effects.iter().filter(|e| e.name == "actuator_cross_spring").cloned().collect();
+    assert!(spec.effects.len() >= 4, "cross springs on the roll's and the wrist's actuators: {:?}", spec.effects);
+    assert!(identified.not_expressed.iter().all(|s| !s.contains(".k from ")), "{:?}", identified.not_expressed);
+    let m = dvrk_kin::Model::compile(spec).unwrap();
+    let q = [0.1, -0.2, 0.12, 0.4, 0.3, -0.25, 0.5];
+    let inv = r1.joint_map().try_inverse().unwrap();
+    let x = &inv * nalgebra::DVector::from_column_slice(&q);
+    let channel = nalgebra::DVector::from_fn(7, |c, _| {
+        (0..7).filter(|&s| s != c).filter_map(|s| id.estimates.iter().find(|e| e.name == format!("{}.k from {}", id.channels[c], id.channels[s])).map(|e| e.value * x[s])).sum::<f64>()
+    });
+    assert!((3..7).all(|c| channel[c] != 0.0), "{channel}");
+    let expected = inv.transpose() * channel;
+    let mut tau = vec![0.0; 7];
+    dvrk_kin::effects::effort(&m.effects, &q, &[0.0; 7], 0.0, &mut tau);
+    for j in 0..7 {
+        assert!((-tau[j] - expected[j]).abs() < 1e-12, "joint {j}: {} vs {}", -tau[j], expected[j]);
+    }
 }

@@ -333,3 +333,40 @@ fn model_file_inertial_covariance_is_read_checked_and_written_back() {
     let negative = err(&cov.replace("[1e-3]", "[-1e-3]"));
     assert!(negative.contains("inertial_covariance.cholesky[0][0]`: -1.000000e-3: the diagonal of a Cholesky factor is positive"), "{negative}");
 }
+
+/// The Coulomb level's winding and Stribeck terms and the tool's cross springs (the terms
+/// `dvrk identify` fits beyond fc, fv, k): `(fc + fq q^2 + fs exp(-(qd / vs)^2)) sign(qd)`,
+/// never below zero; an `actuator_cross_spring` on actuator 6 pulled by actuators 5 and 7,
+/// `-(k5 a5 + k7 a7)` on actuator 6 and `C^-T` to the joints. Bad `kN` names are refused.
+#[test]
+fn winding_stribeck_and_cross_springs_in_closed_form() {
+    let m = psm_with(
+        "[[effects]]\nname = \"coulomb_friction\"\njoint = \"outer_pitch\"\nparameters = { fc = 0.05, fq = 0.2, fs = 0.03, vs = 0.1 }\n\
+         [[effects]]\nname = \"coulomb_friction\"\njoint = \"outer_yaw\"\nparameters = { fc = 0.05, fq = -1.0 }\n\
+         [[effects]]\nname = \"actuator_cross_spring\"\nactuator = 6\nparameters = { k5 = 0.004, k7 = -0.002 }\n",
+    )
+    .unwrap();
+    let inv = m.coupling_matrix().unwrap().try_inverse().unwrap();
+    let (q, qd) = ([0.8, -0.6, 0.1, 0.3, 0.4, -0.3, 0.6], [0.5, 0.08, 0.0, 0.0, 0.0, 0.0, 0.0]);
+    let a = |k: usize| (0..7).map(|j| inv[(k, j)] * q[j]).sum::<f64>();
+    let mut out = [0.0; 7];
+    effort(&m.effects, &q, &qd, 0.0, &mut out);
+    // Pitch: 0.05 + 0.2 * 0.36 + 0.03 exp(-0.64) = 0.13782... against its motion.
+    let pitch = 0.05 + 0.2 * 0.36 + 0.03 * (-(0.08f64 / 0.1).powi(2)).exp();
+    assert!((out[1] + pitch).abs() < 1e-15, "{} vs {}", out[1], -pitch);
+    // Yaw: 0.05 - 0.64 is below zero: no friction (it would push).
+    assert_eq!(out[0], 0.0);
+    // The cross spring on actuator 6, through C^-T.
+    let f6 = -(0.004 * a(4) - 0.002 * a(6));
+    for j in 3..7 {
+        let want = inv[(5, j)] * f6;
+        assert!((out[j] - want).abs() < 1e-17, "joint {j}: {} vs {want}", out[j]);
+    }
+    assert!(out[5].abs() > 1e-4, "{out:?}");
+    for (bad, says) in [("k9 = 0.1", "k9"), ("kx = 0.1", "kx"), ("k5 = 1e6", "outside its physical bounds")] {
+        let e = psm_with(&format!("[[effects]]\nname = \"actuator_cross_spring\"\nactuator = 6\nparameters = {{ {bad} }}\n")).unwrap_err().to_string();
+        assert!(e.contains("effects[0] (actuator_cross_spring).parameters.") && e.contains(says), "{e}");
+    }
+    let e = psm_with("[[effects]]\nname = \"actuator_cross_spring\"\nactuator = 6\n").unwrap_err().to_string();
+    assert!(e.contains("at least one kN"), "{e}");
+}

@@ -35,6 +35,22 @@ fn yaw_sine(scene: &Scene, a: f64, f: f64, seconds: f64) -> Vec<(f64, f64, f64, 
     out
 }
 
+/// Steps of joint `joint` following `a sin(2 pi 0.2 t)` for 10 s (the others holding home),
+/// gravity off: per step (measured q, measured qd, every joint's effort).
+fn joint_sine(scene: &Scene, joint: usize, a: f64) -> Vec<(Vec<f64>, Vec<f64>, Vec<f64>)> {
+    let mut sim = Sim::new(scene, &SimOptions { no_gravity: true, ..Default::default() }).unwrap();
+    let w = 2.0 * std::f64::consts::PI * 0.2;
+    let steps = (10.0 / sim.dt) as usize;
+    (1..=steps)
+        .map(|s| {
+            let t = s as f64 * sim.dt;
+            sim.set_target(joint, a * (w * t).sin(), a * w * (w * t).cos()).unwrap();
+            sim.step();
+            (sim.q().to_vec(), sim.qd().to_vec(), (0..sim.nq()).map(|i| sim.effort(i).unwrap()).collect())
+        })
+        .collect()
+}
+
 #[test]
 fn coulomb_friction_is_a_torque_step_with_the_velocity_sign() {
     let fc = 0.3;
@@ -56,19 +72,7 @@ fn coulomb_friction_is_a_torque_step_with_the_velocity_sign() {
 #[test]
 fn an_actuator_friction_loads_every_joint_its_cables_reach() {
     let fc = 0.05;
-    let run = |scene: &Scene| {
-        let mut sim = Sim::new(scene, &SimOptions { no_gravity: true, ..Default::default() }).unwrap();
-        let (a, w) = (0.3, 2.0 * std::f64::consts::PI * 0.2);
-        let steps = (10.0 / sim.dt) as usize;
-        (1..=steps)
-            .map(|s| {
-                let t = s as f64 * sim.dt;
-                sim.set_target(5, a * (w * t).sin(), a * w * (w * t).cos()).unwrap();
-                sim.step();
-                (sim.qd().to_vec(), sim.effort(5).unwrap(), sim.effort(6).unwrap())
-            })
-            .collect::<Vec<_>>()
-    };
+    let run = |scene: &Scene| joint_sine(scene, 5, 0.3).into_iter().map(|(_, qd, e)| (qd, e[5], e[6])).collect::<Vec<_>>();
     let with_effect = psm_with(&format!("[[effects]]\nname = \"actuator_coulomb_friction\"\nactuator = 7\nparameters = {{ fc = {fc} }}\n"));
     let inv = with_effect.arms[0].model.coupling_matrix().unwrap().try_inverse().unwrap();
     let (base, with) = (run(&load("psm")), run(&with_effect));
@@ -88,6 +92,40 @@ fn an_actuator_friction_loads_every_joint_its_cables_reach() {
         eprintln!("jaw actuator friction on joint {j}: extra effort x sign(a7') = {mean:.5} N·m (w fc = {want:.5}) over {} samples", steps.len());
         assert!((mean - want).abs() < 0.05 * want.abs(), "joint {j}: {mean} vs {want}");
     }
+}
+
+/// The Coulomb level's winding term (`fq`: `fc + fq q^2`, what `dvrk identify` fits on the
+/// pitch and insertion) and a cross spring between the wrist's actuators (`actuator_cross_spring`
+/// on actuator 6 from actuator 5's position) are physics: driving the yaw, the PID's extra
+/// effort times the velocity's sign is `fc + fq q^2`; driving the wrist pitch, the wrist yaw's
+/// extra effort follows `w k5 a5` (`w` actuator 6's row of `C^-1` at the wrist yaw).
+#[test]
+fn a_winding_friction_and_a_cross_spring_load_the_drives_as_their_laws_say() {
+    // (The sim smooths the sign over the level's largest value in the joint's range, 0.48 N·m
+    // here, to keep its explicit step stable: faster than 0.2 rad/s the sign is whole.)
+    let (fc, fq) = (0.1, 0.15);
+    let base = yaw_sine(&load("psm"), 0.4, 0.2, 10.0);
+    let with = yaw_sine(&psm_with(&format!("[[effects]]\nname = \"coulomb_friction\"\njoint = \"outer_yaw\"\nparameters = {{ fc = {fc}, fq = {fq} }}\n")), 0.4, 0.2, 10.0);
+    let off: Vec<f64> = with.iter().zip(&base).skip(1000).filter(|(w, _)| w.2.abs() > 0.2).map(|(w, b)| (w.3 - b.3) * w.2.signum() - (fc + fq * w.1 * w.1)).collect();
+    let worst = off.iter().map(|x| x.abs()).fold(0.0, f64::max);
+    let mean = off.iter().sum::<f64>() / off.len() as f64;
+    eprintln!("winding: extra effort x sign(qd) - (fc + fq q^2): mean {mean:.4}, worst {worst:.4} N·m over {} samples", off.len());
+    assert!(mean.abs() < 0.03 * fc && worst < 0.2 * (fc + fq * 0.16), "{mean} {worst}");
+    let k5 = 0.05;
+    let run = |scene: &Scene| joint_sine(scene, 4, 0.4).into_iter().map(|(q, _, e)| (q, e[5])).collect::<Vec<_>>();
+    let with_effect = psm_with(&format!("[[effects]]\nname = \"actuator_cross_spring\"\nactuator = 6\nparameters = {{ k5 = {k5} }}\n"));
+    let inv = with_effect.arms[0].model.coupling_matrix().unwrap().try_inverse().unwrap();
+    let (base, with) = (run(&load("psm")), run(&with_effect));
+    // Least squares slope of the extra effort on a5 (through 0: a5 is 0 at home).
+    let (mut sxy, mut sxx) = (0.0, 0.0);
+    for (x, b) in with.iter().zip(&base).skip(1000) {
+        let a5: f64 = (0..7).map(|k| inv[(4, k)] * x.0[k]).sum();
+        sxy += a5 * (x.1 - b.1);
+        sxx += a5 * a5;
+    }
+    let (slope, want) = (sxy / sxx, inv[(5, 5)] * k5);
+    eprintln!("cross spring: wrist yaw extra effort / a5 = {slope:.5} N·m/rad (w k5 = {want:.5})");
+    assert!(want.abs() > 1e-3 && (slope - want).abs() < 0.05 * want.abs(), "{slope} vs {want}");
 }
 
 #[test]
