@@ -29,7 +29,7 @@ PATH="$venv/bin:$PATH" cargo test --release --workspace
 rm -rf target/wheels
 "$venv/bin/maturin" build --release --quiet -m crates/dvrk-py/Cargo.toml -o target/wheels
 "$py" -m pip install --quiet --disable-pip-version-check --force-reinstall --no-deps target/wheels/*.whl
-# Two passes: the tests with wall-clock assertions (marked `realtime`, tests/python/conftest.py)
-# alone, one at a time; the others on as many workers as there are cores (pytest-xdist).
+# Two passes: the tests on as many workers as there are cores (pytest-xdist), then those with
+# wall-clock assertions (marked `realtime`, tests/python/conftest.py) alone, one at a time.
 DVRK_BIN="$PWD/target/release/dvrk" "$py" -m pytest tests/python -q -m "not realtime" -n auto
 DVRK_BIN="$PWD/target/release/dvrk" "$py" -m pytest tests/python -q -m realtime

@@ -163,8 +163,8 @@ class Peer:
         return [(now, s) for s in self.readers[topic].take(N=1000) if isinstance(s, cls)]
 
 
-def command(names, position=(), effort=()):
-    return JointState_(Header_(Time_(0, 0), ""), list(names), list(position), [], list(effort))
+def command(names, position=(), effort=(), velocity=()):
+    return JointState_(Header_(Time_(0, 0), ""), list(names), list(position), list(velocity), list(effort))
 
 
 def serve(domain, seconds, *extra):
@@ -272,6 +272,8 @@ def test_bad_commands_are_refused_with_a_log_line_and_the_twin_keeps_running():
         servo.write(command(PSM_JOINTS[:5], [0.0] * 5))  # wrong length
         servo.write(command(PSM_JOINTS, [0.0, float("nan"), 0.1, 0.0, 0.0, 0.0]))  # NaN
         servo.write(command(["outer_yaw", "elbow", "outer_insertion", "outer_roll", "outer_wrist_pitch", "outer_wrist_yaw"], [0.0] * 6))
+        # A finite but absurd feed-forward velocity (it drove every joint to its limit).
+        servo.write(command(PSM_JOINTS, [0.0, 0.0, 0.1, 0.0, 0.0, 0.0], velocity=[0.0, 1e308, 0.0, 0.0, 0.0, 0.0]))
         jaw.write(command(["jaw"], [0.3]))  # a good one
         time.sleep(0.5)
         peer.take("/PSM1/measured_js")
@@ -280,15 +282,16 @@ def test_bad_commands_are_refused_with_a_log_line_and_the_twin_keeps_running():
         logs = [s for s in rosout.take(N=100) if isinstance(s, Log_)]
     finally:
         summary, err = finish(proc)
-    assert (summary["refused"], summary["commands"]) == (4, 1), summary
+    assert (summary["refused"], summary["commands"]) == (5, 1), summary
     lines = [l for l in err.splitlines() if "command refused" in l]
-    assert len(lines) == 4, err
+    assert len(lines) == 5, err
     assert any("goal 3 rad for joint `outer_yaw` is outside its limits" in l for l in lines), lines
     assert any("5 position values for 6 joints" in l for l in lines)
     assert any("NaN for joint `outer_pitch`" in l for l in lines)
     assert any("unknown joint `elbow`" in l for l in lines)
+    assert any("velocity 1.000000e308 rad/s for joint `outer_pitch` is past 31.416 rad/s" in l for l in lines), lines
     warned = [l for l in logs if l.level == 30 and "command refused" in l.msg]
-    assert len(warned) == 4 and all(l.name == "dvrk_twin" for l in warned), logs
+    assert len(warned) == 5 and all(l.name == "dvrk_twin" for l in warned), logs
 
 
 def test_ctrl_c_stops_the_twin_and_leaves_no_process():

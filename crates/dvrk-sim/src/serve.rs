@@ -187,6 +187,25 @@ fn goal_within_limits(sim: &Sim, topic: &CommandTopic, goal: &[f64]) -> std::res
     Ok(())
 }
 
+/// How many times the console's move velocity limit a `servo_jp` velocity (the PID's
+/// feed-forward) may be: a teleoperation's servo stream may be faster than a console move, but
+/// not an order of magnitude past what the drive can do (1e308 rad/s drove every joint to its
+/// limit while `setpoint_js` showed the commanded position).
+const SERVO_VELOCITY_FACTOR: f64 = 10.0;
+
+/// A `servo_jp` velocity past [`SERVO_VELOCITY_FACTOR`] times the joint's console velocity
+/// limit `v_max` (global indices) is refused, naming the joint, the value and the bound.
+fn velocity_within_bounds(sim: &Sim, topic: &CommandTopic, velocity: &[f64], v_max: &[f64]) -> std::result::Result<(), Refusal> {
+    for (&i, &v) in topic.joints.iter().zip(velocity) {
+        let bound = SERVO_VELOCITY_FACTOR * v_max[i];
+        if v.abs() > bound {
+            let j = sim.joint(i).map_err(|e| refusal("not taken", e.to_string()))?;
+            return Err(refusal("velocity too large", format!("velocity {} {}/s for joint `{}` is past {bound:.3} {}/s (ten times the console's move limit)", dvrk_kin::fmt_number(v), j.unit(), j.name, j.unit())));
+        }
+    }
+    Ok(())
+}
+
 /// Serve `scene` on ROS 2 until `options.duration` of simulated time has run or `stop` is set.
 /// `ready` is called once the topics exist (before the first step), with the node.
 pub fn serve(scene: &Scene, sim_options: &SimOptions, options: &ServeOptions, stop: &AtomicBool, live: Option<Live>, ready: impl FnOnce(&Ros2)) -> Result<(ServeSummary, Option<dvrk_kin::atomic::Staged>)> {
@@ -355,7 +374,11 @@ fn apply_commands(sim: &mut Sim, recorder: &mut Recorder, topics: &[CommandTopic
                 .map_err(|e| refusal("not taken", e))
                 .and_then(|bytes| JointState::decode(&bytes).map_err(|e| refusal("not a JointState", format!("not a sensor_msgs/JointState: {e}"))))
                 .and_then(|msg| if disabled { Err(not_enabled(&recorder.state(topic.arm).state)) } else { command_values(topic, &msg, topic.kind) })
-                .and_then(|(v, vd)| if topic.kind == Kind::MoveJp { goal_within_limits(sim, topic, &v).map(|()| (v, vd)) } else { Ok((v, vd)) });
+                .and_then(|(v, vd)| match topic.kind {
+                    Kind::MoveJp => goal_within_limits(sim, topic, &v).map(|()| (v, vd)),
+                    Kind::ServoJp => velocity_within_bounds(sim, topic, &vd, &moves.v_max).map(|()| (v, vd)),
+                    _ => Ok((v, vd)),
+                });
             match values {
                 Ok((v, _)) if topic.kind == Kind::MoveJp => {
                     for &i in &topic.joints {
