@@ -68,6 +68,8 @@ fn bad_files_and_flags_are_errors_not_panics() {
     // Huge numbers in messages in {:.6e} form, and durations bounded before any allocation.
     assert_one_line(&dvrk_err(&["fk", "psm", "--q", "1e300,0,0.1,0,0,0,0"]), &["outer_yaw = 1.000000e300", "limits"]);
     assert_one_line(&dvrk_err(&["synth", "hidden-effect", "--duration", "1e12", "-o", "/tmp/never.mcap", "--answer", "/tmp/never.json"]), &["duration", "1.000000e12", "1800 s"]);
+    // Issue 63 item 6: an address no interface has (TEST-NET-3) was taken and served nowhere.
+    assert_one_line(&dvrk_err(&["serve", "--scene", "psm", "--network", "203.0.113.7", "--duration", "0.1"]), &["--network", "203.0.113.7", "no interface of this machine has that address"]);
     assert_one_line(&dvrk_err(&["sim", "--scene", "psm", "--duration", "1e300", "--plot", "/tmp/never.png"]), &["traced samples", "5.000000e301"]);
     let dir = crate::util::tempdir();
     let scene = dir.path().join("tiny-dt.toml");

@@ -423,7 +423,22 @@ pub fn regression(model: &Model, rec: &JointLog, layout: &Layout, processing: &P
     for c in 0..nc {
         let fc = processing.cutoff_of(c);
         if !(fc > 0.0 && fc < 0.45 * rate) {
-            return Err(CalibError::field("cutoff", format!("{fc} Hz (channel {}) is not in (0, {:.1}) Hz for a {rate:.1} Hz recording", rec.names[c], 0.45 * rate)));
+            // The rate is the average over the whole recording: a gap in the stamps (a paused
+            // logger) brings it down, which the message says rather than "(0, 0.0) Hz".
+            let gap = rec.t.windows(2).map(|w| w[1] - w[0]).fold(0.0, f64::max);
+            let f = dvrk_kin::fmt_number;
+            return Err(CalibError::field(
+                "cutoff",
+                format!(
+                    "{} Hz (channel {}) is not in (0, {}) Hz: the recording averages {} Hz ({n} samples over {} s; the longest gap between two stamps is {} s)",
+                    f(fc),
+                    rec.names[c],
+                    f(0.45 * rate),
+                    f(rate),
+                    f(rec.t[n - 1] - rec.t[0]),
+                    f(gap)
+                ),
+            ));
         }
         let vc = processing.coulomb_velocity_of(c);
         if !(vc > 0.0 && vc.is_finite()) {
@@ -490,6 +505,21 @@ mod tests {
             t,
             ..JointLog::default()
         }
+    }
+
+    /// A recording whose stamps jump by a day in the middle (a paused logger) averages a rate far
+    /// below its filter's: the error says so, with the gap, not "(0, 0.0) Hz" (issue 63 item 6).
+    #[test]
+    fn a_gap_in_the_stamps_is_named_when_the_cutoff_does_not_fit() {
+        let model = dvrk_kin::load("psm", None).unwrap();
+        let mut rec = recording(&model);
+        let half = rec.len() / 2;
+        for t in &mut rec.t[half..] {
+            *t += 86_400.0;
+        }
+        let layout = Layout::new(&model, rec.names.len(), &Terms::default());
+        let e = regression(&model, &rec, &layout, &Processing::default()).unwrap_err().to_string();
+        assert!(e.contains("10 Hz (channel outer_yaw) is not in (0, 0.00676") && e.contains("the recording averages 0.01503") && e.contains("the longest gap between two stamps is 86400.00"), "{e}");
     }
 
     #[test]

@@ -119,7 +119,8 @@ pub fn read_topics(path: &Path, wanted: &[&str]) -> Result<(BTreeMap<String, Joi
             return Ok(());
         }
         if m.schema != "sensor_msgs/msg/JointState" || !matches!(m.encoding, Encoding::Cdr | Encoding::Ros1) {
-            return Err(CalibError::file(path, format!("topic {topic} carries {}; expected sensor_msgs/msg/JointState (cdr or ros1)", m.schema)));
+            // (The encoding too: a JointState in JSON read "carries JointState; expected JointState".)
+            return Err(CalibError::file(path, format!("topic {topic} carries {} ({}); expected sensor_msgs/msg/JointState (cdr or ros1)", m.schema, m.encoding.name())));
         }
         let js = decode_joint_state(m).map_err(|e| CalibError::file(path, format!("message {} on {topic}: {e}", m.index)))?;
         let tp = topics.entry(topic.to_string()).or_default();

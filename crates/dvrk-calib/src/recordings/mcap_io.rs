@@ -52,16 +52,6 @@ fn kind(schema: &str, encoding: Encoding) -> Option<Kind> {
     }
 }
 
-fn encoding_name(e: Encoding) -> &'static str {
-    match e {
-        Encoding::Cdr => "cdr",
-        Encoding::Ros1 => "ros1",
-        Encoding::Json => "json",
-        Encoding::Protobuf => "protobuf",
-        Encoding::Other => "other",
-    }
-}
-
 fn pose(position: [f64; 3], q: [f64; 4]) -> std::result::Result<Pose, String> {
     let u = crate::recordings::plain_csv::unit_quaternion(q[0], q[1], q[2], q[3])?;
     if !position.iter().all(|x| x.is_finite()) {
@@ -179,14 +169,14 @@ impl<'a> Reader<'a> {
         if count == 0 {
             return Err(CalibError::file(path, "the file holds no message"));
         }
-        let listing = || topics.iter().map(|(t, (s, e))| format!("{t} ({s}, {})", encoding_name(*e))).collect::<Vec<_>>().join(", ");
+        let listing = || topics.iter().map(|(t, (s, e))| format!("{t} ({s}, {})", e.name())).collect::<Vec<_>>().join(", ");
         for t in &options.topics {
             if !bodies.contains_key(t) && !topics.contains_key(t) {
                 return Err(CalibError::file(path, format!("no topic or TF child frame `{t}`; topics: {}", listing())));
             }
             if topics.get(t).is_some_and(|(s, e)| kind(s, *e).is_none()) {
                 let (s, e) = &topics[t];
-                return Err(CalibError::file(path, format!("topic `{t}` carries {s} ({}); supported: geometry_msgs/msg/PoseStamped, tf2_msgs/msg/TFMessage, sensor_msgs/msg/JointState (cdr or ros1), foxglove.PoseInFrame, foxglove.FrameTransform(s) (json or protobuf)", encoding_name(*e))));
+                return Err(CalibError::file(path, format!("topic `{t}` carries {s} ({}); supported: geometry_msgs/msg/PoseStamped, tf2_msgs/msg/TFMessage, sensor_msgs/msg/JointState (cdr or ros1), foxglove.PoseInFrame, foxglove.FrameTransform(s) (json or protobuf)", e.name())));
             }
         }
         if let Some(jt) = &options.joint_topic {

@@ -40,6 +40,19 @@ pub enum Encoding {
     Other,
 }
 
+impl Encoding {
+    /// The name MCAP's channels use (`cdr`, `ros1`, `json`, `protobuf`; `other`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Encoding::Cdr => "cdr",
+            Encoding::Ros1 => "ros1",
+            Encoding::Json => "json",
+            Encoding::Protobuf => "protobuf",
+            Encoding::Other => "other",
+        }
+    }
+}
+
 /// One recorded message.
 #[derive(Debug, Clone, Copy)]
 pub struct Message<'a> {

@@ -203,3 +203,33 @@ fn python_reads_the_synthetic_trackers_mcap() {
     assert_eq!(v[4].parse::<u32>().unwrap(), (end.t[0] * 1e9).round() as u32);
     assert!(lines[2].starts_with("outer_yaw,outer_pitch,outer_insertion"), "{}", lines[2]);
 }
+
+/// A JointState written in JSON (Python's `mcap`, a Foxglove-style channel) is refused naming its
+/// encoding: the message read "carries sensor_msgs/msg/JointState; expected
+/// sensor_msgs/msg/JointState" (issue 63 item 6).
+#[test]
+fn a_joint_state_in_json_is_refused_naming_its_encoding() {
+    if !python_ready() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("json-joints.mcap");
+    run_python(
+        r#"
+import json, sys
+from mcap.writer import Writer
+with open(sys.argv[1], "wb") as f:
+    w = Writer(f)
+    w.start(profile="", library="python-test")
+    sid = w.register_schema(name="sensor_msgs/msg/JointState", encoding="jsonschema", data=b'{"type":"object"}')
+    cid = w.register_channel(topic="/PSM1/measured_js", message_encoding="json", schema_id=sid)
+    for i in range(10):
+        msg = {"name": ["outer_yaw"], "position": [0.001 * i], "velocity": [], "effort": []}
+        w.add_message(channel_id=cid, log_time=i * 1000000, data=json.dumps(msg).encode(), publish_time=i * 1000000)
+    w.finish()
+"#,
+        &[&path],
+    );
+    let e = dvrk_calib::recordings::read_arm(&path, "PSM1", &["measured_js"]).unwrap_err().to_string();
+    assert!(e.contains("json-joints.mcap") && e.contains("carries sensor_msgs/msg/JointState (json); expected sensor_msgs/msg/JointState (cdr or ros1)"), "{e}");
+}

@@ -105,6 +105,13 @@ impl Ros2 {
         if options.domain > Ros2Options::MAX_DOMAIN {
             return Err(SimError::value("ROS 2 domain (--domain)", options.domain as f64, format!("must be in 0..={}", Ros2Options::MAX_DOMAIN)));
         }
+        // An address no interface of this machine has would be accepted by RustDDS and the twin
+        // would be unreachable there without a word: binding a socket to it is the check.
+        for n in &options.networks {
+            if let Err(e) = std::net::UdpSocket::bind((*n, 0)) {
+                return Err(SimError::Build(format!("ROS 2 network (--network) {n}: no interface of this machine has that address ({e})")));
+            }
+        }
         let mut networks = options.networks.clone();
         if !networks.iter().any(|n| n.is_loopback()) {
             networks.push(IpAddr::from([127, 0, 0, 1]));
