@@ -92,8 +92,8 @@ pub struct SimArgs {
 /// `crates/dvrk-sim/tests/sim/reduced.rs`).
 fn engine(args: &SimArgs, scene: &Scene) -> Engine {
     match (args.engine.as_deref(), scene.engine) {
-        (Some("reduced"), _) => Engine::Reduced,
-        (Some(_), _) => Engine::Rapier,
+        // (clap takes only the engines' names.)
+        (Some(name), _) => Engine::from_name(name).unwrap_or_default(),
         (None, Some(e)) => e,
         (None, None) if args.contacts || args.loops != "impulse-joints" || args.solver_iterations.is_some() => Engine::Rapier,
         (None, None) => Engine::Reduced,

@@ -135,7 +135,7 @@ fn hidden_effect(a: &HiddenEffectArgs) -> Result<()> {
     }
     crate::io::check_outputs(&[("--model", std::path::Path::new(&a.model))], &[("-o", Some(&a.output)), ("--answer", Some(&a.answer))])?;
     let marker = a.marker_link.clone().map(|link| dvrk_calib::discrepancy::generate::MarkerOptions { link, ..Default::default() });
-    let o = HiddenOptions { hidden, seed: a.seed, duration: a.duration, effort_noise, position_noise: a.position_noise, enr: a.enr, marker, payload_link: a.payload_link.clone(), engine: if a.engine == "reduced" { dvrk_sim::Engine::Reduced } else { dvrk_sim::Engine::Rapier }, ..Default::default() };
+    let o = HiddenOptions { hidden, seed: a.seed, duration: a.duration, effort_noise, position_noise: a.position_noise, enr: a.enr, marker, payload_link: a.payload_link.clone(), engine: dvrk_sim::Engine::from_name(&a.engine).unwrap_or_default(), ..Default::default() };
     let spinner = crate::progress::Progress::spinner(&format!("simulating the truth: {} s at 0.125 ms steps", a.duration), crate::progress::Progress::wanted(false));
     let h = hidden_effect(&a.model, &o)?;
     spinner.finish();

@@ -218,11 +218,7 @@ pub fn synth_hidden_effect<'py>(py: Python<'py>, path: PathBuf, effect: &str, se
     use dvrk_calib::recordings;
     let hidden: Hidden = effect.parse().map_err(|e: String| Error::Input(format!("effect: {e}")))?;
     let marker = marker_link.map(|link| MarkerOptions { link, ..Default::default() });
-    let engine = match engine {
-        "rapier" => dvrk_sim::Engine::Rapier,
-        "reduced" => dvrk_sim::Engine::Reduced,
-        other => return Err(Error::Input(format!("engine: {other:?}: rapier or reduced"))),
-    };
+    let engine = dvrk_sim::Engine::from_name(engine).ok_or_else(|| Error::Input(format!("engine: {engine:?}: rapier or reduced")))?;
     dvrk_calib::dvrk_kin::atomic::check_outputs(&[], &[("path", &path)])?;
     let answer = py.detach(|| -> Result<serde_json::Value> {
         let h = hidden_effect(scene, &HiddenOptions { hidden, seed, duration, marker, engine, ..Default::default() })?;

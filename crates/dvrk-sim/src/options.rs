@@ -92,6 +92,11 @@ impl Engine {
             Engine::Reduced => "reduced",
         }
     }
+
+    /// The engine called `name` (`rapier` or `reduced`).
+    pub fn from_name(name: &str) -> Option<Engine> {
+        [Engine::Rapier, Engine::Reduced].into_iter().find(|e| e.name() == name)
+    }
 }
 
 /// Whether the link geometry is attached to the rapier bodies as colliders, and whether they touch.

@@ -16,9 +16,9 @@
 //! a spring from another channel's position is, exactly, `actuator_cross_spring`s between the
 //! model's actuators (`kN`, N the source actuator; the channels' positions and efforts mapped
 //! through the channel map and the model's coupling), unless either channel has a presliding
-//! term (the spring was fitted next to a state the model cannot carry yet). The presliding state's transition and other cross-channel terms have
-//! no effect to go in: they are listed in the notes with their values (and in
-//! [`IdentifiedModel::not_expressed`]); a coupled channel that is
+//! term (the spring was fitted next to a state the model cannot carry yet). The presliding
+//! state's transition and other cross-channel terms have no effect to go in: they are listed in
+//! the notes with their values (and in [`IdentifiedModel::not_expressed`]); a coupled channel that is
 //! not the model's actuator maps its constant offset exactly onto the joints (`offset_joint =
 //! to_joint^-T offset_channel`) and its motor inertia's diagonal into `[drive]`. The motor
 //! inertias of channels that are joints and the joint damping the fit assumed (none: the
