@@ -9,7 +9,8 @@
 //!   `rx ry rz`);
 //! - dynamics (dvrk-kin's [`effort`] and [`effect_inertias`], and dvrk-sim's physics):
 //!   `coulomb_friction` (its level `fc`, with optional winding `fq q^2` and Stribeck
-//!   `fs exp(-(qd / vs)^2)` terms: [`coulomb_level`]), `viscous_friction`, `spring`, `payload_mass`;
+//!   `fs exp(-(qd / vs)^2)` terms: [`coulomb_level`], and presliding `fd`, `sigma`: a Dahl state
+//!   carried along the motion, [`crate::presliding`]), `viscous_friction`, `spring`, `payload_mass`;
 //! - both: `counterweight_error` (the counterweight's travel per unit insertion `mu`, replacing
 //!   the model's parameter of that name, and its mass `mass`, the body's inertia scaled with it:
 //!   the same block, heavier or lighter); the counterweight is the body a frame moving by `mu`
@@ -56,6 +57,7 @@ pub use crate::spec::EffectSpec;
 pub use crate::vocabulary::{coupling_entry_name, coupling_error_range, cross_spring_source, Effect, EffectKind, ParameterInfo, Target, COUPLING_ERROR_FRACTION, CROSS_SPRING_RANGE};
 pub(crate) use crate::vocabulary::coupling_entry;
 pub use crate::play::motion_play;
+pub use crate::presliding::{dahl_state, dahl_step, PreslidingState};
 
 
 /// Check the model's `[[effects]]` against the vocabulary, the model's joints and frames and the
@@ -229,14 +231,25 @@ pub fn coulomb_level(e: &Effect, a: f64, v: f64) -> f64 {
 }
 
 /// Joint-space effort (N·m, N) of the friction and spring effects at `q`, `qd`, added to `out`:
-/// `-(level sign(qd) + offset) - fv qd - k (q - rest)` per joint, the force the effect exerts on
-/// the joint, with the Coulomb level `fc + fq q^2 + fs exp(-(qd / vs)^2)` (winding and Stribeck
-/// terms; never below 0: friction does not push); an actuator's the same law in its position
-/// `a = w . q` and velocity, reaching joint `j` as `w_j f` ([`Effect::transmission`]), and an
-/// `actuator_cross_spring`'s force `-u . q` ([`Effect::cross`]) the same way. The sign is
-/// smoothed, `tanh(qd / v)`, with `v` the larger of `velocity_scale` and the effect's
-/// `smoothing` (rad/s, m/s; both 0: a hard sign).
+/// `-(level sign(qd) + fd sign(qd) + offset) - fv qd - k (q - rest)` per joint, the force the
+/// effect exerts on the joint, with the Coulomb level `fc + fq q^2 + fs exp(-(qd / vs)^2)`
+/// (winding and Stribeck terms; never below 0: friction does not push) and the presliding level
+/// `fd` at its sliding limit (no history here: [`effort_with_presliding`] carries it); an
+/// actuator's the same law in its position `a = w . q` and velocity, reaching joint `j` as `w_j
+/// f` ([`Effect::transmission`]), and an `actuator_cross_spring`'s force `-u . q`
+/// ([`Effect::cross`]) the same way. The sign is smoothed, `tanh(qd / v)`, with `v` the larger of
+/// `velocity_scale` and the effect's `smoothing` (rad/s, m/s; both 0: a hard sign).
 pub fn effort(effects: &[Effect], q: &[f64], qd: &[f64], velocity_scale: f64, out: &mut [f64]) {
+    effort_impl(effects, q, qd, None, velocity_scale, out)
+}
+
+/// [`effort`] with each Coulomb friction's presliding force `fd z` from its Dahl state `z`
+/// (`states.z[k]` for `effects[k]`, [`PreslidingState`]) in place of its sliding limit.
+pub fn effort_with_presliding(effects: &[Effect], q: &[f64], qd: &[f64], states: &PreslidingState, velocity_scale: f64, out: &mut [f64]) {
+    effort_impl(effects, q, qd, Some(&states.z), velocity_scale, out)
+}
+
+fn effort_impl(effects: &[Effect], q: &[f64], qd: &[f64], z: Option<&[f64]>, velocity_scale: f64, out: &mut [f64]) {
     let dot = |w: &[(usize, f64)], x: &[f64]| w.iter().map(|(j, c)| c * x[*j]).sum::<f64>();
     let sign = |e: &Effect, v: f64| {
         let scale = velocity_scale.max(e.get("smoothing"));
@@ -246,10 +259,17 @@ pub fn effort(effects: &[Effect], q: &[f64], qd: &[f64], velocity_scale: f64, ou
             v.signum() * (v != 0.0) as i32 as f64
         }
     };
-    for e in effects {
+    // The Coulomb law's force on its joint or actuator (its negative: friction opposes).
+    let coulomb = |k: usize, e: &Effect, a: f64, v: f64| {
+        let s = sign(e, v);
+        let fd = e.get("fd");
+        let presliding = if fd == 0.0 { 0.0 } else { fd * z.map_or(s, |z| z[k]) };
+        -(coulomb_level(e, a, v) * s + presliding + e.get("offset"))
+    };
+    for (k, e) in effects.iter().enumerate() {
         if let Some(j) = e.joint {
             match e.kind {
-                EffectKind::CoulombFriction => out[j] -= coulomb_level(e, q[j], qd[j]) * sign(e, qd[j]) + e.get("offset"),
+                EffectKind::CoulombFriction => out[j] += coulomb(k, e, q[j], qd[j]),
                 EffectKind::ViscousFriction => out[j] -= e.get("fv") * qd[j],
                 EffectKind::Spring => out[j] -= e.get("k") * (q[j] - e.get("rest")),
                 _ => {}
@@ -258,10 +278,7 @@ pub fn effort(effects: &[Effect], q: &[f64], qd: &[f64], velocity_scale: f64, ou
         }
         let w = &e.transmission;
         let f = match e.kind {
-            EffectKind::ActuatorCoulombFriction => {
-                let v = dot(w, qd);
-                -(coulomb_level(e, dot(w, q), v) * sign(e, v) + e.get("offset"))
-            }
+            EffectKind::ActuatorCoulombFriction => coulomb(k, e, dot(w, q), dot(w, qd)),
             EffectKind::ActuatorViscousFriction => -e.get("fv") * dot(w, qd),
             EffectKind::ActuatorSpring => -e.get("k") * (dot(w, q) - e.get("rest")),
             EffectKind::ActuatorCrossSpring => -dot(&e.cross, q),

@@ -38,6 +38,7 @@ pub mod limits;
 pub mod load;
 mod model;
 mod play;
+pub mod presliding;
 mod vocabulary;
 mod compile;
 pub mod nesting;

@@ -218,6 +218,11 @@ const COULOMB: &[ParameterInfo] = &[
     // Stribeck: fs more at rest, fading as exp(-(qd / vs)^2) (either sign: what the fit found).
     p("fs", "N·m", "N", -100.0, 100.0, Some(0.0)),
     p("vs", "rad/s", "m/s", 1e-4, 10.0, Some(0.05)),
+    // Presliding (Dahl): fd z, z the Dahl state that saturates after a displacement sigma
+    // (crate::presliding); where no state is carried (a pose, dvrk-kin's stateless effort) the
+    // sliding limit fd sgn(qd). Either sign: what the fit found.
+    p("fd", "N·m", "N", -100.0, 100.0, Some(0.0)),
+    p("sigma", "rad", "m", 1e-6, 1.0, Some(0.01)),
 ];
 const VISCOUS: &[ParameterInfo] = &[p("fv", "N·m s/rad", "N s/m", 0.0, 1000.0, None)];
 const PAYLOAD: &[ParameterInfo] =

@@ -20,7 +20,7 @@
 //! Allocation happens at build time only.
 
 use crate::error::{Result, SimError};
-use dvrk_kin::effects::{Effect, EffectKind};
+use dvrk_kin::effects::{Effect, EffectKind, PreslidingState};
 use dvrk_kin::Model;
 use nalgebra::{DMatrix, DVector, DVectorView};
 
@@ -185,6 +185,9 @@ pub struct ArmEffects {
     /// Scratch: the actuators' efforts on their way to the joints (N·m, N).
     pub drive: Vec<f64>,
     velocity_scale: f64,
+    /// The Coulomb frictions' presliding (Dahl) states, stepped with the links; `None` when no
+    /// effect has a presliding level.
+    presliding: Option<PreslidingState>,
 }
 
 impl ArmEffects {
@@ -198,7 +201,16 @@ impl ArmEffects {
         };
         let link_start = coupling.as_ref().map(|c| c.link(start));
         let mut out =
-            ArmEffects { forces: Vec::new(), transmissions: vec![None; n], delay: None, coupling, force: vec![0.0; n], drive: vec![0.0; n], velocity_scale: COULOMB_VELOCITY };
+            ArmEffects {
+            forces: Vec::new(),
+            transmissions: vec![None; n],
+            delay: None,
+            coupling,
+            force: vec![0.0; n],
+            drive: vec![0.0; n],
+            velocity_scale: COULOMB_VELOCITY,
+            presliding: None,
+        };
         // The motors of two-mass drives sit on the true joints.
         let home = link_start.as_deref().unwrap_or(start);
         for e in &model.effects {
@@ -223,7 +235,8 @@ impl ArmEffects {
                     // (An unlimited joint: ten units.)
                     let reach_limit = |j: usize| model.joints[j].lower.abs().max(model.joints[j].upper.abs()).min(10.0);
                     let far: f64 = reach.iter().map(|(j, w)| (w * reach_limit(*j)).abs()).sum();
-                    let level = dvrk_kin::effects::coulomb_level(e, far, 0.0).max(dvrk_kin::effects::coulomb_level(e, 0.0, 0.0));
+                    // (Its sliding limit with any presliding level: the damper bounds the sign's slope.)
+                    let level = dvrk_kin::effects::coulomb_level(e, far, 0.0).max(dvrk_kin::effects::coulomb_level(e, 0.0, 0.0)) + e.get("fd").abs();
                     for (j, w) in reach {
                         if armature[j] > 0.0 {
                             out.velocity_scale = out.velocity_scale.max(2.0 * level * w * w * dt / armature[j]);
@@ -283,12 +296,22 @@ impl ArmEffects {
             // A lightly damped transmission (damping ratio 0.1 on the motor's own mode).
             t.damping = 0.2 * (t.stiffness * t.inertia).sqrt();
         }
+        if out.forces.iter().any(dvrk_kin::presliding::has_presliding) {
+            out.presliding = Some(PreslidingState::new(&out.forces, home));
+        }
         Ok(out)
     }
 
     /// The friction and spring forces at the link's `q`, `qd` into [`ArmEffects::force`].
+    /// A presliding state steps from the last call's positions to `q` (one call per step).
     pub fn update_forces(&mut self, q: &[f64], qd: &[f64]) {
         self.force.fill(0.0);
-        dvrk_kin::effects::effort(&self.forces, q, qd, self.velocity_scale, &mut self.force);
+        match self.presliding.as_mut() {
+            Some(states) => {
+                states.advance(&self.forces, q);
+                dvrk_kin::effects::effort_with_presliding(&self.forces, q, qd, states, self.velocity_scale, &mut self.force);
+            }
+            None => dvrk_kin::effects::effort(&self.forces, q, qd, self.velocity_scale, &mut self.force),
+        }
     }
 }

@@ -145,13 +145,20 @@ impl<'a> Baseline<'a> {
 /// `base` (the model's prediction, inverse dynamics with its effects) with each of the model's
 /// Coulomb frictions replaced by its candidate's signature: its level (`fc` and any winding and
 /// Stribeck terms, [`dvrk_kin::effects::coulomb_level`]) times [`candidates::friction_sign`] at
-/// its smoothing, plus its offset.
+/// its smoothing, plus its offset, plus its presliding level times its Dahl state along the
+/// recording ([`dvrk_kin::presliding`], as `dvrk identify` fitted it).
 fn coulomb_as_fitted(base: &mut Table, model: &Model, prep: &Prepared) {
     let nq = model.nq();
+    let presliding = |e: &dvrk_kin::effects::Effect| {
+        let a: Vec<f64> = prep.q.iter().map(|q| dvrk_kin::presliding::friction_position(e, q).unwrap_or(0.0)).collect();
+        let z = if e.get("fd") == 0.0 { vec![0.0; a.len()] } else { dvrk_kin::presliding::dahl_state(&a, e.get("sigma")) };
+        z.into_iter().map(|z| e.get("fd") * z).collect::<Vec<f64>>()
+    };
     let mut kin = vec![0.0; nq];
     let smoothing = |e: &dvrk_kin::effects::Effect| if e.get("smoothing") > 0.0 { e.get("smoothing") } else { COULOMB_SMOOTHING_DEFAULT };
     for e in model.effects.iter().filter(|e| e.kind == EffectKind::ActuatorCoulombFriction) {
         let sign = candidates::actuator_friction_sign(prep, nq, &e.transmission, smoothing(e));
+        let dahl = presliding(e);
         for (i, (row, (q, qd))) in base.iter_mut().zip(prep.q.iter().zip(&prep.qd)).enumerate() {
             kin.fill(0.0);
             dvrk_kin::effects::effort(std::slice::from_ref(e), q, qd, COULOMB_SMOOTHING_DEFAULT, &mut kin);
@@ -160,7 +167,7 @@ fn coulomb_as_fitted(base: &mut Table, model: &Model, prep: &Prepared) {
             let v: f64 = e.transmission.iter().map(|(j, w)| w * qd[*j]).sum();
             let level = dvrk_kin::effects::coulomb_level(e, a, v);
             for (j, w) in &e.transmission {
-                row[*j] += kin[*j] + level * sign.at(i, *j) + w * e.get("offset");
+                row[*j] += kin[*j] + level * sign.at(i, *j) + w * (e.get("offset") + dahl[i]);
             }
         }
     }
@@ -168,11 +175,12 @@ fn coulomb_as_fitted(base: &mut Table, model: &Model, prep: &Prepared) {
         let Some(j) = e.joint else { continue };
         let v = if e.get("smoothing") > 0.0 { e.get("smoothing") } else { COULOMB_SMOOTHING_DEFAULT };
         let sign = candidates::friction_sign(prep, nq, j, v);
+        let dahl = presliding(e);
         for (i, (row, (q, qd))) in base.iter_mut().zip(prep.q.iter().zip(&prep.qd)).enumerate() {
             // dvrk-kin's term (`effort` writes the joint's force on the link: its negative).
             kin[j] = 0.0;
             dvrk_kin::effects::effort(std::slice::from_ref(e), q, qd, COULOMB_SMOOTHING_DEFAULT, &mut kin);
-            row[j] += kin[j] + dvrk_kin::effects::coulomb_level(e, q[j], qd[j]) * sign.at(i, j) + e.get("offset");
+            row[j] += kin[j] + dvrk_kin::effects::coulomb_level(e, q[j], qd[j]) * sign.at(i, j) + e.get("offset") + dahl[i];
         }
     }
 }

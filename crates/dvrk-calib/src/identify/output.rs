@@ -6,19 +6,18 @@
 //! What goes in as effects, per term of a channel that *is* a model joint (its `to_joint` row and
 //! column are the identity: yaw, pitch, insertion, roll), and per joint-space friction term:
 //! `coulomb_friction` (fc with the smoothing it was fitted with, offset), `viscous_friction`
-//! (fv), `spring` (k, rest 0); the presliding (Dahl) level joins the Coulomb one (it is the
-//! velocity's sign once the joint slides) and is listed in the notes. A channel that is one of
+//! (fv), `spring` (k, rest 0); the presliding (Dahl) level is the Coulomb effect's `fd` with the
+//! displacement `sigma` its state was computed with. A channel that is one of
 //! the model's actuators (the tool's, whose motion is `q_actuator = to_joint^-1 q_joint`, the
 //! model's own coupling) carries its terms as actuator effects on it: `actuator_coulomb_friction`
-//! (fc, its Dahl level, offset, smoothing), `actuator_viscous_friction`, `actuator_spring` and
+//! (fc, fd and sigma, offset, smoothing), `actuator_viscous_friction`, `actuator_spring` and
 //! `motor_inertia` (its reflected motor inertia, cross terms and all). The Stribeck and winding
 //! terms are the Coulomb effect's `fs` (with `vs`, the Stribeck velocity the fit used) and `fq`;
 //! a spring from another channel's position is, exactly, `actuator_cross_spring`s between the
 //! model's actuators (`kN`, N the source actuator; the channels' positions and efforts mapped
-//! through the channel map and the model's coupling), unless either channel has a presliding
-//! term (the spring was fitted next to a state the model cannot carry yet). The presliding
-//! state's transition and other cross-channel terms have no effect to go in: they are listed in
-//! the notes with their values (and in [`IdentifiedModel::not_expressed`]); a coupled channel that is
+//! through the channel map and the model's coupling). Other cross-channel terms have no effect
+//! to go in: they are listed in the notes with their values (and in
+//! [`IdentifiedModel::not_expressed`]); a coupled channel that is
 //! not the model's actuator maps its constant offset exactly onto the joints (`offset_joint =
 //! to_joint^-T offset_channel`) and its motor inertia's diagonal into `[drive]`. The motor
 //! inertias of channels that are joints and the joint damping the fit assumed (none: the
@@ -125,7 +124,6 @@ pub fn identified_model(model: &Model, id: &Identification, processing: &Process
     // theta x_s on channel c is, on actuator A, sum_N M[A, c] theta P[s, N] a_N.
     let coupling = model.coupling_matrix().unwrap_or_else(|| DMatrix::identity(nq, nq));
     let to_actuator = (nc == nq).then(|| (coupling.transpose() * &inv_t, inv_t.transpose() * &coupling));
-    let presliding = |c: usize| id.layout.params.contains(&Param::Effect { term: EffectTerm::Dahl, channel: c });
     let mut by_actuator: BTreeMap<(usize, &'static str), BTreeMap<String, f64>> = BTreeMap::new();
     let mut channel_offset = vec![0.0; nc];
     let mut channel_armature = vec![0.0; nc];
@@ -141,7 +139,8 @@ pub fn identified_model(model: &Model, id: &Identification, processing: &Process
                 None if actuator[channel] => {
                     let smoothing = processing.coulomb_velocity_of(channel);
                     let (name, key) = match term {
-                        EffectTerm::Coulomb | EffectTerm::Dahl => ("actuator_coulomb_friction", "fc"),
+                        EffectTerm::Coulomb => ("actuator_coulomb_friction", "fc"),
+                        EffectTerm::Dahl => ("actuator_coulomb_friction", "fd"),
                         EffectTerm::Offset => ("actuator_coulomb_friction", "offset"),
                         EffectTerm::Viscous => ("actuator_viscous_friction", "fv"),
                         EffectTerm::Spring => ("actuator_spring", "k"),
@@ -158,7 +157,7 @@ pub fn identified_model(model: &Model, id: &Identification, processing: &Process
                         e.insert("vs".into(), processing.stribeck_velocity);
                     }
                     if term == EffectTerm::Dahl {
-                        not_expressed.push(format!("{} = {value:.6} {} (presliding friction: added to the actuator's Coulomb level)", id.estimates[i].name, unit(term, false)));
+                        e.insert("sigma".into(), processing.dahl_displacement_of(channel));
                     }
                     continue;
                 }
@@ -174,11 +173,9 @@ pub fn identified_model(model: &Model, id: &Identification, processing: &Process
                 None => (term, None),
             },
             // A spring from another channel's position: springs between the model's actuators.
-            // Not one fitted next to a presliding state on either channel: the state's level joins
-            // the Coulomb one, its position-dependent transition is what such a spring shared,
-            // and alone the spring is biased (WPI `two`, model from `one`: the wrist pitch's
-            // band residual 0.0083 -> 0.0098 N·m with the wrist's cross springs as effects).
-            Param::Cross { term: EffectTerm::Spring, channel, source } if to_actuator.is_some() && !presliding(channel) && !presliding(source) => {
+            // (Beside a presliding level they need its state: with the level folded into the
+            // Coulomb one they made WPI `two`'s wrist pitch worse, 0.0083 -> 0.0098 N·m.)
+            Param::Cross { term: EffectTerm::Spring, channel, source } if to_actuator.is_some() => {
                 let Some((m, pm)) = &to_actuator else { continue };
                 let tiny = 1e-12 * m.amax() * pm.amax();
                 for a in 0..nq {
@@ -213,14 +210,16 @@ pub fn identified_model(model: &Model, id: &Identification, processing: &Process
             EffectTerm::Viscous => *by_joint.entry((j, "viscous_friction")).or_default().entry("fv".into()).or_default() += value,
             EffectTerm::Spring => *by_joint.entry((j, "spring")).or_default().entry("k".into()).or_default() += value,
             EffectTerm::Armature => armature[j] = Some(value),
-            // No presliding in the vocabulary: once the joint slides the Dahl state is the
-            // velocity's sign, so its level adds to the Coulomb one (the simulator then feels the
-            // sliding friction the recording did, and turns it over within a velocity instead).
+            // The presliding level with the displacement its state was computed with.
             EffectTerm::Dahl => {
                 let e = by_joint.entry((j, "coulomb_friction")).or_default();
-                *e.entry("fc".into()).or_default() += value;
+                *e.entry("fd".into()).or_default() += value;
                 e.entry("smoothing".into()).or_insert(smoothing);
-                not_expressed.push(format!("{} = {value:.6} {} (presliding friction: added to the Coulomb level)", id.estimates[i].name, unit(term, prismatic(j))));
+                let channel = match *p {
+                    Param::Effect { channel, .. } => channel,
+                    _ => j,
+                };
+                e.insert("sigma".into(), processing.dahl_displacement_of(channel));
             }
             // The Coulomb level's winding and Stribeck terms.
             EffectTerm::Winding | EffectTerm::Stribeck => {
@@ -300,8 +299,8 @@ frictions, the identified motor inertias).{}{}",
             String::new()
         } else {
             format!(
-                "\nNot expressible as effects (presliding levels, which the Coulomb levels hold; cross-channel springs fitted next to a presliding \
-state, and other cross-channel terms; the tool's actuator channels' friction, springs and motor inertias are actuator effects):\n{}",
+                "\nNot expressible as effects (cross-channel terms other than the springs between actuators; the tool's actuator channels' \
+friction, springs and motor inertias are actuator effects):\n{}",
                 not_expressed.iter().map(|s| format!("- {s}")).collect::<Vec<_>>().join("\n")
             )
         }

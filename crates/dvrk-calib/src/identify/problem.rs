@@ -209,26 +209,6 @@ impl Processing {
     }
 }
 
-/// The Dahl state along positions `q` (rad, m) for presliding displacement `sigma`: starts at
-/// 0, and each step `dq` moves it toward `sgn(dq)` by the exact solution of
-/// `dz/dq = (1 - z sgn(dq)) / sigma`, `z <- s + (z - s) exp(-|dq| / sigma)`, so it stays in [-1, 1].
-/// It is computed over the whole recording, before the trim, so the trimmed ends forget the start.
-pub fn dahl_state(q: &[f64], sigma: f64) -> Vec<f64> {
-    let mut z = 0.0;
-    let mut prev = q.first().copied().unwrap_or(0.0);
-    q.iter()
-        .map(|&x| {
-            let dq = x - prev;
-            prev = x;
-            if dq != 0.0 {
-                let s = dq.signum();
-                z = s + (z - s) * (-dq.abs() / sigma).exp();
-            }
-            z
-        })
-        .collect()
-}
-
 /// Rows per block of a pass over the regression: the block's matrices (channels x rows x
 /// parameters, 4 MB for the PSM's 7 channels and 150 parameters) bound the memory, and a block
 /// is large enough for the matrix products to run at speed.
@@ -460,7 +440,8 @@ pub fn regression(model: &Model, rec: &JointLog, layout: &Layout, processing: &P
     let qdd_f: Vec<Vec<f64>> = qd_f.iter().map(|v| derivative(v, dt)).collect();
     let tau_f: Vec<Vec<f64>> = (0..nc).map(|c| filtered(&rec.effort, c)).collect();
     // The presliding state along the recorded (unfiltered: encoder) positions, where asked for.
-    let dahl: Vec<Vec<f64>> = (0..nc).map(|c| if layout.params.contains(&Param::Effect { term: EffectTerm::Dahl, channel: c }) { dahl_state(&column(&rec.position, c), processing.dahl_displacement_of(c)) } else { Vec::new() }).collect();
+    // The Dahl state over the whole recording, before the trim, so the trimmed ends forget the start.
+    let dahl: Vec<Vec<f64>> = (0..nc).map(|c| if layout.params.contains(&Param::Effect { term: EffectTerm::Dahl, channel: c }) { dvrk_kin::presliding::dahl_state(&column(&rec.position, c), processing.dahl_displacement_of(c)) } else { Vec::new() }).collect();
     let keep = processing.trim..n - processing.trim;
     let trimmed = |v: &Vec<f64>| v[keep.clone()].to_vec();
     let rows = RowSource {

@@ -272,7 +272,8 @@ fn identify_output_is_a_model_file_the_simulator_loads() {
         (n("fc") + n("fd")) * (ad[c] / options.processing.coulomb_velocity_of(c)).tanh() + n("fo") + n("fv") * ad[c] + n("k") * a[c]
     });
     let expected = inv.transpose() * channel;
-    let actuator_effects: Vec<_> = loaded.effects.iter().filter(|e| e.actuator.is_some()).cloned().collect();
+    // (The cross springs between actuators: `cross_springs_are_effects`.)
+    let actuator_effects: Vec<_> = loaded.effects.iter().filter(|e| e.actuator.is_some() && e.kind != dvrk_kin::effects::EffectKind::ActuatorCrossSpring).cloned().collect();
     assert_eq!(actuator_effects.len(), 12, "friction (Coulomb, viscous), spring, motor inertia on actuators 5..7");
     let mut tau = vec![0.0; 7];
     dvrk_kin::effects::effort(&actuator_effects, &q, &qd, 0.0, &mut tau);
@@ -280,11 +281,19 @@ fn identify_output_is_a_model_file_the_simulator_loads() {
         assert!((-tau[j] - expected[j]).abs() < 1e-12, "joint {j}: {} vs {}", -tau[j], expected[j]);
     }
     assert!(!loaded.spec.notes.contains("actuator.fv = "), "no actuator friction is left in the notes: {}", loaded.spec.notes);
-    // The winding terms are in the Coulomb effects; the cross springs, fitted next to the
-    // wrist's presliding states, are left in the notes (`cross_springs_are_effects_where_no_presliding_state_was_fitted`).
-    assert!(!loaded.spec.notes.contains(".fq = ") && loaded.spec.notes.contains("outer_wrist_yaw actuator.k from "), "{}", loaded.spec.notes);
-    assert!(loaded.spec.notes.contains("outer_wrist_yaw actuator.fd = "), "the presliding level is listed: {}", loaded.spec.notes);
-    assert!(loaded.spec.notes.contains("outer_yaw.fd = "), "the presliding friction is listed: {}", loaded.spec.notes);
+    // The winding, presliding and cross-channel spring terms are effects (issue 62 item 4): the
+    // notes list none of them, and each presliding level sits on its Coulomb effect with the
+    // displacement its state was fitted with.
+    for term in [".fq = ", ".fd = ", ".k from "] {
+        assert!(!loaded.spec.notes.contains(term), "{term} left in the notes: {}", loaded.spec.notes);
+    }
+    let coulomb = |name: &str, joint: Option<&str>, actuator: Option<usize>| {
+        loaded.spec.effects.iter().find(|e| e.name == name && e.joint.as_deref() == joint && e.actuator == actuator).unwrap_or_else(|| panic!("{name} {joint:?} {actuator:?}")).parameters.clone()
+    };
+    let yaw = coulomb("coulomb_friction", Some("outer_yaw"), None);
+    assert_eq!((yaw["fd"], yaw["sigma"]), (est("outer_yaw.fd"), options.processing.dahl_displacement_of(0)));
+    let wrist_yaw = coulomb("actuator_coulomb_friction", None, Some(6));
+    assert_eq!((wrist_yaw["fd"], wrist_yaw["sigma"]), (est("outer_wrist_yaw actuator.fd"), options.processing.dahl_displacement_of(5)));
     // In the simulator, as `dvrk sim --model PSM1=FILE` puts it: the file's [drive] replaces
     // the scene's joint damping (the identified viscous frictions hold it) and raises the
     // armature where the identified motor inertia is larger (the insertion), the loop gets the
@@ -402,18 +411,15 @@ fn a_simulated_recording_gives_back_the_simulators_damping_and_armature() {
     assert!(e.contains("no topic /PSM2/measured_js; topics:"), "{e}");
 }
 
-/// The tool's cross-channel springs (issue 62 item 4) fitted without presliding states (the
-/// identification's Dahl terms off): the model file carries them as `actuator_cross_spring`s,
-/// exactly. Each channel's effort (roll's included: its channel is a joint, its actuator's a
-/// scaled copy) takes `k x_s` from every other channel's position `x_s`, and the file's effects
-/// give `to_joint^-T` of that to 1e-12.
+/// The tool's cross-channel springs (issue 62 item 4), fitted beside the wrist's presliding
+/// states: the model file carries them as `actuator_cross_spring`s, exactly. Each channel's
+/// effort (roll's included: its channel is a joint, its actuator's a scaled copy) takes `k x_s`
+/// from every other channel's position `x_s`, and the file's effects give `to_joint^-T` of that
+/// to 1e-12.
 #[test]
-fn cross_springs_are_effects_where_no_presliding_state_was_fitted() {
+fn cross_springs_are_effects() {
     use dvrk_calib::identify::output::identified_model;
-    let Some(Fitted { model, prior, r1, options, .. }) = fitted_on_one() else { return };
-    let mut options = options.clone();
-    options.terms.dahl_channels.clear();
-    let (id, _) = identify(&model, &prior, &r1, &options).unwrap();
+    let Some(Fitted { model, prior, r1, options, id, .. }) = fitted_on_one() else { return };
     let identified = identified_model(&model, &id, &options.processing, &r1.joint_map(), &prior, "one").unwrap();
     let mut spec = model.spec.clone();
     spec.effects = identified.effects.iter().filter(|e| e.name == "actuator_cross_spring").cloned().collect();

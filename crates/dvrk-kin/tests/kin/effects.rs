@@ -370,3 +370,35 @@ fn winding_stribeck_and_cross_springs_in_closed_form() {
     let e = psm_with("[[effects]]\nname = \"actuator_cross_spring\"\nactuator = 6\n").unwrap_err().to_string();
     assert!(e.contains("at least one kN"), "{e}");
 }
+
+/// A presliding level `fd`: stateless, its sliding limit `fd sign(qd)` joins the Coulomb force;
+/// with Dahl states, `fd z` in its place, an actuator's through `C^-T`; a state steps by the
+/// exact Dahl law from where the effect last was.
+#[test]
+fn presliding_is_the_sliding_limit_without_a_state_and_fd_z_with_one() {
+    use dvrk_kin::effects::{dahl_step, effort_with_presliding, PreslidingState};
+    let m = psm_with(
+        "[[effects]]\nname = \"coulomb_friction\"\njoint = \"outer_pitch\"\nparameters = { fc = 0.05, fd = 0.1, sigma = 0.02 }\n\
+         [[effects]]\nname = \"actuator_coulomb_friction\"\nactuator = 6\nparameters = { fc = 0.0, fd = 0.01, sigma = 0.05 }\n",
+    )
+    .unwrap();
+    let inv = m.coupling_matrix().unwrap().try_inverse().unwrap();
+    let (q0, q, qd) = ([0.0; 7], [0.0, 0.01, 0.0, 0.0, 0.0, 0.03, 0.0], [0.0, -0.2, 0.0, 0.0, 0.0, 0.5, 0.0]);
+    let mut out = [0.0; 7];
+    effort(&m.effects, &q, &qd, 0.0, &mut out);
+    assert!((out[1] + 0.05 * -1.0 + 0.1 * -1.0).abs() < 1e-15, "{out:?}");
+    let mut states = PreslidingState::new(&m.effects, &q0);
+    states.advance(&m.effects, &q);
+    let a6: f64 = (0..7).map(|j| inv[(5, j)] * q[j]).sum();
+    let (z_pitch, z6) = (dahl_step(0.0, 0.01, 0.02), dahl_step(0.0, a6, 0.05));
+    assert_eq!((states.z[0], states.z[1]), (z_pitch, z6));
+    let mut with = [0.0; 7];
+    effort_with_presliding(&m.effects, &q, &qd, &states, 0.0, &mut with);
+    // Moving down while the state still holds the way up: presliding pulls against the slide.
+    assert!((with[1] - (0.05 - 0.1 * z_pitch)).abs() < 1e-15, "{} vs {}", with[1], 0.05 - 0.1 * z_pitch);
+    for j in 3..7 {
+        let want = -inv[(5, j)] * 0.01 * z6;
+        assert!((with[j] - want).abs() < 1e-17, "joint {j}: {} vs {want}", with[j]);
+    }
+    assert!(z_pitch > 0.3 && z6.abs() > 0.1, "{z_pitch} {z6}");
+}

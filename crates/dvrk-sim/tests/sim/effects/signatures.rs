@@ -128,6 +128,25 @@ fn a_winding_friction_and_a_cross_spring_load_the_drives_as_their_laws_say() {
     assert!(want.abs() > 1e-3 && (slope - want).abs() < 0.05 * want.abs(), "{slope} vs {want}");
 }
 
+/// A presliding (Dahl) friction on the yaw: the extra effort the PID needs is `fd z`, `z` the Dahl
+/// state along the link's own path, through each reversal too, where a sliding friction (`fd
+/// sign(qd)`, what a stateless law gives) would jump.
+#[test]
+fn a_presliding_friction_turns_over_along_the_dahl_state_at_each_reversal() {
+    let (fd, sigma) = (0.2, 0.02);
+    let base = yaw_sine(&load("psm"), 0.3, 0.2, 10.0);
+    let with = yaw_sine(&psm_with(&format!("[[effects]]\nname = \"coulomb_friction\"\njoint = \"outer_yaw\"\nparameters = {{ fc = 0.0, fd = {fd}, sigma = {sigma} }}\n")), 0.3, 0.2, 10.0);
+    let path: Vec<f64> = with.iter().map(|w| w.1).collect();
+    let z = dvrk_sim::dvrk_kin::effects::dahl_state(&path, sigma);
+    let (mut worst, mut turning) = (0.0f64, 0);
+    for ((w, b), z) in with.iter().zip(&base).zip(&z).skip(1000) {
+        worst = worst.max((w.3 - b.3 - fd * z).abs());
+        turning += (z.abs() < 0.5) as usize;
+    }
+    eprintln!("presliding: extra effort - fd z worst {worst:.4} N·m over {} samples, {turning} of them turning over", with.len() - 1000);
+    assert!(turning > 100 && worst < 0.1 * fd, "{worst} over {turning} turning samples");
+}
+
 #[test]
 fn compliance_deflects_in_proportion_to_the_load() {
     // The pitch holds home against gravity (1.12 N·m): the motor (encoder) holds the target,
