@@ -8,6 +8,7 @@
 //!
 //! Units: m, rad everywhere; poses are 4x4 homogeneous matrices (rotation, translation in m).
 
+mod batch;
 mod calib;
 mod errors;
 mod sim;
@@ -570,6 +571,7 @@ fn _dvrk_twin(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyModel>()?;
     m.add_function(wrap_pyfunction!(builtin_models, m)?)?;
     m.add_class::<sim::PySim>()?;
+    m.add_class::<batch::PyBatchSim>()?;
     m.add_function(wrap_pyfunction!(sim::run_scene, m)?)?;
     m.add_function(wrap_pyfunction!(sim::serve, m)?)?;
     m.add_function(wrap_pyfunction!(sim::builtin_scenes, m)?)?;

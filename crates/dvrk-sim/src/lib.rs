@@ -16,6 +16,7 @@
 //!
 //! Units: m, rad, s, kg, N, N·m.
 
+pub mod batch;
 pub mod camera;
 pub mod control;
 pub mod effects;
@@ -45,6 +46,7 @@ mod rapier_world;
 pub mod trajectory;
 pub mod warnings;
 
+pub use batch::BatchSim;
 pub use control::{Actuator, Gains, Mode};
 pub use error::{Result, SimError};
 pub use live::{Live, LiveOptions};

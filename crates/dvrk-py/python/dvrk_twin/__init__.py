@@ -2,7 +2,8 @@
 
 Closed-loop kinematic trees of the PSM, ECM, setup joints, the patient-side cart and the MTMs
 (:class:`Model`, crate ``dvrk-kin``), headless dynamic simulation of the paper's scenes
-(:class:`Sim`, :func:`run_scene`, crate ``dvrk-sim``; :func:`export_mjcf` and
+(:class:`Sim`, :func:`run_scene`, crate ``dvrk-sim``; many copies stepped in parallel,
+:class:`BatchSim`; :func:`export_mjcf` and
 :mod:`dvrk_twin.mujoco_run` run the same scenes in MuJoCo) and motion-capture calibration
 (:func:`pivot`, :func:`axis`, :func:`read_recording`, crate ``dvrk-calib``), computed by a Rust core.
 
@@ -20,6 +21,7 @@ and a missing model is also a ``FileNotFoundError`` (see :class:`ModelNotFoundEr
 """
 
 from ._dvrk_twin import (
+    BatchSim as BatchSim,
     DvrkError as DvrkError,
     IkError as IkError,
     InputError as InputError,
@@ -42,6 +44,7 @@ from ._dvrk_twin import (
 )
 
 __all__ = [
+    "BatchSim",
     "DvrkError",
     "IkError",
     "InputError",

@@ -10,6 +10,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
+    "BatchSim",
     "DvrkError",
     "IkError",
     "InputError",
@@ -143,6 +144,71 @@ class Model:
         ``ok`` (bool) and ``problems`` (list[str])."""
 
 _JointArg = Union[int, str]
+
+@final
+class BatchSim:
+    """Many independent copies of a scene stepped together on a thread pool, the GIL released
+    while they step (reduced engine by default). The arrays are (n, nq) float64 numpy arrays
+    this object owns: ``step`` reads ``target``, ``target_velocity``, ``effort_command`` and
+    writes ``q``, ``qd``, ``effort`` in place. Units: m, rad, s, N, N·m."""
+
+    @staticmethod
+    def from_scene(scene: str, n: int, engine: str = "reduced", threads: int = 0) -> "BatchSim":
+        """``n`` copies of a built-in scene or scene file at its start, holding it, stepped on
+        ``threads`` threads (0: one per core)."""
+    @property
+    def n(self) -> int: ...
+    @property
+    def nq(self) -> int: ...
+    @property
+    def dt(self) -> float:
+        """Time step (s)."""
+    @property
+    def threads(self) -> int: ...
+    @property
+    def joint_names(self) -> List[str]:
+        """Joint names ``ARM/joint``, the arrays' columns."""
+    @property
+    def time(self) -> List[float]:
+        """Each copy's simulated time (s)."""
+    @property
+    def q(self) -> NDArray[np.float64]:
+        """Measured joint positions (n, nq) (rad, m), updated in place by ``step``."""
+    @property
+    def qd(self) -> NDArray[np.float64]:
+        """Measured joint velocities (n, nq) (rad/s, m/s)."""
+    @property
+    def effort(self) -> NDArray[np.float64]:
+        """Efforts applied at the last step (n, nq) (N·m, N)."""
+    @property
+    def target(self) -> NDArray[np.float64]:
+        """Position targets (n, nq) (rad, m), read by ``step``; assignable (broadcast)."""
+    @target.setter
+    def target(self, value: ArrayLike) -> None: ...
+    @property
+    def target_velocity(self) -> NDArray[np.float64]:
+        """Velocity feed-forward (n, nq) (rad/s, m/s)."""
+    @target_velocity.setter
+    def target_velocity(self, value: ArrayLike) -> None: ...
+    @property
+    def effort_command(self) -> NDArray[np.float64]:
+        """Efforts (n, nq) (N·m, N) of joints in effort mode."""
+    @effort_command.setter
+    def effort_command(self, value: ArrayLike) -> None: ...
+    def step(self, k: int = 1) -> None:
+        """Advance every copy ``k`` steps with the command arrays, in parallel, without the GIL."""
+    def reset(self, copies: Union[int, List[int], None] = None, q: Optional[ArrayLike] = None) -> None:
+        """Rebuild copies (None: all) at ``q`` ((nq,) or (len(copies), nq); None: the scene's
+        start), holding it."""
+    def set_model(self, copy: int, path: Union[str, os.PathLike], arm: int = 0) -> None:
+        """Give one copy's arm a model file (payloads, friction, an identified model) and
+        rebuild it at its start."""
+    def set_gains(self, copy: int, joint: _JointArg, kp: float, ki: float, kd: float) -> None:
+        """PID gains of one copy's joint."""
+    def set_mode(self, joint: _JointArg, mode: str, copy: Optional[int] = None) -> None:
+        """"pid", "position" or "effort" for one copy's joint (None: every copy's)."""
+    def frame_poses(self, frame: Union[str, int, None] = None, arm: int = 0) -> NDArray[np.float64]:
+        """World poses (n, 4, 4) (m) of a frame (None: ``tool_tip``) of arm ``arm`` in every copy."""
 
 class Sim:
     """A running dynamic simulation of a scene (rapier or the reduced engine, f64). Units: m,

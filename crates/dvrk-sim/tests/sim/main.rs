@@ -3,6 +3,7 @@
 //! (`tests/reduced_alloc.rs`: a process-wide counting allocator).
 //!
 //! - `sim`: the engine's commands, limits, gains and loop modes.
+//! - `batch`: many copies stepped in parallel, each as a lone sim.
 //! - `endurance`: a million steps of random commands.
 //! - `reduced`: the reduced-coordinate engine against rapier on the same scenes.
 //! - `energy`: energy conserved with the actuators and damping off.
@@ -15,6 +16,7 @@
 //! - `mjcf`: the MJCF export.
 //! - `plot`: the tracking PNG of a run.
 
+mod batch;
 mod camera;
 mod dynamics_crosscheck;
 mod effects;
