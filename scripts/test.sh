@@ -9,7 +9,7 @@ venv="${DVRK_VENV:-.venv}"
 [ -x "$venv/bin/python" ] || python3 -m venv "$venv"
 venv="$(cd "$venv" && pwd)"
 py="$venv/bin/python"
-"$py" -m pip install --quiet --disable-pip-version-check "maturin>=1.5,<2" "pytest>=7" pytest-xdist "numpy>=1.21" mcap mcap-ros2-support mcap-protobuf-support foxglove-schemas-protobuf rosbags websockets
+"$py" -m pip install --quiet --disable-pip-version-check "maturin>=1.5,<2" "pytest>=7" pytest-xdist "numpy>=1.21" mcap mcap-ros2-support mcap-protobuf-support foxglove-schemas-protobuf rosbags websockets "gymnasium>=1.0"
 # Eclipse Cyclone DDS, the independent ROS 2 peer of `dvrk serve`'s tests (tests/python/test_serve.py);
 # optional like MuJoCo: where no wheel installs, those tests say so and skip.
 "$py" -m pip install --quiet --disable-pip-version-check cyclonedds \

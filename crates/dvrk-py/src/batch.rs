@@ -156,6 +156,20 @@ impl PyBatchSim {
         self.names.clone()
     }
 
+    /// Joint limits (rad, m), shape (nq, 2): lower, upper.
+    #[getter]
+    fn joint_limits<'py>(&self, py: Python<'py>) -> Result<Bound<'py, PyArray2<f64>>> {
+        let sim = self.batch.sim(0)?;
+        let flat: Vec<f64> = sim.arms.iter().flat_map(|a| a.model.joints.iter().flat_map(|j| [j.lower, j.upper])).collect();
+        Ok(array(py, &flat, self.batch.nq(), 2)?.into_bound(py))
+    }
+
+    /// Effort limits (N·m, N) of the drives, shape (nq,): where effort commands are clamped.
+    #[getter]
+    fn effort_limits(&self) -> Result<Vec<f64>> {
+        Ok(self.batch.sim(0)?.arms.iter().flat_map(|a| a.model.joints.iter().map(|j| j.effort_limit)).collect())
+    }
+
     /// Each copy's simulated time (s), shape (n,).
     #[getter]
     fn time(&self) -> Vec<f64> {

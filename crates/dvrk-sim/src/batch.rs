@@ -9,12 +9,13 @@ use crate::error::{Result, SimError};
 use crate::scene::Scene;
 use crate::sim::{Engine, Sim, SimOptions};
 use rayon::prelude::*;
+use std::sync::Arc;
 
 /// `n` copies of a scene and their flat command and state arrays.
 pub struct BatchSim {
     /// Per copy: the scene it is built from (its start configuration and model: what a reset
-    /// rebuilds).
-    scenes: Vec<Scene>,
+    /// rebuilds); shared until a copy's start or model changes (then that copy's own).
+    scenes: Vec<Arc<Scene>>,
     /// Per copy and arm: the start a reset without one goes back to (the scene's own).
     default_start: Vec<Vec<Vec<f64>>>,
     options: SimOptions,
@@ -56,7 +57,7 @@ impl BatchSim {
             sims.push(s?);
         }
         let mut batch = BatchSim {
-            scenes: vec![scene.clone(); n],
+            scenes: vec![Arc::new(scene.clone()); n],
             default_start: vec![scene.arms.iter().map(|a| a.start.clone()).collect(); n],
             options,
             sims,
@@ -228,12 +229,12 @@ impl BatchSim {
     /// and drives at rest).
     pub fn reset(&mut self, c: usize, start: Option<&[f64]>) -> Result<()> {
         self.check_copy(c)?;
-        let scene = &mut self.scenes[c];
         match start {
             Some(q) => {
                 if q.len() != self.nq {
                     return Err(SimError::value(format!("batch reset copy {c} start"), q.len() as f64, format!("positions given; the scene has {} joints", self.nq)));
                 }
+                let scene = Arc::make_mut(&mut self.scenes[c]);
                 let mut off = 0;
                 for a in 0..scene.arms.len() {
                     let n = scene.arms[a].model.nq();
@@ -241,11 +242,14 @@ impl BatchSim {
                     off += n;
                 }
             }
-            None => {
+            // (A shared scene is at its own start already: no copy of it.)
+            None if self.scenes[c].arms.iter().zip(&self.default_start[c]).any(|(a, q)| a.start != *q) => {
+                let scene = Arc::make_mut(&mut self.scenes[c]);
                 for (arm, q) in scene.arms.iter_mut().zip(&self.default_start[c]) {
                     arm.start.clone_from(q);
                 }
             }
+            None => {}
         }
         self.sims[c] = Sim::new(&self.scenes[c], &self.options)?;
         self.read(c);
@@ -260,7 +264,7 @@ impl BatchSim {
         if arm >= self.scenes[c].arms.len() {
             return Err(SimError::value("arm", arm as f64, format!("the scene has {} arms", self.scenes[c].arms.len())));
         }
-        self.scenes[c].set_model(arm, model)?;
+        Arc::make_mut(&mut self.scenes[c]).set_model(arm, model)?;
         self.default_start[c][arm].clone_from(&self.scenes[c].arms[arm].start);
         self.reset(c, None)
     }

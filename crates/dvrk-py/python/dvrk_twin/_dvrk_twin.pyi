@@ -169,6 +169,12 @@ class BatchSim:
     def joint_names(self) -> List[str]:
         """Joint names ``ARM/joint``, the arrays' columns."""
     @property
+    def joint_limits(self) -> NDArray[np.float64]:
+        """Joint limits (nq, 2) (rad, m)."""
+    @property
+    def effort_limits(self) -> List[float]:
+        """Drive effort limits (N·m, N), where effort commands are clamped."""
+    @property
     def time(self) -> List[float]:
         """Each copy's simulated time (s)."""
     @property
