@@ -10,6 +10,7 @@
 
 mod batch;
 mod calib;
+mod dynamics;
 mod errors;
 mod sim;
 
@@ -192,9 +193,54 @@ fn pose_from_matrix(m: &[[f64; 4]; 4], what: &str) -> Result<Pose> {
 #[pyclass(module = "dvrk_twin", name = "Model", frozen)]
 struct PyModel {
     model: Model,
+    /// Its dynamics, built at the first dynamics call ([`dynamics::dynamics_of`]).
+    dynamics: std::sync::OnceLock<dvrk_kin::DynamicsModel>,
 }
 
 impl PyModel {
+    /// `what` at every configuration of `q` (with `qd`, `qdd` of the same shape where given),
+    /// without the GIL for a batch: shape (N, *tail) for a batch, `tail` for one configuration.
+    fn dynamics_call<'py>(
+        &self,
+        py: Python<'py>,
+        what: dynamics::Quantity,
+        tail: &[usize],
+        q: PyArrayLikeDyn<'py, f64, AllowTypeChange>,
+        rates: [Option<PyArrayLikeDyn<'py, f64, AllowTypeChange>>; 2],
+    ) -> Result<Bound<'py, PyArrayDyn<f64>>> {
+        let m = &self.model;
+        let c = configs(m, &q, "q", true)?;
+        drop(q);
+        let [qd, qdd] = rates;
+        let rate = |a: Option<PyArrayLikeDyn<'py, f64, AllowTypeChange>>, name: &str| -> Result<Vec<f64>> {
+            let Some(a) = a else { return Ok(vec![0.0; c.q.len()]) };
+            let v = a.as_array();
+            let want: Vec<usize> = if c.batch { vec![c.n, c.nq] } else { vec![c.nq] };
+            if v.shape() != want.as_slice() {
+                return Err(Error::Input(format!("{name} must have the shape of q, {}, got {}", shape_str(&want), shape_str(v.shape()))));
+            }
+            let x: Vec<f64> = v.iter().copied().collect();
+            if let Some(i) = x.iter().position(|x| !x.is_finite()) {
+                return Err(Error::Input(format!("{name}[{i}] = {}: must be finite", x[i])));
+            }
+            Ok(x)
+        };
+        let (qd, qdd) = (rate(qd, "qd")?, rate(qdd, "qdd")?);
+        if self.dynamics.get().is_none() {
+            let dm = dynamics::dynamics_of(m)?;
+            let _ = self.dynamics.set(dm);
+        }
+        let dm = self.dynamics.get().ok_or_else(|| Error::Input("dynamics not built".into()))?;
+        let run = || dynamics::evaluate(m, dm, what, c.n, &c.q, &qd, &qdd);
+        let out = if c.batch { py.detach(run)? } else { run()? };
+        let mut shape = Vec::with_capacity(1 + tail.len());
+        if c.batch {
+            shape.push(c.n);
+        }
+        shape.extend_from_slice(tail);
+        to_array(py, &shape, out)
+    }
+
     fn frame_pos(&self, f: FrameArg) -> Result<usize> {
         let r = match f {
             FrameArg::Number(i) => FrameRef::Index(i),
@@ -227,7 +273,7 @@ impl PyModel {
             })?
             .to_string();
         let model = py.detach(|| dvrk_kin::load(&name, tool.as_deref()))?;
-        Ok(PyModel { model })
+        Ok(PyModel { model, dynamics: std::sync::OnceLock::new() })
     }
 
     /// Model name (str).
@@ -378,6 +424,65 @@ impl PyModel {
     /// (a ValueError) listing the frame names for an unknown frame.
     fn frame_position(&self, frame: FrameArg) -> Result<usize> {
         self.frame_pos(frame)
+    }
+
+    /// The drive efforts (N·m, N) for joint positions `q` (rad, m), velocities `qd` and
+    /// accelerations `qdd` ((nq,) or (N, nq) each; zero when None): inverse dynamics with the
+    /// model's inertials (the file's `[[inertials]]`, else the built-in ones) and its payloads,
+    /// gravity (0, 0, -9.81) m/s^2 in the model's world, and with `effects` its friction, springs
+    /// and motor inertias (presliding at its sliding limit). Shape of `q`. Batches release the GIL.
+    #[pyo3(signature = (q, qd=None, qdd=None, effects=true))]
+    fn inverse_dynamics<'py>(
+        &self,
+        py: Python<'py>,
+        q: PyArrayLikeDyn<'py, f64, AllowTypeChange>,
+        qd: Option<PyArrayLikeDyn<'py, f64, AllowTypeChange>>,
+        qdd: Option<PyArrayLikeDyn<'py, f64, AllowTypeChange>>,
+        effects: bool,
+    ) -> Result<Bound<'py, PyArrayDyn<f64>>> {
+        let nq = self.model.nq();
+        self.dynamics_call(py, dynamics::Quantity::InverseDynamics { effects }, &[nq], q, [qd, qdd])
+    }
+
+    /// The joint-space inertia matrix M(q) (kg m^2, kg; nq x nq, or N x nq x nq), with the
+    /// motors' reflected inertia when `effects`.
+    #[pyo3(signature = (q, effects=true))]
+    fn mass_matrix<'py>(&self, py: Python<'py>, q: PyArrayLikeDyn<'py, f64, AllowTypeChange>, effects: bool) -> Result<Bound<'py, PyArrayDyn<f64>>> {
+        let nq = self.model.nq();
+        self.dynamics_call(py, dynamics::Quantity::MassMatrix { effects }, &[nq, nq], q, [None, None])
+    }
+
+    /// The gravity torque g(q) (N·m, N): the efforts that hold the arm still at `q`.
+    fn gravity<'py>(&self, py: Python<'py>, q: PyArrayLikeDyn<'py, f64, AllowTypeChange>) -> Result<Bound<'py, PyArrayDyn<f64>>> {
+        let nq = self.model.nq();
+        self.dynamics_call(py, dynamics::Quantity::Gravity, &[nq], q, [None, None])
+    }
+
+    /// The inertial-parameter regressor Y(q, qd, qdd) (nq x 10 nbodies, or N x ...): the rigid
+    /// bodies' inverse dynamics are `Y @ inertial_parameters`, per body (m, m cx, m cy, m cz,
+    /// Ixx, Ixy, Ixz, Iyy, Iyz, Izz) about its first frame's origin, in `bodies` order.
+    #[pyo3(signature = (q, qd=None, qdd=None))]
+    fn regressor<'py>(
+        &self,
+        py: Python<'py>,
+        q: PyArrayLikeDyn<'py, f64, AllowTypeChange>,
+        qd: Option<PyArrayLikeDyn<'py, f64, AllowTypeChange>>,
+        qdd: Option<PyArrayLikeDyn<'py, f64, AllowTypeChange>>,
+    ) -> Result<Bound<'py, PyArrayDyn<f64>>> {
+        let cols = dvrk_kin::dynamics::PARAMETERS_PER_BODY * self.model.bodies.len();
+        let nq = self.model.nq();
+        self.dynamics_call(py, dynamics::Quantity::Regressor, &[nq, cols], q, [qd, qdd])
+    }
+
+    /// The inertial parameters the dynamics use (10 per body, the regressor's columns), with
+    /// the payload and counterweight effects applied.
+    fn inertial_parameters<'py>(&self, py: Python<'py>) -> Result<Bound<'py, PyArrayDyn<f64>>> {
+        if self.dynamics.get().is_none() {
+            let _ = self.dynamics.set(dynamics::dynamics_of(&self.model)?);
+        }
+        let dm = self.dynamics.get().ok_or_else(|| Error::Input("dynamics not built".into()))?;
+        let p = dm.parameters();
+        to_array(py, &[p.len()], p)
     }
 
     /// Forward kinematics: world poses (4x4 homogeneous, translation in m) at joint positions q

@@ -113,6 +113,25 @@ class Model:
     def frame_position(self, frame: _FrameArg) -> int:
         """Frame position of a frame given by paper number or name (InputError if unknown)."""
 
+    def inverse_dynamics(self, q: ArrayLike, qd: Optional[ArrayLike] = None, qdd: Optional[ArrayLike] = None, effects: bool = True) -> NDArray[np.float64]:
+        """Drive efforts (N·m, N) at q, qd, qdd ((nq,) or (N, nq); None: zero): rigid bodies with
+        the file's [[inertials]] (else the built-in ones) and payloads, gravity (0, 0, -9.81)
+        m/s^2, and with ``effects`` friction, springs and motor inertias."""
+
+    def mass_matrix(self, q: ArrayLike, effects: bool = True) -> NDArray[np.float64]:
+        """Joint-space inertia (nq, nq) or (N, nq, nq) (kg m^2, kg), motor inertias with ``effects``."""
+
+    def gravity(self, q: ArrayLike) -> NDArray[np.float64]:
+        """Gravity torque g(q) (N·m, N), (nq,) or (N, nq)."""
+
+    def regressor(self, q: ArrayLike, qd: Optional[ArrayLike] = None, qdd: Optional[ArrayLike] = None) -> NDArray[np.float64]:
+        """Inertial-parameter regressor (nq, 10 nbodies) or (N, ...): ``Y @ inertial_parameters()``
+        is the rigid bodies' inverse dynamics."""
+
+    def inertial_parameters(self) -> NDArray[np.float64]:
+        """Per body (m, m cx, m cy, m cz, Ixx, Ixy, Ixz, Iyy, Iyz, Izz) about its first frame's
+        origin (kg, kg m, kg m^2), payloads applied: the regressor's columns."""
+
     def fk(self, q: ArrayLike, frame: Optional[_FrameArg] = None) -> NDArray[np.float64]:
         """World poses (4x4, m) at q (rad / m). q (nq,) -> (nframes, 4, 4), or (4, 4) with
         ``frame``; q (N, nq) -> (N, nframes, 4, 4) or (N, 4, 4), computed without the GIL.
