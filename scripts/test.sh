@@ -10,6 +10,10 @@ venv="${DVRK_VENV:-.venv}"
 venv="$(cd "$venv" && pwd)"
 py="$venv/bin/python"
 "$py" -m pip install --quiet --disable-pip-version-check "maturin>=1.5,<2" "pytest>=7" pytest-xdist "numpy>=1.21" mcap mcap-ros2-support mcap-protobuf-support foxglove-schemas-protobuf rosbags websockets "gymnasium>=1.0"
+# Ray for the trial tables (dvrk_twin.sweep); optional: where it cannot be installed the sweep runs
+# serially and its Ray tests skip, saying so.
+"$py" -m pip install --quiet --disable-pip-version-check ray pyarrow \
+    || echo "note: could not install ray from PyPI: the Ray sweep tests will skip"
 # Eclipse Cyclone DDS, the independent ROS 2 peer of `dvrk serve`'s tests (tests/python/test_serve.py);
 # optional like MuJoCo: where no wheel installs, those tests say so and skip.
 "$py" -m pip install --quiet --disable-pip-version-check cyclonedds \
@@ -31,5 +35,9 @@ rm -rf target/wheels
 "$py" -m pip install --quiet --disable-pip-version-check --force-reinstall --no-deps target/wheels/*.whl
 # Two passes: the tests on as many workers as there are cores (pytest-xdist), then those with
 # wall-clock assertions (marked `realtime`, tests/python/conftest.py) alone, one at a time.
-DVRK_BIN="$PWD/target/release/dvrk" "$py" -m pytest tests/python -q -m "not realtime" -n auto
+DVRK_BIN="$PWD/target/release/dvrk" "$py" -m pytest tests/python -q -m "not realtime and not ray_cluster" -n auto
 DVRK_BIN="$PWD/target/release/dvrk" "$py" -m pytest tests/python -q -m realtime
+# `--ray`: also the two-node Ray cluster sweep (tests/python/test_sweep.py, two minutes).
+if [ "${1:-}" = "--ray" ]; then
+    "$py" -m pytest tests/python -q -m ray_cluster
+fi
