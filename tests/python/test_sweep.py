@@ -71,3 +71,15 @@ def test_a_detection_table_on_a_two_node_cluster_survives_a_killed_worker():
     serial = sweep.run(spec, serial=True)
     assert on_cluster == serial
     assert sum(r["correct"] for r in serial) >= 30, sweep.summary(serial)
+
+
+def test_an_identify_trial_reports_each_channels_error_on_the_held_out_recording():
+    wpi = os.path.join(os.path.dirname(__file__), "..", "..", "..", "shared", "data", "external", "wpi-dvrk-dynamics")
+    one, two = os.path.join(wpi, "psm_one_results.csv"), os.path.join(wpi, "psm_two_results.csv")
+    if not os.path.exists(one):
+        pytest.skip(f"{one} is absent (../shared/data/external)")
+    (row,) = sweep.run({"kind": "identify", "parameters": {"recording": one, "validate": two}}, serial=True)
+    assert row["error"] == ""
+    held_out = [v for k, v in row.items() if k.startswith("validation_relative_error_")]
+    # The authors' own figures on `two` are 0.093-0.264 per channel.
+    assert len(held_out) == 7 and all(0.0 < e < 0.25 for e in held_out), row

@@ -20,7 +20,7 @@ A spec names a trial kind and its parameters; every combination of the listed va
   default) then ``discrepancy`` on it: the hidden effects, the verdict, the named effects and
   whether the first hidden one was named.
 - ``identify``: ``dvrk_twin.identify`` (recording, model, format, validate): the relative torque
-  errors per channel.
+  errors per channel, on the recording and on ``validate``.
 
 Ray (PyPI ``ray``) is the engine: ``ray.init()`` on this machine by default, ``--address`` for a
 cluster. Ray retries a trial whose worker died (``max_retries``); a trial that raises is recorded
@@ -34,7 +34,6 @@ from __future__ import annotations
 import argparse
 import csv
 import itertools
-import json
 import os
 import sys
 import tempfile
@@ -106,8 +105,10 @@ def run_trial(trial: Dict[str, Any]) -> Dict[str, Any]:
             row["correct"] = (named[:1] == hidden[:1]) if hidden else report["verdict"] == "none"
         elif trial["kind"] == "identify":
             r = dvrk_twin.identify(p["recording"], model=p.get("model", "psm"), format=p.get("format", "wpi-csv"), validate=p.get("validate"))
-            errors = (r.get("validation") or r).get("relative_errors") or r.get("relative_errors") or {}
-            row["relative_errors"] = json.dumps(errors, sort_keys=True)
+            for c, e in zip(r["channels"], r["relative_error"]):
+                row[f"relative_error_{c}"] = e
+            for c, e in zip(r["channels"], (r.get("validation") or {}).get("relative_error", [])):
+                row[f"validation_relative_error_{c}"] = e
         row["error"] = ""
     except Exception as e:  # a failed trial is a row, not the end of the table
         row["error"] = f"{type(e).__name__}: {e}"
