@@ -113,6 +113,12 @@ fn sim_json_summary_of_the_psm_scene() {
     assert_eq!(rapier["engine"], "rapier");
     let e = crate::util::dvrk_err(&["sim", "--scene", "psm", "--duration", "0.2", "--engine", "reduced", "--contacts"]);
     assert!(e.contains("contacts") && e.contains("rapier") && e.trim().lines().count() == 1, "{e}");
+    // --brake-suj: the full cart's setup joints held still; a scene without them is refused.
+    let braked: Value = serde_json::from_str(&dvrk_ok(&["sim", "--scene", "full", "--duration", "0.5", "--brake-suj", "--json"])).unwrap();
+    let suj = braked["joints"].as_array().unwrap().iter().filter(|j| j["arm"].as_str().unwrap().starts_with("SUJ")).collect::<Vec<_>>();
+    assert!(suj.len() == 22 && suj.iter().all(|j| j["max_error"].as_f64() == Some(0.0)), "{suj:?}");
+    let e = crate::util::dvrk_err(&["sim", "--scene", "psm", "--duration", "0.2", "--brake-suj"]);
+    assert!(e.contains("--brake-suj") && e.contains("no setup joints"), "{e}");
 }
 
 #[test]

@@ -82,6 +82,12 @@ pub struct SimArgs {
     /// simulation runs as fast as it can and the live view samples it.
     #[arg(long, value_name = "FACTOR", num_args = 0..=1, default_missing_value = "1")]
     pub realtime: Option<f64>,
+    /// Brake the setup joints: each arm a setup-joint arm carries is held on a fixed base where
+    /// the setup joints put it (as the cart's brakes hold them), not on six position drives;
+    /// about twice as fast on the full cart (docs/engines.md). The scene file's
+    /// `brake_setup_joints = true` does the same.
+    #[arg(long)]
+    pub brake_suj: bool,
     /// Print the summary as one JSON object.
     #[arg(long)]
     pub json: bool,
@@ -154,6 +160,9 @@ pub fn run(args: &SimArgs) -> Result<()> {
         (t, None) => bail!("--trajectory {t}: unknown (valid: sine, hold, replay:FILE)"),
     };
     let mut scene = load_scene(&args.scene)?;
+    if args.brake_suj && scene.brake_setup_joints() == 0 {
+        bail!("--brake-suj: scene `{}` has no setup joints carrying an arm", scene.name);
+    }
     for m in &args.model {
         let Some((arm, file)) = m.split_once('=') else { bail!("--model {m}: expected ARM=MODEL (a built-in model or a file), e.g. PSM1=my-psm.toml") };
         let a = scene.arm_index(arm).with_context(|| format!("--model {m}"))?;

@@ -79,6 +79,8 @@ pub struct ReducedTree {
     pub hold: Vec<Option<(f64, f64)>>,
     /// Joint efforts (N·m, N) for the next step, arm after arm.
     pub tau: Vec<f64>,
+    /// Braked ([`crate::scene::Arm::braked`]): the tree stays where it started; a step does nothing.
+    pub(crate) braked: bool,
     // Workspace.
     mass: DMatrix<f64>,
     bias: Vec<f64>,
@@ -159,6 +161,7 @@ impl ReducedTree {
             qd: vec![0.0; n],
             hold: vec![None; n],
             tau: vec![0.0; n],
+            braked: false,
             mass: DMatrix::zeros(n, n),
             bias: vec![0.0; n],
             rhs: DVector::zeros(n),
@@ -176,6 +179,9 @@ impl ReducedTree {
     /// One step of `dt` (s) under the joint efforts in [`ReducedTree::tau`] (N·m, N; drives and
     /// effects summed). A non-finite state is left as it is (the caller checks).
     pub fn step(&mut self, dt: f64) {
+        if self.braked {
+            return;
+        }
         let n = self.q.len();
         let (m, dm) = (&self.model, &self.dynamics);
         // The frames were placed at q at the end of the last step (or at the start).
@@ -363,6 +369,10 @@ pub(crate) fn build(scene: &crate::scene::Scene, options: &SimOptions) -> Result
         arms.push(ArmState::without_rapier(arm, q_offset, effects, gravity_compensation));
         q_offset += arm.model.nq();
     }
-    let reduced = trees.iter().map(|(name, a)| ReducedTree::new(name, a, g)).collect::<Result<Vec<_>>>()?;
+    let mut reduced = trees.iter().map(|(name, a)| ReducedTree::new(name, a, g)).collect::<Result<Vec<_>>>()?;
+    // A tree of braked setup joints alone does not move.
+    for (t, tree) in reduced.iter_mut().enumerate() {
+        tree.braked = scene.arms.iter().zip(&place).filter(|(_, p)| p.0 == t).all(|(a, _)| a.braked);
+    }
     Ok((arms, reduced, place, q_offset))
 }

@@ -74,6 +74,10 @@ struct SceneFile {
     /// A stereo camera on an arm's tip.
     #[serde(default)]
     camera: Option<CameraParams>,
+    /// Hold every carried arm on a fixed base where its carrier (the setup joints) puts it at
+    /// the start, as the cart's brakes do ([`Scene::brake_setup_joints`]).
+    #[serde(default)]
+    brake_setup_joints: bool,
 }
 
 fn default_dt() -> f64 {
@@ -188,6 +192,9 @@ pub struct Arm {
     /// Joint positions the simulation starts from (rad, m): home unless set with
     /// [`Scene::set_start`].
     pub start: Vec<f64>,
+    /// Setup joints braked ([`Scene::brake_setup_joints`]): the reduced engine holds them where
+    /// they start without stepping them (rapier keeps holding them with their drives).
+    pub braked: bool,
 }
 
 /// rapier solver settings of a scene (see `rapier3d::dynamics::IntegrationParameters`).
@@ -427,7 +434,7 @@ impl Scene {
                 return Err(SimError::field(file, field("name"), "two arms have this name"));
             }
             let start = model.home();
-            let mut arm = Arm { name: a.name.clone(), model, original_base, inertials, gains, armature: a.armature.clone(), damping: a.damping, parent, mode: a.mode, tracking: a.tracking, pgs_iterations: a.pgs_iterations, gravity_compensation: a.gravity_compensation, start };
+            let mut arm = Arm { name: a.name.clone(), model, original_base, inertials, gains, armature: a.armature.clone(), damping: a.damping, parent, mode: a.mode, tracking: a.tracking, pgs_iterations: a.pgs_iterations, gravity_compensation: a.gravity_compensation, start, braked: false };
             arm.take_model_file(f.pgs_iterations);
             arms.push(arm);
         }
@@ -438,13 +445,35 @@ impl Scene {
                 return Err(SimError::field(file, "camera.arm", format!("`{}` is not an arm of the scene (valid: {})", c.arm, valid.join(", "))));
             }
         }
-        Ok(Scene { name: f.name, title: f.title, dt: f.dt, engine: f.engine, camera: f.camera, file: file.to_string(), notes, solver: SolverSettings {
+        let mut scene = Scene { name: f.name, title: f.title, dt: f.dt, engine: f.engine, camera: f.camera, file: file.to_string(), notes, solver: SolverSettings {
                 iterations: f.solver_iterations,
                 pgs_iterations: f.pgs_iterations,
                 stabilization_iterations: f.stabilization_iterations,
                 warmstart_joints: f.warmstart_joints,
             },
-            gravity: f.gravity, arms })
+            gravity: f.gravity, arms };
+        if f.brake_setup_joints {
+            scene.brake_setup_joints();
+        }
+        Ok(scene)
+    }
+
+    /// Brake the setup joints: every arm carried by another is held on a fixed base where its
+    /// carrier puts it at the carrier's start (a carrier always starts at home), instead of
+    /// riding on the carrier's position-held joints; the carriers stay where they start (the
+    /// reduced engine does not step them; rapier's drives hold them, carrying nothing). Each
+    /// arm is then a small tree of its own: the real cart's braked setup joints, and cheaper to
+    /// step. Returns how many arms it released (0: nothing is carried).
+    pub fn brake_setup_joints(&mut self) -> usize {
+        let carriers: Vec<usize> = self.arms.iter().filter_map(|a| a.parent.map(|(p, _)| p)).collect();
+        for &c in &carriers {
+            self.arms[c].braked = true;
+        }
+        for arm in self.arms.iter_mut().filter(|a| a.parent.is_some()) {
+            // `model.base` is already the arm's world pose at its carrier's home.
+            arm.parent = None;
+        }
+        carriers.len()
     }
 }
 

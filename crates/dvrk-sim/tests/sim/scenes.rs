@@ -113,3 +113,42 @@ fn an_inertials_file_labelled_for_another_model_is_noted() {
     }
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// Braked setup joints (`Scene::brake_setup_joints`, `dvrk sim --brake-suj`): on the reduced
+/// engine every setup joint stays exactly where it starts, each arm stands where its setup joints
+/// put it (its tip's pose at the start equal to the carried scene's to 1e-12 m), and the PSMs
+/// track their sines as when carried (per-joint RMS within 1% of it: the held setup joints
+/// moved by at most 1e-4 rad or m there).
+#[test]
+fn braked_setup_joints_hold_each_arm_where_they_put_it() {
+    let reduced = SimOptions { engine: Some(dvrk_sim::Engine::Reduced), ..Default::default() };
+    let carried = Scene::load("full").unwrap();
+    let mut braked = carried.clone();
+    assert_eq!(braked.brake_setup_joints(), 4);
+    assert_eq!(braked.clone().brake_setup_joints(), 0, "nothing carried any more");
+    assert!(braked.arms.iter().all(|a| a.parent.is_none()));
+    // The scene file's flag does the same.
+    let text = include_str!("../../../../models/scenes/full.toml").replace("gravity = [0.0, 0.0, -9.81]", "gravity = [0.0, 0.0, -9.81]\nbrake_setup_joints = true");
+    let from_file = Scene::parse(&text, "full.toml", None).unwrap();
+    assert_eq!(from_file.arms.iter().map(|a| (a.parent, a.braked)).collect::<Vec<_>>(), braked.arms.iter().map(|a| (a.parent, a.braked)).collect::<Vec<_>>());
+    assert_eq!(from_file.arms.iter().filter(|a| a.braked).count(), 4);
+    let (a, b) = (dvrk_sim::Sim::new(&carried, &reduced).unwrap(), dvrk_sim::Sim::new(&braked, &reduced).unwrap());
+    for (k, arm) in carried.arms.iter().enumerate().filter(|(_, a)| !a.name.starts_with("SUJ")) {
+        let tip = arm.model.frames.len() - 1;
+        let rel = dvrk_kin::Pose::identity();
+        let d = a.frame_pose(k, tip, &rel).inverse() * b.frame_pose(k, tip, &rel);
+        assert!(d.translation.vector.norm() < 1e-12, "{}: {:?}", arm.name, d.translation);
+    }
+    let opts = RunOptions { duration: 2.0, trajectory: TrajectoryKind::Sine, sim: reduced };
+    let (sa, sb) = (run(&carried, &opts, |_| {}).unwrap(), run(&braked, &opts, |_| {}).unwrap());
+    assert!(sb.finite && sb.max_closure_error < 1e-9 && sb.max_rcm_error < 1e-9, "{} {}", sb.max_closure_error, sb.max_rcm_error);
+    for (x, y) in sa.joints.iter().zip(&sb.joints) {
+        assert_eq!((&x.arm, &x.joint), (&y.arm, &y.joint));
+        if x.arm.starts_with("SUJ") {
+            assert_eq!(y.max_error, 0.0, "{} {} braked moved", y.arm, y.joint);
+            assert!(x.max_error < 1e-4, "{} {} carried: {}", x.arm, x.joint, x.max_error);
+        } else if x.rms_error > 1e-4 {
+            assert!((y.rms_error / x.rms_error - 1.0).abs() < 0.01, "{} {}: {} carried, {} braked", x.arm, x.joint, x.rms_error, y.rms_error);
+        }
+    }
+}
