@@ -14,6 +14,9 @@ py="$venv/bin/python"
 # serially and its Ray tests skip, saying so.
 "$py" -m pip install --quiet --disable-pip-version-check ray pyarrow \
     || echo "note: could not install ray from PyPI: the Ray sweep tests will skip"
+# Pinocchio, the independent dynamics the Python dynamics are checked against (test_pinocchio.py).
+"$py" -m pip install --quiet --disable-pip-version-check pin \
+    || echo "note: could not install pin (Pinocchio) from PyPI: its cross-check will skip"
 # Eclipse Cyclone DDS, the independent ROS 2 peer of `dvrk serve`'s tests (tests/python/test_serve.py);
 # optional like MuJoCo: where no wheel installs, those tests say so and skip.
 "$py" -m pip install --quiet --disable-pip-version-check cyclonedds \

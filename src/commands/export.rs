@@ -27,6 +27,10 @@ pub struct ExportArgs {
     /// Configuration the SDF link poses are written at (default: home).
     #[arg(long, allow_hyphen_values = true)]
     pub q: Option<String>,
+    /// urdf: each body's inertial (the model file's [[inertials]], else the built-in ones) on its
+    /// first frame's link, for URDF dynamics libraries (Pinocchio with mimic joints).
+    #[arg(long)]
+    pub inertials: bool,
 }
 
 pub fn run(args: &ExportArgs) -> Result<()> {
@@ -38,9 +42,16 @@ pub fn run(args: &ExportArgs) -> Result<()> {
         ExportFormat::Urdf if args.q.is_some() => anyhow::bail!("--q: a URDF holds no configuration (it applies to sdf only)"),
         ExportFormat::Mjcf if args.q.is_some() => anyhow::bail!("--q: an MJCF export starts at the scene's home configuration (it applies to sdf only)"),
         ExportFormat::Mjcf if args.model.tool.is_some() => anyhow::bail!("--tool: not supported by mjcf (the scene's models are exported as they are)"),
+        ExportFormat::Sdf | ExportFormat::Mjcf if args.inertials => anyhow::bail!("--inertials: applies to urdf only (mjcf always carries them)"),
         _ => {}
     }
     let text = match args.format {
+        ExportFormat::Urdf if args.inertials => {
+            let m = super::load(&args.model)?;
+            let inertias = dvrk_sim::scene::model_inertias(&m).map_err(|e| anyhow::anyhow!("--inertials: {e}"))?;
+            let inertias = dvrk_kin::effects::effect_inertias(&m, &m.effects, &inertias)?;
+            dvrk_kin::urdf::export_urdf_with_inertials(&m, Some(&inertias))?
+        }
         ExportFormat::Urdf => dvrk_kin::urdf::export_urdf(&super::load(&args.model)?)?,
         ExportFormat::Sdf => {
             let m = super::load(&args.model)?;

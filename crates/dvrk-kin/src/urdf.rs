@@ -37,6 +37,24 @@ pub fn link_name(frame: &str) -> String {
 /// Fails with [`KinError::Export`] when a frame moves with two or more joints (a mimic joint
 /// follows one), or when generated names collide.
 pub fn export_urdf(model: &Model) -> Result<String> {
+    export_urdf_with_inertials(model, None)
+}
+
+/// [`export_urdf`] with each body's inertial (`inertias`, [`Model::bodies`] order: mass, centre
+/// of mass and inertia about it in the body's first frame) on the link of the body's first frame,
+/// so that a URDF dynamics library (Pinocchio, with its mimic joints) computes the closed-loop
+/// model's dynamics: every passive frame moves as its mimic relation says, which is what the loops
+/// impose, so the loops' forces do no work in `q`.
+pub fn export_urdf_with_inertials(model: &Model, inertias: Option<&[crate::BodyInertia]>) -> Result<String> {
+    if let Some(i) = inertias {
+        if i.len() != model.bodies.len() {
+            return Err(KinError::Size { what: format!("inertials of model {}", model.name), expected: model.bodies.len(), got: i.len() });
+        }
+    }
+    // The link of each body's first frame, and that body's inertial.
+    let inertial_of: BTreeMap<String, &crate::BodyInertia> = inertias
+        .map(|i| model.bodies.iter().zip(i).map(|(b, x)| (link_name(&model.frames[b.frames[0]].name), x)).collect())
+        .unwrap_or_default();
     let joints = urdf_joints(model)?;
     let mut out = String::new();
     let _ = writeln!(out, "<?xml version=\"1.0\"?>");
@@ -52,7 +70,30 @@ pub fn export_urdf(model: &Model) -> Result<String> {
     let mut links: Vec<&str> = vec!["base"];
     links.extend(joints.iter().map(|j| j.child.as_str()));
     for l in &links {
-        let _ = writeln!(out, "  <link name=\"{}\"/>", esc(l));
+        match inertial_of.get(*l) {
+            None => {
+                let _ = writeln!(out, "  <link name=\"{}\"/>", esc(l));
+            }
+            Some(b) => {
+                let (c, i) = (&b.com, &b.inertia);
+                let _ = writeln!(out, "  <link name=\"{}\">", esc(l));
+                let _ = writeln!(out, "    <inertial>");
+                let _ = writeln!(out, "      <origin xyz=\"{} {} {}\" rpy=\"0 0 0\"/>", num(c.x), num(c.y), num(c.z));
+                let _ = writeln!(out, "      <mass value=\"{}\"/>", num(b.mass));
+                let _ = writeln!(
+                    out,
+                    "      <inertia ixx=\"{}\" ixy=\"{}\" ixz=\"{}\" iyy=\"{}\" iyz=\"{}\" izz=\"{}\"/>",
+                    num(i[(0, 0)]),
+                    num(i[(0, 1)]),
+                    num(i[(0, 2)]),
+                    num(i[(1, 1)]),
+                    num(i[(1, 2)]),
+                    num(i[(2, 2)])
+                );
+                let _ = writeln!(out, "    </inertial>");
+                let _ = writeln!(out, "  </link>");
+            }
+        }
     }
     for j in &joints {
         if let Some(c) = &j.note {

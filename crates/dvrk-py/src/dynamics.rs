@@ -12,15 +12,11 @@ use nalgebra::{DMatrix, Vector3};
 /// Gravity in the model's world frame (m/s^2): the scenes' default.
 pub const GRAVITY: [f64; 3] = [0.0, 0.0, -9.81];
 
-/// The model's dynamics: its file's inertials for every body, else its built-in ones.
+/// The model's dynamics: its file's inertials for every body, else its built-in ones
+/// ([`dvrk_sim::scene::model_inertias`]), with its payload and counterweight effects.
 pub fn dynamics_of(model: &Model) -> Result<DynamicsModel> {
-    let from_file: Option<Vec<_>> = (0..model.bodies.len()).map(|b| model.file_inertia(b)).collect();
-    let inertias = match from_file {
-        Some(v) if !v.is_empty() => v,
-        _ => dvrk_sim::scene::builtin_inertials(&model.name, model)
-            .and_then(|i| i.body_inertias(model))
-            .map_err(|e| Error::Input(format!("model `{}` has no [[inertials]] for every body and no built-in ones ({e})", model.name)))?,
-    };
+    let inertias = dvrk_sim::scene::model_inertias(model)
+        .map_err(|e| Error::Input(format!("model `{}` has no [[inertials]] for every body and no built-in ones ({e})", model.name)))?;
     let inertias = dvrk_kin::effects::effect_inertias(model, &model.effects, &inertias)?;
     Ok(DynamicsModel::new(model, inertias)?)
 }

@@ -474,6 +474,22 @@ impl PyModel {
         self.dynamics_call(py, dynamics::Quantity::Regressor, &[nq, cols], q, [qd, qdd])
     }
 
+    /// The model as URDF text (the frame tree with mimic joints for the passive frames, the
+    /// loops in a comment; `dvrk export urdf`); with `inertials` each body's mass, centre of mass
+    /// and inertia (the dynamics' own, payloads applied) on its first frame's link, so that a
+    /// URDF dynamics library with mimic joints computes the closed-loop dynamics.
+    #[pyo3(signature = (inertials=false))]
+    fn export_urdf(&self, inertials: bool) -> Result<String> {
+        if !inertials {
+            return Ok(dvrk_kin::urdf::export_urdf(&self.model)?);
+        }
+        if self.dynamics.get().is_none() {
+            let _ = self.dynamics.set(dynamics::dynamics_of(&self.model)?);
+        }
+        let dm = self.dynamics.get().ok_or_else(|| Error::Input("dynamics not built".into()))?;
+        Ok(dvrk_kin::urdf::export_urdf_with_inertials(&self.model, Some(dm.inertias()))?)
+    }
+
     /// The inertial parameters the dynamics use (10 per body, the regressor's columns), with
     /// the payload and counterweight effects applied.
     fn inertial_parameters<'py>(&self, py: Python<'py>) -> Result<Bound<'py, PyArrayDyn<f64>>> {

@@ -39,6 +39,17 @@ pub fn builtin_inertials(name: &str, model: &Model) -> Result<Inertials> {
     Inertials::parse(text, &format!("built-in inertials {n}"), model)
 }
 
+/// A model's body inertias ([`Model::bodies`] order): its file's `[[inertials]]` where it gives
+/// every body one (an identified model's), else its built-in inertials by model name (psm, ecm,
+/// the setup joints); before any payload effect.
+pub fn model_inertias(model: &Model) -> Result<Vec<dvrk_kin::BodyInertia>> {
+    let from_file: Option<Vec<_>> = (0..model.bodies.len()).map(|b| model.file_inertia(b)).collect();
+    match from_file {
+        Some(v) if !v.is_empty() => Ok(v),
+        _ => builtin_inertials(&model.name, model)?.body_inertias(model),
+    }
+}
+
 /// Names of the built-in scenes.
 pub fn builtin_scenes() -> Vec<&'static str> {
     BUILTIN_SCENES.iter().map(|(n, _)| *n).collect()
