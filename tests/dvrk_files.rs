@@ -161,6 +161,32 @@ fn dvrk_json_files_load_and_match_the_builtin_models() {
     }
 }
 
+/// The README's `dvrk model check PSM.json --tool LARGE_NEEDLE_DRIVER_400006.json` on the dVRK's own
+/// files checks clean (issue 63 item 5: the jaw drove no frame): the tool's jaw turns two blades
+/// about the wrist yaw's axis at +- jaw/2, as the built-in psm's do, so at every configuration
+/// the blades are `jaw` apart about that axis in both models, and the tip keeps its number.
+#[test]
+fn a_tool_files_jaw_turns_its_blades_as_the_builtin_psms() {
+    let (Some(arm), Some(tool)) = (external("dvrk-config/PSM.json"), external("dvrk-config/LARGE_NEEDLE_DRIVER_400006.json")) else { return };
+    let out = dvrk(&["model", "check", arm.to_str().unwrap(), "--tool", tool.to_str().unwrap()]);
+    assert!(out.status.success(), "{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+    let from_files = load(arm.to_str().unwrap(), Some(&tool)).unwrap();
+    let builtin = load("psm", None).unwrap();
+    assert_eq!(from_files.frames[from_files.tip].name, "tool_tip");
+    assert_eq!(from_files.frames.iter().position(|f| f.name == "tool_tip"), Some(6), "the tip right after the wrist yaw, as before");
+    for m in [&from_files, &builtin] {
+        let (b1, b2) = (m.frames.iter().position(|f| f.name == "jaw_1").unwrap(), m.frames.iter().position(|f| f.name == "jaw_2").unwrap());
+        for q in random_configurations(m, 50, 3) {
+            let fk = m.fk(&q).unwrap();
+            let apart = rotation_angle(&(fk[b1].rotation.inverse() * fk[b2].rotation));
+            assert!((apart - q[6].abs()).abs() < 1e-9, "{}: blades {apart} apart at jaw {}", m.name, q[6]);
+            // Both blades turn about the wrist yaw's z axis.
+            let (z1, z2) = (fk[b1].rotation * Vector3::z(), fk[b2].rotation * Vector3::z());
+            assert!((z1 - z2).norm() < 1e-9, "{}", m.name);
+        }
+    }
+}
+
 #[test]
 fn a_tool_file_changes_the_shaft_and_jaw_limits() {
     let Some(tool) = external("dvrk-config/LARGE_NEEDLE_DRIVER_420006.json") else { return };

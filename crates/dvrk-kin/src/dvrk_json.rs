@@ -170,19 +170,11 @@ pub fn append_tool(spec: &mut ModelSpec, tool: &Json, tool_name: &str) -> Result
     for (i, entry) in list.iter().enumerate() {
         push_dh(spec, entry, &format!("DH.{key}[{i}]"), "")?;
     }
-    if let Some(jaw) = tool.get("jaw") {
-        spec.joints.push(JointSpec {
-            name: "jaw".into(),
-            kind: JointType::Revolute,
-            lower: num(jaw, "qmin", "jaw")?,
-            upper: num(jaw, "qmax", "jaw")?,
-            effort_limit: num_or(jaw, "ftmax", "jaw", 0.0)?,
-            home: None,
-            source: format!("{tool_name} jaw"),
-        });
-    }
+    // The tool tip and the jaw blades hang on the last DH frame (the wrist yaw); the tip first,
+    // so that its number stays the one after the wrist's.
+    let wrist = spec.frames.last().map_or(FrameRef::Index(0), |f| FrameRef::Name(f.name.clone()));
     if let Some(t) = tool.get("tooltip_offset") {
-        let parent = spec.frames.last().map_or(FrameRef::Index(0), |f| FrameRef::Name(f.name.clone()));
+        let parent = wrist.clone();
         spec.frames.push(FrameSpec {
             index: Some(spec.frames.len() as i64 + 1),
             name: "tool_tip".into(),
@@ -197,6 +189,35 @@ pub fn append_tool(spec: &mut ModelSpec, tool: &Json, tool_name: &str) -> Result
             source: format!("{tool_name} tooltip_offset"),
         });
         spec.tip = Some(FrameRef::Name("tool_tip".into()));
+    }
+    if let Some(jaw) = tool.get("jaw") {
+        spec.joints.push(JointSpec {
+            name: "jaw".into(),
+            kind: JointType::Revolute,
+            lower: num(jaw, "qmin", "jaw")?,
+            upper: num(jaw, "qmax", "jaw")?,
+            effort_limit: num_or(jaw, "ftmax", "jaw", 0.0)?,
+            home: None,
+            source: format!("{tool_name} jaw"),
+        });
+        // As the dVRK defines the jaw angle (and the built-in psm): two blades about the wrist
+        // yaw's axis, at +- jaw/2 from it.
+        let k = spec.joints.len();
+        for (blade, sign) in [("jaw_1", "0.5"), ("jaw_2", "-0.5")] {
+            spec.frames.push(FrameSpec {
+                index: Some(spec.frames.len() as i64 + 1),
+                name: blade.into(),
+                parent: wrist.clone(),
+                body: None,
+                joint: FrameJoint::Revolute,
+                a: Value::Number(0.0),
+                alpha: Value::Number(0.0),
+                d: Value::Number(0.0),
+                theta: Value::Expr(format!("{sign}*q{k}")),
+                transform: None,
+                source: format!("{tool_name} jaw: blade at wrist yaw {} jaw/2", if sign.starts_with('-') { "-" } else { "+" }),
+            });
+        }
     }
     Ok(())
 }
