@@ -9,3 +9,4 @@ mod fuzz;
 mod kinematics;
 mod outputs;
 mod paper_tables;
+mod quickstart;
