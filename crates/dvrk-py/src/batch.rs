@@ -4,7 +4,7 @@
 //! place, so a policy writes `batch.target[:] = ...` and reads `batch.q` with no copy of its own.
 
 use crate::errors::{Error, Result};
-use dvrk_sim::{Gains, Mode, Scene};
+use dvrk_sim::{Gains, Scene};
 use numpy::{PyArray2, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 
@@ -58,11 +58,7 @@ impl PyBatchSim {
     }
 
     fn joint(&self, j: crate::sim::JointArg) -> Result<usize> {
-        match j {
-            crate::sim::JointArg::Index(i) if i < self.names.len() => Ok(i),
-            crate::sim::JointArg::Index(i) => Err(Error::Input(format!("joint index {i}: the scene has {} joints", self.names.len()))),
-            crate::sim::JointArg::Name(n) => self.names.iter().position(|x| *x == n).ok_or_else(|| Error::Input(format!("unknown joint `{n}`; valid: {}", self.names.join(", ")))),
-        }
+        crate::sim::joint_index(&self.names, j)
     }
 
     /// The state arrays from the batch's.
@@ -108,7 +104,7 @@ impl PyBatchSim {
         let mut o = dvrk_sim::SimOptions::default();
         o.engine = Some(dvrk_sim::Engine::from_name(engine).ok_or_else(|| Error::Input(format!("engine = `{engine}`: expected `reduced` or `rapier`")))?);
         let batch = py.detach(|| dvrk_sim::BatchSim::new(&s, n, &o, threads))?;
-        let names = batch.sim(0)?.arms.iter().flat_map(|a| a.model.joints.iter().map(move |j| format!("{}/{}", a.name, j.name))).collect();
+        let names = crate::sim::joint_names(batch.sim(0)?);
         let nq = batch.nq();
         let mut me = PyBatchSim {
             q: array(py, batch.q(), n, nq)?,
@@ -298,12 +294,7 @@ impl PyBatchSim {
     /// "position" or "effort" (which reads `effort_command`).
     #[pyo3(signature = (joint, mode, copy=None))]
     fn set_mode(&mut self, joint: crate::sim::JointArg, mode: &str, copy: Option<usize>) -> Result<()> {
-        let mode = match mode {
-            "pid" => Mode::Pid,
-            "position" => Mode::Position,
-            "effort" => Mode::Effort,
-            other => return Err(Error::Input(format!("mode = `{other}`: expected pid, position or effort"))),
-        };
+        let mode = crate::sim::mode(mode)?;
         let j = self.joint(joint)?;
         let copies: Vec<usize> = match copy {
             Some(c) => vec![self.copy(c)?],

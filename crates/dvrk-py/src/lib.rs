@@ -226,11 +226,7 @@ impl PyModel {
             Ok(x)
         };
         let (qd, qdd) = (rate(qd, "qd")?, rate(qdd, "qdd")?);
-        if self.dynamics.get().is_none() {
-            let dm = dynamics::dynamics_of(m)?;
-            let _ = self.dynamics.set(dm);
-        }
-        let dm = self.dynamics.get().ok_or_else(|| Error::Input("dynamics not built".into()))?;
+        let dm = self.dynamics()?;
         let run = || dynamics::evaluate(m, dm, what, c.n, &c.q, &qd, &qdd);
         let out = if c.batch { py.detach(run)? } else { run()? };
         let mut shape = Vec::with_capacity(1 + tail.len());
@@ -239,6 +235,15 @@ impl PyModel {
         }
         shape.extend_from_slice(tail);
         to_array(py, &shape, out)
+    }
+
+    /// The model's dynamics, built at the first call ([`dynamics::dynamics_of`]).
+    fn dynamics(&self) -> Result<&dvrk_kin::DynamicsModel> {
+        if let Some(dm) = self.dynamics.get() {
+            return Ok(dm);
+        }
+        let dm = dynamics::dynamics_of(&self.model)?;
+        Ok(self.dynamics.get_or_init(|| dm))
     }
 
     fn frame_pos(&self, f: FrameArg) -> Result<usize> {
@@ -483,21 +488,13 @@ impl PyModel {
         if !inertials {
             return Ok(dvrk_kin::urdf::export_urdf(&self.model)?);
         }
-        if self.dynamics.get().is_none() {
-            let _ = self.dynamics.set(dynamics::dynamics_of(&self.model)?);
-        }
-        let dm = self.dynamics.get().ok_or_else(|| Error::Input("dynamics not built".into()))?;
-        Ok(dvrk_kin::urdf::export_urdf_with_inertials(&self.model, Some(dm.inertias()))?)
+        Ok(dvrk_kin::urdf::export_urdf_with_inertials(&self.model, Some(self.dynamics()?.inertias()))?)
     }
 
     /// The inertial parameters the dynamics use (10 per body, the regressor's columns), with
     /// the payload and counterweight effects applied.
     fn inertial_parameters<'py>(&self, py: Python<'py>) -> Result<Bound<'py, PyArrayDyn<f64>>> {
-        if self.dynamics.get().is_none() {
-            let _ = self.dynamics.set(dynamics::dynamics_of(&self.model)?);
-        }
-        let dm = self.dynamics.get().ok_or_else(|| Error::Input("dynamics not built".into()))?;
-        let p = dm.parameters();
+        let p = self.dynamics()?.parameters();
         to_array(py, &[p.len()], p)
     }
 

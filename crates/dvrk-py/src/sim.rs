@@ -45,17 +45,33 @@ pub struct PySim {
     live: Option<(dvrk_sim::Recorder, u64)>,
 }
 
+/// The scene joint `j` names among `names` (`ARM/joint`, scene order).
+pub(crate) fn joint_index(names: &[String], j: JointArg) -> Result<usize> {
+    match j {
+        JointArg::Index(i) if i < names.len() => Ok(i),
+        JointArg::Index(i) => Err(Error::Input(format!("joint index {i}: the scene has {} joints", names.len()))),
+        JointArg::Name(n) => names.iter().position(|x| *x == n).ok_or_else(|| Error::Input(format!("unknown joint `{n}`; valid: {}", names.join(", ")))),
+    }
+}
+
+/// A scene's joint names, `ARM/joint`, in the order of its joint vector.
+pub(crate) fn joint_names(sim: &dvrk_sim::Sim) -> Vec<String> {
+    sim.arms.iter().flat_map(|a| a.model.joints.iter().map(move |j| format!("{}/{}", a.name, j.name))).collect()
+}
+
+/// A drive mode by its Python name.
+pub(crate) fn mode(name: &str) -> Result<Mode> {
+    match name {
+        "pid" => Ok(Mode::Pid),
+        "position" => Ok(Mode::Position),
+        "effort" => Ok(Mode::Effort),
+        other => Err(Error::Input(format!("mode = `{other}`: expected pid, position or effort"))),
+    }
+}
+
 impl PySim {
     fn joint(&self, j: JointArg) -> Result<usize> {
-        match j {
-            JointArg::Index(i) if i < self.names.len() => Ok(i),
-            JointArg::Index(i) => Err(Error::Input(format!("joint index {i}: the scene has {} joints", self.names.len()))),
-            JointArg::Name(n) => self
-                .names
-                .iter()
-                .position(|x| *x == n)
-                .ok_or_else(|| Error::Input(format!("unknown joint `{n}`; valid: {}", self.names.join(", ")))),
-        }
+        joint_index(&self.names, j)
     }
 }
 
@@ -70,11 +86,7 @@ impl PySim {
     fn from_scene(scene: &str, loops: &str, solver_iterations: Option<usize>, engine: Option<&str>) -> Result<Self> {
         let s = Scene::load(scene)?;
         let sim = dvrk_sim::Sim::new(&s, &options(loops, solver_iterations, engine)?)?;
-        let names = sim
-            .arms
-            .iter()
-            .flat_map(|a| a.model.joints.iter().map(move |j| format!("{}/{}", a.name, j.name)))
-            .collect();
+        let names = joint_names(&sim);
         Ok(PySim { sim, names, live: None })
     }
 
@@ -164,12 +176,7 @@ impl PySim {
 
     /// Control mode of a joint: "pid", "position" or "effort".
     fn set_mode(&mut self, joint: JointArg, mode: &str) -> Result<()> {
-        let mode = match mode {
-            "pid" => Mode::Pid,
-            "position" => Mode::Position,
-            "effort" => Mode::Effort,
-            other => return Err(Error::Input(format!("mode = `{other}`: expected pid, position or effort"))),
-        };
+        let mode = self::mode(mode)?;
         let i = self.joint(joint)?;
         Ok(self.sim.set_mode(i, mode)?)
     }
