@@ -264,7 +264,8 @@ def test_bad_commands_are_refused_with_a_log_line_and_the_twin_keeps_running():
     servo = peer.writer("/PSM1/servo_jp")
     jaw = peer.writer("/PSM1/jaw/servo_jp")
     move = peer.writer("/PSM1/move_jp")
-    proc = serve(domain, 4)
+    effort = peer.writer("/PSM1/servo_jf")
+    proc = serve(domain, 5)
     try:
         first_sample(peer, "/PSM1/measured_js")
         time.sleep(0.3)
@@ -275,6 +276,10 @@ def test_bad_commands_are_refused_with_a_log_line_and_the_twin_keeps_running():
         # A finite but absurd feed-forward velocity (it drove every joint to its limit).
         servo.write(command(PSM_JOINTS, [0.0, 0.0, 0.1, 0.0, 0.0, 0.0], velocity=[0.0, 1e308, 0.0, 0.0, 0.0, 0.0]))
         jaw.write(command(["jaw"], [0.3]))  # a good one
+        # An absurd effort (the roll's limit is 0.33 N·m): a client's bug, not a command. A
+        # second later: the log shows at most five refusals a second, one by one.
+        time.sleep(1.2)
+        effort.write(command(PSM_JOINTS, effort=[0.0, 0.0, 0.0, 1e308, 0.0, 0.0]))
         time.sleep(0.5)
         peer.take("/PSM1/measured_js")
         time.sleep(0.3)
@@ -282,16 +287,17 @@ def test_bad_commands_are_refused_with_a_log_line_and_the_twin_keeps_running():
         logs = [s for s in rosout.take(N=100) if isinstance(s, Log_)]
     finally:
         summary, err = finish(proc)
-    assert (summary["refused"], summary["commands"]) == (5, 1), summary
+    assert (summary["refused"], summary["commands"]) == (6, 1), summary
     lines = [l for l in err.splitlines() if "command refused" in l]
-    assert len(lines) == 5, err
+    assert len(lines) == 6, err
     assert any("goal 3 rad for joint `outer_yaw` is outside its limits" in l for l in lines), lines
     assert any("5 position values for 6 joints" in l for l in lines)
     assert any("NaN for joint `outer_pitch`" in l for l in lines)
     assert any("unknown joint `elbow`" in l for l in lines)
     assert any("velocity 1.000000e308 rad/s for joint `outer_pitch` is past 31.416 rad/s" in l for l in lines), lines
+    assert any("effort 1.000000e308 N·m for joint `outer_roll` is past 3.300 N·m" in l for l in lines), lines
     warned = [l for l in logs if l.level == 30 and "command refused" in l.msg]
-    assert len(warned) == 5 and all(l.name == "dvrk_twin" for l in warned), logs
+    assert len(warned) == 6 and all(l.name == "dvrk_twin" for l in warned), logs
 
 
 def test_ctrl_c_stops_the_twin_and_leaves_no_process():

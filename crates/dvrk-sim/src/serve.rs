@@ -9,8 +9,9 @@
 //! - `/PSM1/move_jp`, `/PSM1/jaw/move_jp`: a goal reached by an interpolated move under the
 //!   console's velocity and acceleration limits ([`crate::joint_move`]); the arm is busy until
 //!   it arrives, a new move replaces it and a servo command ends it;
-//! - `/PSM1/servo_jf`, `/PSM1/jaw/servo_jf`: efforts (N·m, N), applied as they are (the joint
-//!   leaves PID until its next position command).
+//! - `/PSM1/servo_jf`, `/PSM1/jaw/servo_jf`: efforts (N·m, N), saturated at the joint's effort
+//!   limit as the drive does (past ten times it, refused); the joint leaves PID until its next
+//!   position command.
 //!
 //! - `/PSM1/servo_cp` (geometry_msgs/msg/PoseStamped): a tool-tip pose in `PSM1_base`, through
 //!   the IK from the current setpoints ([`crate::serve_cp`]); a pose out of reach is refused;
@@ -206,6 +207,23 @@ fn velocity_within_bounds(sim: &Sim, topic: &CommandTopic, velocity: &[f64], v_m
     Ok(())
 }
 
+/// A `servo_jf` effort past [`SERVO_EFFORT_FACTOR`] times the joint's effort limit is a client's
+/// bug, not a command: refused, naming the joint, the value and the bound (within it, the drive
+/// saturates at its limit as the dVRK's does).
+const SERVO_EFFORT_FACTOR: f64 = 10.0;
+
+fn effort_within_bounds(sim: &Sim, topic: &CommandTopic, effort: &[f64]) -> std::result::Result<(), Refusal> {
+    for (&i, &f) in topic.joints.iter().zip(effort) {
+        let j = sim.joint(i).map_err(|e| refusal("not taken", e.to_string()))?;
+        let bound = SERVO_EFFORT_FACTOR * j.effort_limit;
+        if j.effort_limit > 0.0 && f.abs() > bound {
+            let unit = j.effort_unit();
+            return Err(refusal("effort too large", format!("effort {} {unit} for joint `{}` is past {bound:.3} {unit} (ten times its effort limit)", dvrk_kin::fmt_number(f), j.name)));
+        }
+    }
+    Ok(())
+}
+
 /// Serve `scene` on ROS 2 until `options.duration` of simulated time has run or `stop` is set.
 /// `ready` is called once the topics exist (before the first step), with the node.
 pub fn serve(scene: &Scene, sim_options: &SimOptions, options: &ServeOptions, stop: &AtomicBool, live: Option<Live>, ready: impl FnOnce(&Ros2)) -> Result<(ServeSummary, Option<dvrk_kin::atomic::Staged>)> {
@@ -377,6 +395,7 @@ fn apply_commands(sim: &mut Sim, recorder: &mut Recorder, topics: &[CommandTopic
                 .and_then(|(v, vd)| match topic.kind {
                     Kind::MoveJp => goal_within_limits(sim, topic, &v).map(|()| (v, vd)),
                     Kind::ServoJp => velocity_within_bounds(sim, topic, &vd, &moves.v_max).map(|()| (v, vd)),
+                    Kind::ServoJf => effort_within_bounds(sim, topic, &v).map(|()| (v, vd)),
                     _ => Ok((v, vd)),
                 });
             match values {
