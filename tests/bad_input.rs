@@ -217,6 +217,7 @@ fn synth_mocap_checks_its_flags_before_loading_the_model() {
     // The model does not exist: each flag's error must come first, naming the flag.
     assert_one_line(&dvrk_err(&["synth", "mocap", "--model", "no-such-model", "--layout", "pose", "-o", o]), &["--layout", "`pose`"]);
     assert_one_line(&dvrk_err(&["synth", "mocap", "--model", "no-such-model", "--noise-mm=-1", "-o", o]), &["--noise-mm", "-1"]);
+    assert_one_line(&dvrk_err(&["synth", "mocap", "--model", "no-such-model", "--noise-mm", "1e308", "-o", o]), &["--noise-mm", "1.000000e308", "[0, 100] mm"]);
     let txt = dir.path().join("m.txt");
     assert_one_line(&dvrk_err(&["synth", "mocap", "--model", "no-such-model", "-o", txt.to_str().unwrap()]), &["m.txt", "unknown format `.txt`"]);
     assert!(!out.exists());

@@ -161,8 +161,9 @@ fn mocap(a: &MocapArgs) -> Result<()> {
     let motion: SynthMotion = a.motion.parse().map_err(|e| anyhow!("--motion: {e}"))?;
     let amp = crate::io::parse_list("--amplitude", &a.amplitude)?;
     let [a1, a2] = amp.as_slice() else { bail!("--amplitude: give two values (q1, q2 in rad), got {}", amp.len()) };
-    if !(a.noise_mm.is_finite() && a.noise_mm >= 0.0) {
-        bail!("--noise-mm: {} must be a finite number >= 0", a.noise_mm);
+    // (1e308 mm was taken: every marker then fell outside any cluster and the run wrote 0 poses.)
+    if !(a.noise_mm.is_finite() && (0.0..=100.0).contains(&a.noise_mm)) {
+        bail!("--noise-mm: {} must be in [0, 100] mm (a tracker's noise is a fraction of a millimetre)", dvrk_kin::fmt_number(a.noise_mm));
     }
     let layout = match a.layout.as_str() {
         "pose-stamped" => McapLayout::PoseStamped,
