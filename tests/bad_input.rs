@@ -218,6 +218,8 @@ fn synth_mocap_checks_its_flags_before_loading_the_model() {
     assert_one_line(&dvrk_err(&["synth", "mocap", "--model", "no-such-model", "--layout", "pose", "-o", o]), &["--layout", "`pose`"]);
     assert_one_line(&dvrk_err(&["synth", "mocap", "--model", "no-such-model", "--noise-mm=-1", "-o", o]), &["--noise-mm", "-1"]);
     assert_one_line(&dvrk_err(&["synth", "mocap", "--model", "no-such-model", "--noise-mm", "1e308", "-o", o]), &["--noise-mm", "1.000000e308", "[0, 100] mm"]);
+    // A rate whose sample count no integer holds: said in the user's figures (was "18446744073709551615 samples").
+    assert_one_line(&dvrk_err(&["synth", "mocap", "--rate", "1e308", "-o", o]), &["20 s at 1.000000e308 Hz", "more than this tool writes"]);
     let txt = dir.path().join("m.txt");
     assert_one_line(&dvrk_err(&["synth", "mocap", "--model", "no-such-model", "-o", txt.to_str().unwrap()]), &["m.txt", "unknown format `.txt`"]);
     assert!(!out.exists());

@@ -170,10 +170,15 @@ impl Scenario {
         if !(options.duration.is_finite() && options.duration > 0.0) {
             return Err(CalibError::field("duration", format!("{} s must be positive", options.duration)));
         }
-        let n = (options.duration * options.rate).round() as usize;
-        if n > 50_000_000 {
-            return Err(CalibError::field("duration", format!("{n} samples is more than this tool writes (50 million)")));
+        // The product in f64: its cast to usize saturates (1e308 Hz read as 18446744073709551615).
+        let samples = (options.duration * options.rate).round();
+        if samples > 5e7 {
+            return Err(CalibError::field(
+                "duration",
+                format!("{} s at {} Hz is {} samples, more than this tool writes (50 million)", dvrk_kin::fmt_number(options.duration), dvrk_kin::fmt_number(options.rate), dvrk_kin::fmt_number(samples)),
+            ));
         }
+        let n = samples as usize;
         let clusters = figure5_clusters(model)?;
         let ids: Vec<usize> = clusters.iter().map(|c| model.frame_id(&FrameRef::Index(c.frame))).collect::<std::result::Result<_, _>>()?;
         let (j1, j2) = (0usize, 1usize);
