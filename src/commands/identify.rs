@@ -128,16 +128,16 @@ pub fn run(args: &IdentifyArgs) -> Result<()> {
         println!("{name:<28} {:>10.3} {:>12.3} {v:>12} {p:>14}", id.relative_error[c], rigid.relative_error[c]);
     }
     if let Some(p) = summary.get("validation").and_then(|v| v.get("as_published")).filter(|p| !p.is_null()) {
+        let (start, stop) = (p["window_s"][0].as_f64().unwrap_or(f64::NAN), p["window_s"][1].as_f64().unwrap_or(f64::NAN));
         let span = match p["period_s"].as_f64() {
+            _ if p["cable_removed"].as_bool() == Some(true) => format!("their MTM notebook's first 10 s, their platform-cable torque taken out of the efforts"),
             Some(period) => format!("the excitation's first period, {period} s"),
             None => "no period found: the whole trimmed recording".to_string(),
         };
         println!(
-            "as published: against the efforts low-passed at {} Hz (order {}), over {:.2}..{:.2} s ({span}), as the WPI authors computed theirs",
-            p["cutoff_hz"],
+            "as published: against the efforts low-passed at {:.2} Hz (order {}), over {start:.2}..{stop:.2} s ({span}), as the WPI authors computed theirs",
+            p["cutoff_hz"].as_f64().unwrap_or(f64::NAN),
             p["order"],
-            p["window_s"][0].as_f64().unwrap_or(f64::NAN),
-            p["window_s"][1].as_f64().unwrap_or(f64::NAN)
         );
     }
     println!("physically consistent: {} ({} cutting-plane rounds)", summary["physically_consistent"], id.fit.rounds);

@@ -1,7 +1,9 @@
 //! Identification on the WPI recordings (scratch ablation driver; the CLI is `dvrk identify`).
 //! Env: EFFECTS (rigid|friction|all, default all), JF (joints with joint friction, `4,5,6`),
 //! CUT (per-channel cut-offs), VSC (per-channel Coulomb velocities), STRIBECK (1), G (gravity),
-//! SPRING (spring channels), DAHL (presliding channels), SIG (their presliding displacements).
+//! SPRING (spring channels), DAHL (presliding channels), SIG (their presliding displacements),
+//! MODEL (psm or mtmr: the MTM's recordings and IdentifyOptions::mtm), JS (joint springs
+//! `joint:order,...`), CUTOFF (one cut-off for every channel).
 //! Prints the fit on `one`, the two-fold cross-validation within `one` (the figure settings are
 //! chosen by) and the held-out error on `two`.
 use dvrk_calib::identify::problem::EffectTerm;
@@ -9,17 +11,23 @@ use dvrk_calib::identify::{identify, read_wpi_csv, IdentifyOptions, JointLog};
 use std::path::Path;
 
 fn list(var: &str) -> Option<Vec<f64>> {
-    std::env::var(var).ok().filter(|v| !v.is_empty()).map(|v| v.split(',').map(|x| x.parse().unwrap()).collect())
+    // `none`: an empty list.
+    std::env::var(var).ok().filter(|v| !v.is_empty()).map(|v| if v == "none" { Vec::new() } else { v.split(',').map(|x| x.parse().unwrap()).collect() })
 }
 
 fn main() {
-    let model = dvrk_kin::load("psm", None).unwrap();
-    let ine = dvrk_sim::scene::builtin_inertials("psm", &model).unwrap().body_inertias(&model).unwrap();
+    let name = std::env::var("MODEL").unwrap_or_else(|_| "psm".into());
+    let model = dvrk_kin::load(&name, None).unwrap();
+    let ine = dvrk_sim::scene::builtin_inertials(&name, &model).unwrap().body_inertias(&model).unwrap();
     let dir = Path::new("../shared/data/external/wpi-dvrk-dynamics");
-    let one = read_wpi_csv(&dir.join("psm_one_results.csv"), &model).unwrap();
-    let two = read_wpi_csv(&dir.join("psm_two_results.csv"), &model).unwrap();
-    // BASE=psm starts from the chosen PSM options (IdentifyOptions::psm) instead of `full`.
-    let mut o = if std::env::var("BASE").as_deref() == Ok("psm") {
+    let (one, two) = if name == "psm" { ("psm_one_results.csv", "psm_two_results.csv") } else { ("mtm/one_results.csv", "mtm/two_results.csv") };
+    let one = read_wpi_csv(&dir.join(one), &model).unwrap();
+    let two = read_wpi_csv(&dir.join(two), &model).unwrap();
+    // BASE=psm starts from the chosen PSM options (IdentifyOptions::psm) instead of `full`; an
+    // MTM always from IdentifyOptions::mtm.
+    let mut o = if name != "psm" {
+        IdentifyOptions::mtm()
+    } else if std::env::var("BASE").as_deref() == Ok("psm") {
         IdentifyOptions::psm()
     } else {
         IdentifyOptions::full(list("SPRING").map(|v| v.iter().map(|x| *x as usize).collect()).unwrap_or(vec![3, 4, 5, 6]))
@@ -43,7 +51,7 @@ fn main() {
     if let Some(s) = list("SIG") {
         o.processing.channel_dahl_displacement = s;
     }
-    if let (Ok("psm"), Some(sp)) = (std::env::var("BASE").as_deref(), list("SPRING")) {
+    if let (true, Some(sp)) = (std::env::var("BASE").as_deref() == Ok("psm") || name != "psm", list("SPRING")) {
         o.terms.spring_channels = sp.iter().map(|x| *x as usize).collect();
     }
     if let Some(j) = list("JF") {
@@ -57,6 +65,16 @@ fn main() {
                 o.terms.cross.push((a.parse().unwrap(), b.parse().unwrap(), term));
             }
         }
+    }
+    if let Ok(v) = std::env::var("JS") {
+        o.terms.joint_springs = v.split(',').filter(|p| !p.is_empty()).map(|p| p.split_once(':').map(|(a, b)| (a.parse().unwrap(), b.parse().unwrap())).unwrap()).collect();
+    }
+    if let Some(c) = list("CUTOFF") {
+        o.processing.cutoff = c[0];
+        o.processing.channel_cutoff.clear();
+    }
+    if let Some(c) = list("ORDER") {
+        o.processing.filter_order = c[0] as usize;
     }
     if let Some(c) = list("CUT") {
         o.processing.channel_cutoff = c;
@@ -72,15 +90,21 @@ fn main() {
     }
     let t = std::time::Instant::now();
     let (id, _) = identify(&model, &ine, &one, &o).unwrap();
-    let (v, _) = id.validate(&model, &two, &o).unwrap();
+    let (v, _, published) = id.validate_all(&model, &two, &o).unwrap();
+    let published = published.map(|p| p.relative_error).unwrap_or_default();
     let h = one.len() / 2;
     let halves: [(JointLog, JointLog); 2] = [(one.slice(0..h), one.slice(h..one.len())), (one.slice(h..one.len()), one.slice(0..h))];
     let mut cv = [0.0; 7];
+    let mut cv_pub = [0.0; 7];
     for (a, b) in &halves {
         let (ida, _) = identify(&model, &ine, a, &o).unwrap();
-        for (c, e) in ida.validate(&model, b, &o).unwrap().0.iter().enumerate() {
+        let (raw, _, p) = ida.validate_all(&model, b, &o).unwrap();
+        for (c, e) in raw.iter().enumerate() {
             cv[c] += 0.5 * e;
         }
+        for (c, e) in p.map(|p| p.relative_error).unwrap_or_default().iter().enumerate() {
+            cv_pub[c] += 0.5 * e;
+        }
     }
-    println!("fit {:.3?}\ncv  {:.3?} mean {:.4}\nval {:.3?}  rounds {} base {} ({:.2} s)", id.relative_error, cv, cv.iter().sum::<f64>() / 7.0, v, id.fit.rounds, id.base_parameters, t.elapsed().as_secs_f64());
+    println!("fit {:.3?}\ncv  {:.3?} mean {:.4}\nval {:.3?}  rounds {} base {} ({:.2} s)\npub {:.3?}\ncvp {:.3?} mean {:.4}", id.relative_error, cv, cv.iter().sum::<f64>() / 7.0, v, id.fit.rounds, id.base_parameters, t.elapsed().as_secs_f64(), published, cv_pub, cv_pub.iter().sum::<f64>() / 7.0);
 }

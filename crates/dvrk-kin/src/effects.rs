@@ -10,7 +10,9 @@
 //! - dynamics (dvrk-kin's [`effort`] and [`effect_inertias`], and dvrk-sim's physics):
 //!   `coulomb_friction` (its level `fc`, with optional winding `fq q^2` and Stribeck
 //!   `fs exp(-(qd / vs)^2)` terms: [`coulomb_level`], and presliding `fd`, `sigma`: a Dahl state
-//!   carried along the motion, [`crate::presliding`]), `viscous_friction`, `spring`, `payload_mass`;
+//!   carried along the motion, [`crate::presliding`]), `viscous_friction`, `spring`,
+//!   `cable_spring` (a configuration-dependent spring: `k1 q + k2 q^2 + k3 q^3`, any signs),
+//!   `payload_mass`;
 //! - both: `counterweight_error` (the counterweight's travel per unit insertion `mu`, replacing
 //!   the model's parameter of that name, and its mass `mass`, the body's inertia scaled with it:
 //!   the same block, heavier or lighter); the counterweight is the body a frame moving by `mu`
@@ -272,6 +274,7 @@ fn effort_impl(effects: &[Effect], q: &[f64], qd: &[f64], z: Option<&[f64]>, vel
                 EffectKind::CoulombFriction => out[j] += coulomb(k, e, q[j], qd[j]),
                 EffectKind::ViscousFriction => out[j] -= e.get("fv") * qd[j],
                 EffectKind::Spring => out[j] -= e.get("k") * (q[j] - e.get("rest")),
+                EffectKind::CableSpring => out[j] -= q[j] * (e.get("k1") + q[j] * (e.get("k2") + q[j] * e.get("k3"))),
                 _ => {}
             }
             continue;

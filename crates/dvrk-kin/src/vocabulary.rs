@@ -28,6 +28,7 @@ pub enum EffectKind {
     ActuatorSpring,
     MotorInertia,
     ActuatorCrossSpring,
+    CableSpring,
 }
 
 /// What an effect is attached to.
@@ -70,7 +71,7 @@ const fn p(name: &'static str, unit: &'static str, prismatic_unit: &'static str,
 
 impl EffectKind {
     /// The whole vocabulary.
-    pub const ALL: [EffectKind; 19] = [
+    pub const ALL: [EffectKind; 20] = [
         EffectKind::JointOffset,
         EffectKind::LinkLength,
         EffectKind::BaseRegistration,
@@ -90,6 +91,7 @@ impl EffectKind {
         EffectKind::ActuatorSpring,
         EffectKind::MotorInertia,
         EffectKind::ActuatorCrossSpring,
+        EffectKind::CableSpring,
     ];
 
     /// The name model files use.
@@ -114,6 +116,7 @@ impl EffectKind {
             EffectKind::ActuatorSpring => "actuator_spring",
             EffectKind::MotorInertia => "motor_inertia",
             EffectKind::ActuatorCrossSpring => "actuator_cross_spring",
+            EffectKind::CableSpring => "cable_spring",
         }
     }
 
@@ -125,7 +128,7 @@ impl EffectKind {
     /// What it acts on.
     pub fn target(self) -> Target {
         match self {
-            EffectKind::JointOffset | EffectKind::JointCompliance | EffectKind::Backlash | EffectKind::MotionPlay | EffectKind::CoulombFriction | EffectKind::ViscousFriction | EffectKind::Spring => {
+            EffectKind::JointOffset | EffectKind::JointCompliance | EffectKind::Backlash | EffectKind::MotionPlay | EffectKind::CoulombFriction | EffectKind::ViscousFriction | EffectKind::Spring | EffectKind::CableSpring => {
                 Target::Joint
             }
             EffectKind::LinkLength | EffectKind::PayloadMass => Target::Link,
@@ -158,6 +161,7 @@ impl EffectKind {
             EffectKind::ActuatorSpring => SPRING,
             EffectKind::MotorInertia => MOTOR_INERTIA,
             EffectKind::ActuatorCrossSpring => &[],
+            EffectKind::CableSpring => CABLE_SPRING,
         }
     }
 
@@ -229,6 +233,16 @@ const PAYLOAD: &[ParameterInfo] =
     &[p("mass", "kg", "kg", 0.0, 20.0, None), p("x", "m", "m", -1.0, 1.0, Some(0.0)), p("y", "m", "m", -1.0, 1.0, Some(0.0)), p("z", "m", "m", -1.0, 1.0, Some(0.0))];
 const COUNTERWEIGHT: &[ParameterInfo] = &[p("mu", "1", "1", 0.0, 2.0, None), p("mass", "kg", "kg", 0.0, 10.0, None)];
 const SPRING: &[ParameterInfo] = &[p("k", "N·m/rad", "N/m", 0.0, 1e5, None), p("rest", "rad", "m", -10.0, 10.0, Some(0.0))];
+/// A configuration-dependent spring on a joint, its effort `k1 q + k2 q^2 + k3 q^3` (the force
+/// on the joint its negative), each coefficient of either sign: a cable or spring whose torque
+/// is not a line in the joint's position (the MTM's platform cable, which the WPI authors fitted
+/// as a polynomial of the platform angle, and its wrist-pitch spring). Its constant term is the
+/// joint's effort offset (`coulomb_friction`'s `offset`).
+const CABLE_SPRING: &[ParameterInfo] = &[
+    p("k1", "N·m/rad", "N/m", -1e5, 1e5, Some(0.0)),
+    p("k2", "N·m/rad^2", "N/m^2", -1e5, 1e5, Some(0.0)),
+    p("k3", "N·m/rad^3", "N/m^3", -1e5, 1e5, Some(0.0)),
+];
 /// A dVRK motor's rotor reflected through its gearhead is 1e-6..1e-3 kg m^2 at the actuator
 /// (the WPI fit: 2e-5..1e-4); 1 kg m^2 is a flywheel.
 const MOTOR_INERTIA: &[ParameterInfo] = &[p("inertia", "kg m^2", "kg", 0.0, 1.0, None)];

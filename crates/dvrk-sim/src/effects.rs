@@ -219,6 +219,7 @@ impl ArmEffects {
                 EffectKind::CoulombFriction
                 | EffectKind::ViscousFriction
                 | EffectKind::Spring
+                | EffectKind::CableSpring
                 | EffectKind::ActuatorCoulombFriction
                 | EffectKind::ActuatorViscousFriction
                 | EffectKind::ActuatorSpring

@@ -28,6 +28,8 @@ const BUILTIN_INERTIALS: &[(&str, &str)] = &[
     ("suj-psm2", include_str!("../../../models/inertials/suj-psm2.toml")),
     ("suj-psm3", include_str!("../../../models/inertials/suj-psm3.toml")),
     ("suj-ecm", include_str!("../../../models/inertials/suj-ecm.toml")),
+    ("mtmr", include_str!("../../../models/inertials/mtmr.toml")),
+    ("mtml", include_str!("../../../models/inertials/mtml.toml")),
 ];
 
 /// The built-in inertials `name` (`psm`, `ecm`, `suj-psm1`, ...) checked against `model`.

@@ -63,7 +63,13 @@ pub fn steps(options: &IdentifyOptions) -> Vec<(String, IdentifyOptions)> {
     }
     if !options.terms.joint_friction.is_empty() {
         o.terms.joint_friction = options.terms.joint_friction.clone();
-        out.push(("+ joint-space wrist friction".into(), o.clone()));
+        // The PSM's are its tool's wrist and jaw; the MTM's every joint.
+        let which = if options.terms.joint_friction.contains(&0) { "joint-space friction" } else { "joint-space wrist friction" };
+        out.push((format!("+ {which}"), o.clone()));
+    }
+    if !options.terms.joint_springs.is_empty() {
+        o.terms.joint_springs = options.terms.joint_springs.clone();
+        out.push(("+ configuration-dependent joint springs (cubic)".into(), o.clone()));
     }
     if !options.terms.cross.is_empty() {
         o.terms.cross = options.terms.cross.clone();

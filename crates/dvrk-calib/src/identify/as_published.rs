@@ -7,6 +7,11 @@
 //! crate's `relative_error`): with their own published roll parameters (`psm_params.json`, link
 //! 10) the roll's error on `two` is 0.172 against the raw efforts and 0.1356 with this protocol,
 //! against their published 0.134. So a comparison with their numbers takes this protocol.
+//!
+//! Their MTM notebook (`main_mtm.ipynb`) differs ([`Protocol::mtm`]): a nominal 1.8 Hz cut-off
+//! (5.65 Hz acting), a fixed 10 s window (`1 / base_freq`), and their cable torque on the
+//! platform (a polynomial of its angle) taken out of the efforts of channels 2..4 before the
+//! comparison, so that their figures' denominators hold no cable torque.
 
 use crate::filter::Butterworth;
 use super::JointLog;
@@ -26,11 +31,45 @@ pub struct Protocol {
     /// A lag whose position mismatch (`||q(t + T) - q(t)||` over `||q - mean||`, all channels
     /// each scaled to unit variance) is below this is a period of the excitation.
     pub period_tolerance: f64,
+    /// A fixed window (s) after the trim instead of the excitation's first period.
+    pub window_s: Option<f64>,
+    /// Take the WPI authors' MTM platform-cable torque ([`WPI_MTM_CABLE`]) out of the efforts
+    /// (channels 2..4, the MTM's actuators) before comparing.
+    pub mtm_cable_removed: bool,
 }
 
 impl Default for Protocol {
     fn default() -> Protocol {
-        Protocol { order: 6, cutoff_hz: 17.0, trim: 200, period_tolerance: 0.05 }
+        Protocol { order: 6, cutoff_hz: 17.0, trim: 200, period_tolerance: 0.05, window_s: None, mtm_cable_removed: false }
+    }
+}
+
+/// The WPI authors' fit of the MTM platform's cable torque (N·m) as a polynomial of the
+/// platform's joint angle `q4` (rad), coefficients from the 7th power down to the constant
+/// (`main_mtm.ipynb`, fitted to their joint test; `../shared/data/external/README.md`).
+pub const WPI_MTM_CABLE: [f64; 8] = [0.0004877, -0.0037149, 0.0067497, 0.008519, -0.0201475, -0.025265, 0.048095, 0.00255];
+
+/// [`WPI_MTM_CABLE`] at platform angle `q4` (rad): N·m on joint 4.
+pub fn wpi_mtm_cable(q4: f64) -> f64 {
+    WPI_MTM_CABLE.iter().fold(0.0, |acc, c| acc * q4 + c)
+}
+
+impl Protocol {
+    /// The MTM notebook's: `fc = 3 base_freq fourier_order` = 1.8 Hz passed as `Wn = fc 2 pi h`,
+    /// which scipy reads against the 100 Hz Nyquist frequency: 5.65 Hz acting; order 6; 200
+    /// samples trimmed; the first `1 / base_freq` = 10 s; the cable torque out.
+    pub fn mtm() -> Protocol {
+        Protocol { cutoff_hz: 1.8 * 2.0 * std::f64::consts::PI * 0.005 * 100.0, window_s: Some(10.0), mtm_cable_removed: true, ..Protocol::default() }
+    }
+
+    /// The protocol of the WPI notebook for `model`: [`Protocol::mtm`] for an arm with its own
+    /// coupling and no tool (the MTM), the PSM's ([`Protocol::default`]) otherwise.
+    pub fn for_model(model: &dvrk_kin::Model) -> Protocol {
+        if model.spec.tool.is_none() && model.coupling.is_some() && model.nq() == 7 {
+            Protocol::mtm()
+        } else {
+            Protocol::default()
+        }
     }
 }
 
@@ -47,6 +86,8 @@ pub struct AsPublished {
     pub cutoff_hz: f64,
     pub order: usize,
     pub trim: usize,
+    /// The MTM platform cable's torque was taken out of the efforts ([`Protocol::mtm_cable_removed`]).
+    pub cable_removed: bool,
 }
 
 /// The shortest lag (samples, at least one second and at most half the recording) at which the
@@ -101,15 +142,25 @@ pub fn window(rec: &JointLog, first: usize, last: usize, protocol: &Protocol) ->
     let start = protocol.trim.max(first);
     let end = n.saturating_sub(protocol.trim).min(last);
     let period = fundamental_period(rec, rate, protocol.period_tolerance);
-    let stop = period.map_or(end, |p| (start + p).min(end));
+    let span = match protocol.window_s {
+        Some(s) => Some((s * rate).round() as usize),
+        None => period,
+    };
+    let stop = span.map_or(end, |p| (start + p).min(end));
     (stop >= start + 10 && protocol.cutoff_hz > 0.0 && protocol.cutoff_hz < rate / 2.0).then_some(Window { start, stop, period, rate })
 }
 
 /// `||tau_f - pred|| / ||tau_f||` over `window`: `tau` one channel's recorded efforts (every
 /// sample), `tau_f` them low-passed by the protocol's filter, `pred(i)` the prediction at sample `i`.
 pub fn relative_error(tau: &[f64], pred: impl Fn(usize) -> f64, window: &Window, protocol: &Protocol) -> f64 {
+    relative_error_without(tau, pred, |_| 0.0, window, protocol)
+}
+
+/// [`relative_error`] with `removed(i)` taken out of the efforts first: it cancels in the
+/// numerator (measured and predicted alike lose it) and leaves the denominator.
+pub fn relative_error_without(tau: &[f64], pred: impl Fn(usize) -> f64, removed: impl Fn(usize) -> f64, window: &Window, protocol: &Protocol) -> f64 {
     let tau_f = Butterworth::new(protocol.order, protocol.cutoff_hz, window.rate).filtfilt(tau, (3.0 * window.rate / protocol.cutoff_hz) as usize);
-    let (num, den) = (window.start..window.stop).fold((0.0, 0.0), |(num, den), i| (num + (tau_f[i] - pred(i)).powi(2), den + tau_f[i] * tau_f[i]));
+    let (num, den) = (window.start..window.stop).fold((0.0, 0.0), |(num, den), i| (num + (tau_f[i] - pred(i)).powi(2), den + (tau_f[i] - removed(i)).powi(2)));
     (num / den.max(1e-300)).sqrt()
 }
 
@@ -119,12 +170,27 @@ pub fn relative_error(tau: &[f64], pred: impl Fn(usize) -> f64, window: &Window,
 pub fn relative_errors(predicted: &[Vec<f64>], rec: &JointLog, reg_trim: usize, protocol: &Protocol) -> Option<AsPublished> {
     let rows = predicted.first().map_or(0, |t| t.len());
     let w = window(rec, reg_trim, reg_trim + rows, protocol)?;
+    // The cable's torque on the MTM's actuator channels 2..4 (index 1..3), from the platform's
+    // joint angle q4 = a4 + 0.6697 (a2 - a3), as their notebook takes it out.
+    let cable = |c: usize, i: usize| {
+        let a = &rec.position[i];
+        if !protocol.mtm_cable_removed || a.len() != 7 {
+            return 0.0;
+        }
+        let t = wpi_mtm_cable(0.6697 * a[1] - 0.6697 * a[2] + a[3]);
+        match c {
+            1 => 0.6697 * t,
+            2 => -0.6697 * t,
+            3 => t,
+            _ => 0.0,
+        }
+    };
     let relative_error = predicted
         .iter()
         .enumerate()
         .map(|(c, pred)| {
             let tau: Vec<f64> = rec.effort.iter().map(|t| t[c]).collect();
-            relative_error(&tau, |i| pred[i - reg_trim], &w, protocol)
+            relative_error_without(&tau, |i| pred[i - reg_trim], |i| cable(c, i), &w, protocol)
         })
         .collect();
     Some(AsPublished {
@@ -134,6 +200,7 @@ pub fn relative_errors(predicted: &[Vec<f64>], rec: &JointLog, reg_trim: usize, 
         cutoff_hz: protocol.cutoff_hz,
         order: protocol.order,
         trim: protocol.trim,
+        cable_removed: protocol.mtm_cable_removed,
     })
 }
 

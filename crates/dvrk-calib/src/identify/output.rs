@@ -67,6 +67,12 @@ fn unit(term: EffectTerm, prismatic: bool) -> &'static str {
         (EffectTerm::Spring, true) => "N/m",
         (EffectTerm::Winding, false) => "N·m/rad^2",
         (EffectTerm::Winding, true) => "N/m^2",
+        (EffectTerm::CableLinear, false) => "N·m/rad",
+        (EffectTerm::CableLinear, true) => "N/m",
+        (EffectTerm::CableQuadratic, false) => "N·m/rad^2",
+        (EffectTerm::CableQuadratic, true) => "N/m^2",
+        (EffectTerm::CableCubic, false) => "N·m/rad^3",
+        (EffectTerm::CableCubic, true) => "N/m^3",
     }
 }
 
@@ -147,6 +153,11 @@ pub fn identified_model(model: &Model, id: &Identification, processing: &Process
                         EffectTerm::Armature => ("motor_inertia", "inertia"),
                         EffectTerm::Stribeck => ("actuator_coulomb_friction", "fs"),
                         EffectTerm::Winding => ("actuator_coulomb_friction", "fq"),
+                        // Channel-space cable terms are not offered (IdentifyOptions adds them on joints).
+                        EffectTerm::CableLinear | EffectTerm::CableQuadratic | EffectTerm::CableCubic => {
+                            not_expressed.push(format!("{} = {value:.6} {}", id.estimates[i].name, unit(term, false)));
+                            continue;
+                        }
                     };
                     let e = by_actuator.entry((channel, name)).or_default();
                     *e.entry(key.into()).or_default() += value;
@@ -209,6 +220,9 @@ pub fn identified_model(model: &Model, id: &Identification, processing: &Process
             EffectTerm::Offset => *by_joint.entry((j, "coulomb_friction")).or_default().entry("offset".into()).or_default() += value,
             EffectTerm::Viscous => *by_joint.entry((j, "viscous_friction")).or_default().entry("fv".into()).or_default() += value,
             EffectTerm::Spring => *by_joint.entry((j, "spring")).or_default().entry("k".into()).or_default() += value,
+            EffectTerm::CableLinear | EffectTerm::CableQuadratic | EffectTerm::CableCubic => {
+                *by_joint.entry((j, "cable_spring")).or_default().entry(term.symbol().into()).or_default() += value
+            }
             EffectTerm::Armature => armature[j] = Some(value),
             // The presliding level with the displacement its state was computed with.
             EffectTerm::Dahl => {

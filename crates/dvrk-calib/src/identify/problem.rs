@@ -38,6 +38,14 @@ pub enum EffectTerm {
     /// slowly the channel moves, where the Coulomb term's `tanh(v / vc)` turns over within a
     /// velocity.
     Dahl,
+    /// A configuration-dependent joint spring's linear term `k1` (N·m/rad, N/m): effort `k1 q`,
+    /// either sign (with [`EffectTerm::CableQuadratic`] and [`EffectTerm::CableCubic`], dvrk-kin's
+    /// `cable_spring`: the MTM platform's cable).
+    CableLinear,
+    /// Its quadratic term `k2` (N·m/rad^2, N/m^2): effort `k2 q^2`, either sign.
+    CableQuadratic,
+    /// Its cubic term `k3` (N·m/rad^3, N/m^3): effort `k3 q^3`, either sign.
+    CableCubic,
 }
 
 impl EffectTerm {
@@ -55,12 +63,15 @@ impl EffectTerm {
             EffectTerm::Stribeck => "fs",
             EffectTerm::Winding => "fq",
             EffectTerm::Dahl => "fd",
+            EffectTerm::CableLinear => "k1",
+            EffectTerm::CableQuadratic => "k2",
+            EffectTerm::CableCubic => "k3",
         }
     }
 
     /// Must the parameter be non-negative (physics)?
     pub fn nonnegative(self) -> bool {
-        !matches!(self, EffectTerm::Offset)
+        !matches!(self, EffectTerm::Offset | EffectTerm::CableLinear | EffectTerm::CableQuadratic | EffectTerm::CableCubic)
     }
 }
 
@@ -83,6 +94,11 @@ pub struct Terms {
     pub winding_channels: Vec<usize>,
     /// Channels that get the presliding term [`EffectTerm::Dahl`].
     pub dahl_channels: Vec<usize>,
+    /// Model joints with a configuration-dependent spring in *joint* position, `(joint, order)`:
+    /// `k1 q` (order 1), plus `k2 q^2` (2), plus `k3 q^3` (3), any signs; their efforts reach the
+    /// channels through `to_joint^T`. The MTM's platform cable and wrist-pitch spring act on the
+    /// joint, not on a motor.
+    pub joint_springs: Vec<(usize, usize)>,
 }
 
 /// One unknown of the regression.
@@ -124,6 +140,9 @@ impl Layout {
         params.extend(terms.dahl_channels.iter().map(|&channel| Param::Effect { term: EffectTerm::Dahl, channel }));
         for &joint in &terms.joint_friction {
             params.extend([EffectTerm::Coulomb, EffectTerm::Viscous].map(|term| Param::Joint { term, joint }));
+        }
+        for &(joint, order) in &terms.joint_springs {
+            params.extend([EffectTerm::CableLinear, EffectTerm::CableQuadratic, EffectTerm::CableCubic].into_iter().take(order.min(3)).map(|term| Param::Joint { term, joint }));
         }
         params.extend(terms.cross.iter().map(|&(channel, source, term)| Param::Cross { term, channel, source }));
         Layout { params, nbodies: nb, nchannels }
@@ -174,6 +193,10 @@ pub struct Processing {
     pub gravity: Vector3<f64>,
     /// Samples dropped at each end (filter edge transients).
     pub trim: usize,
+    /// Order of the zero-phase Butterworth low-pass (even; 2: the PSM's). A higher order keeps
+    /// the band below the cut-off whole and the noise above it out: the MTM's efforts carry
+    /// 3..6 Hz content its encoders see too, above the excitation's harmonics.
+    pub filter_order: usize,
 }
 
 impl Default for Processing {
@@ -188,6 +211,7 @@ impl Default for Processing {
             channel_dahl_displacement: Vec::new(),
             gravity: Vector3::new(0.0, 0.0, -9.81),
             trim: 100,
+            filter_order: 2,
         }
     }
 }
@@ -356,13 +380,19 @@ impl RowSource {
                                 EffectTerm::Stribeck => (v / vc).tanh() * (-(v / processing.stribeck_velocity).powi(2)).exp(),
                                 EffectTerm::Winding => (v / vc).tanh() * q[channel][i].powi(2),
                                 EffectTerm::Dahl => dahl[channel][i],
+                                EffectTerm::CableLinear => q[channel][i],
+                                EffectTerm::CableQuadratic => q[channel][i].powi(2),
+                                EffectTerm::CableCubic => q[channel][i].powi(3),
                             };
                         }
                         Param::Joint { term, joint } => {
-                            // A joint friction force f does virtual work f v_j = sum_c map[j][c] f qd_c.
+                            // A joint force f does virtual work f v_j = sum_c map[j][c] f qd_c.
                             let v = qdj[joint];
                             let f = match term {
                                 EffectTerm::Coulomb => (v / processing.coulomb_velocity_of(joint)).tanh(),
+                                EffectTerm::CableLinear => qj[joint],
+                                EffectTerm::CableQuadratic => qj[joint].powi(2),
+                                EffectTerm::CableCubic => qj[joint].powi(3),
                                 _ => v,
                             };
                             for (c, yc) in y.iter_mut().enumerate() {
@@ -434,7 +464,12 @@ pub fn regression(model: &Model, rec: &JointLog, layout: &Layout, processing: &P
     let column = |m: &Vec<Vec<f64>>, c: usize| m.iter().map(|r| r[c]).collect::<Vec<f64>>();
     let filtered = |m: &Vec<Vec<f64>>, c: usize| {
         let fc = processing.cutoff_of(c);
-        Butterworth2::new(fc, rate).filtfilt(&column(m, c), (3.0 * rate / fc) as usize)
+        let pad = (3.0 * rate / fc) as usize;
+        if processing.filter_order == 2 {
+            Butterworth2::new(fc, rate).filtfilt(&column(m, c), pad)
+        } else {
+            crate::filter::Butterworth::new(processing.filter_order, fc, rate).filtfilt(&column(m, c), pad)
+        }
     };
     let qd_f: Vec<Vec<f64>> = (0..nc).map(|c| filtered(&rec.velocity, c)).collect();
     let qdd_f: Vec<Vec<f64>> = qd_f.iter().map(|v| derivative(v, dt)).collect();

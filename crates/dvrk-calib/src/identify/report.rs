@@ -27,6 +27,7 @@ fn effect_name(term: EffectTerm) -> &'static str {
         EffectTerm::Viscous => "viscous_friction",
         EffectTerm::Armature => "armature",
         EffectTerm::Spring => "spring",
+        EffectTerm::CableLinear | EffectTerm::CableQuadratic | EffectTerm::CableCubic => "cable_spring",
         EffectTerm::Stribeck => "stribeck_friction",
         EffectTerm::Winding => "winding_friction",
         EffectTerm::Dahl => "presliding_friction",

@@ -60,7 +60,7 @@ pub fn read_joint_log_parts(path: &Path, format: &str, model: &dvrk_kin::Model, 
     let resolved = super::format::resolve(path, format)?;
     let (mut log, mut notes) = match resolved {
         "mcap" | "bag" => super::joint_log_mcap::read(path, model, arm, parts == Parts::All)?,
-        "wpi-csv" => (super::wpi_csv::read(path, model)?, Vec::new()),
+        "wpi-csv" => super::wpi_csv::read_with_notes(path, model)?,
         _ => super::joint_log_csv::read(path, model).map(|c| (c.log, c.notes))?,
     };
     if parts == Parts::Measured {

@@ -175,7 +175,7 @@ fn bad_wpi_files_name_the_line_and_column() {
     assert_eq!(e, "r.csv: 1 samples; identification needs at least 100");
     let ecm = dvrk_kin::load("ecm", None).unwrap();
     let e = dvrk_calib::recordings::parse_wpi_csv(&row, Path::new("r.csv"), &ecm).unwrap_err().to_string();
-    assert_eq!(e, "r.csv: wpi-csv holds a PSM's 7 joints; model `ecm` has 4");
+    assert_eq!(e, "r.csv: wpi-csv holds a PSM's or an MTM's 7 joints; model `ecm` has 4");
 }
 
 /// Must-show 3: the identified model in the simulator, driven by `two`'s recorded efforts under

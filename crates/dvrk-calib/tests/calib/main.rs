@@ -5,6 +5,8 @@
 //! - `perturbed`: a robot with link lengths off by 1-3 mm, calibrated and applied.
 //! - `bad_input`: recordings that cannot give a result give an error or a warning with numbers.
 //! - `identify`: dynamic identification on the real WPI recordings; bad wpi-csv files.
+//! - `identify_mtm`: the real MTM (WPI's recordings): its columns, identified on `one`, `two`
+//!   predicted better than the authors' model.
 //! - `identify_synthetic`: 100 seeded synthetic trials inside their 95% intervals; excitation warnings.
 //! - `formats`: MCAP (ROS 2 and Foxglove layouts), plain and raw-marker CSV round trips.
 //! - `dvrk_layout`: the dVRK's CRTK topic layout and ROS 1 bags, written by Python's
@@ -23,6 +25,7 @@ mod discrepancy;
 mod dvrk_layout;
 mod formats;
 mod identify;
+mod identify_mtm;
 mod identify_synthetic;
 mod noise_bound;
 mod paper;
