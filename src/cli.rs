@@ -41,6 +41,9 @@ pub enum Command {
     /// Dynamic identification: inertial parameters (physically consistent) and friction, offsets,
     /// motor inertia and springs from a joint recording with efforts.
     Identify(crate::commands::identify::IdentifyArgs),
+    /// Gravity compensation from a model (an identified one): the efforts that hold the arm
+    /// still at a configuration; with a recording, against its efforts where it moves slowest.
+    Gc(crate::commands::gc::GcArgs),
     /// Which physical effect does the model lack? A recording's efforts against the model's:
     /// ranked candidates with evidence, a verdict, the model with the named effect.
     Discrepancy(crate::commands::discrepancy::DiscrepancyArgs),

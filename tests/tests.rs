@@ -6,6 +6,7 @@ mod bad_input;
 mod cli;
 mod dvrk_files;
 mod fuzz;
+mod gc;
 mod kinematics;
 mod outputs;
 mod paper_tables;

@@ -4,6 +4,7 @@ pub mod calib;
 pub mod discrepancy;
 pub mod export;
 pub mod fk;
+pub mod gc;
 pub mod identify;
 pub mod ik;
 pub mod model;
@@ -42,6 +43,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Calib { command } => calib::run(&command),
         Command::Synth { command } => synth::run(&command),
         Command::Identify(a) => identify::run(&a),
+        Command::Gc(a) => gc::run(&a),
         Command::Discrepancy(a) => discrepancy::run(&a),
     }
 }

@@ -1,6 +1,6 @@
 //! # dvrk-calib
 //!
-//! What a real robot's recordings tell about its model, in three products over shared readers:
+//! What a real robot's recordings tell about its model, in four products over shared readers:
 //!
 //! - [`mocap`], motion-capture calibration (Gondokaryono et al., sections 2.4 and 4.1): joint axes, the axis
 //!   distances of Table 6 and the DH parameters they imply, the RCM by pivot calibration (eq.
@@ -8,7 +8,8 @@
 //!   would record;
 //! - [`identify`]: every body's inertial parameters and the joints' friction, springs and motor
 //!   inertias from a recording of efforts, physically consistent;
-//! - [`discrepancy`]: which physical effect a model is missing, named from a recording.
+//! - [`discrepancy`]: which physical effect a model is missing, named from a recording;
+//! - [`gravity`]: gravity compensation from a model (`dvrk gc`), checked on a recording.
 //!
 //! The products read through [`recordings`] (MCAP or ROS 1 bags with ROS 2 CDR, ROS 1 or Foxglove
 //! messages, OptiTrack Motive CSV, the WPI CSV layout and plain CSV) and filter through
@@ -29,6 +30,7 @@
 pub mod discrepancy;
 mod error;
 pub mod filter;
+pub mod gravity;
 pub mod identify;
 pub mod mocap;
 pub mod recordings;

@@ -50,7 +50,7 @@ pub mod spec;
 pub mod text_file;
 pub mod urdf;
 
-pub use dynamics::{frame_bias_forces, gravity_torque, inverse_dynamics, mass_matrix, mass_matrix_and_bias, mass_matrix_and_bias_placed, regressor, BodyInertia, DynamicsData, DynamicsModel};
+pub use dynamics::{frame_bias_forces, gravity_torque, holding_torque, inverse_dynamics, mass_matrix, mass_matrix_and_bias, mass_matrix_and_bias_placed, regressor, BodyInertia, DynamicsData, DynamicsModel};
 pub use closure::{closure_conditioning, closure_gap, closure_jacobian, max_closure_residual};
 pub use error::{fmt_number, KinError, Result};
 pub use fk::{compute_frame_placements, forward_kinematics, Data};

@@ -18,6 +18,8 @@ pub const BUILTIN: &[(&str, &str)] = &[
     ("cart", include_str!("../../../models/cart.toml")),
     ("mtml", include_str!("../../../models/mtml.toml")),
     ("mtmr", include_str!("../../../models/mtmr.toml")),
+    // The MTMR identified on the WPI authors' real MTM (`one`; docs/mtm.md): the `mtm` scene's arm.
+    ("mtmr-wpi", include_str!("../../../models/mtmr-wpi.toml")),
     ("psm-serial", include_str!("../../../models/psm-serial.toml")),
     ("ecm-serial", include_str!("../../../models/ecm-serial.toml")),
 ];

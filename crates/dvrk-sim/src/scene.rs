@@ -18,6 +18,7 @@ const BUILTIN_SCENES: &[(&str, &str)] = &[
     ("3psm", include_str!("../../../models/scenes/3psm.toml")),
     ("full", include_str!("../../../models/scenes/full.toml")),
     ("full-camera", include_str!("../../../models/scenes/full-camera.toml")),
+    ("mtm", include_str!("../../../models/scenes/mtm.toml")),
 ];
 
 /// Built-in inertials: (name, file text).

@@ -302,11 +302,12 @@ pub fn identified_model(model: &Model, id: &Identification, processing: &Process
     spec.title = format!("{} (identified from {recording})", spec.title);
     spec.notes = format!(
         "{}\n\nIdentified by `dvrk identify` from {recording}: [[inertials]] for every body (physically consistent: each \
-body's pseudo-inertia positive semidefinite, {} of {} inertial parameters determined by the data, the rest by the CAD prior), \
+body's pseudo-inertia positive semidefinite, {} of {} inertial parameters determined by the data (their uncertainty shrunk more \
+than twofold below the prior's), the rest by the CAD prior), \
 the effects added at the end of [[effects]], and the drive they were fitted with ([drive]: no joint damping beyond the viscous \
 frictions, the identified motor inertias).{}{}",
         spec.notes.trim_end(),
-        id.base_parameters,
+        id.layout.params.iter().zip(&id.estimates).filter(|(p, e)| matches!(p, Param::Body { .. }) && e.identifiable).count(),
         id.layout.nbodies * PARAMETERS_PER_BODY,
         if kept_prior.is_empty() { String::new() } else { format!(" Bodies left degenerate, with their prior inertial: {}.", kept_prior.join(", ")) },
         if not_expressed.is_empty() {

@@ -28,6 +28,6 @@ mod spatial;
 pub use crba::{mass_matrix, mass_matrix_and_bias, mass_matrix_and_bias_placed};
 pub use inertia::{BodyInertia, PARAMETERS_PER_BODY, PARAMETER_NAMES};
 pub use regressor::regressor;
-pub use rnea::{actuator_effort, frame_bias_forces, gravity_torque, inverse_dynamics};
+pub use rnea::{actuator_effort, frame_bias_forces, gravity_torque, holding_torque, inverse_dynamics};
 pub use setup::{DynamicsData, DynamicsModel};
 pub use spatial::Spatial;

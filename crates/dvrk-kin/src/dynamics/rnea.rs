@@ -91,6 +91,24 @@ pub fn gravity_torque(model: &Model, dm: &DynamicsModel, data: &mut DynamicsData
     Ok(())
 }
 
+/// The efforts (N·m, N) that hold the arm still at `q`: its gravity torque ([`gravity_torque`])
+/// plus what the model's configuration-dependent effects ask of the drives there (springs,
+/// `cable_spring`s, actuator springs, effort offsets: the negative of their force at rest). What a
+/// gravity compensation feeds forward: the dVRK's MTM compensation takes the platform's cable
+/// and the motors' offsets in with the weight. Allocates nothing.
+pub fn holding_torque(model: &Model, dm: &DynamicsModel, data: &mut DynamicsData, q: &[f64], gravity: &Vector3<f64>, tau: &mut [f64]) -> Result<()> {
+    gravity_torque(model, dm, data, q, gravity, tau)?;
+    // Velocities are zero: the sign of Coulomb friction is 0, only offsets and springs act. The
+    // joint velocities here are `data`'s scratch vector, zeroed.
+    data.scratch_qd.iter_mut().for_each(|v| *v = 0.0);
+    data.scratch_force.iter_mut().for_each(|v| *v = 0.0);
+    crate::effects::effort(&model.effects, q, &data.scratch_qd, 0.0, &mut data.scratch_force);
+    for (t, f) in tau.iter_mut().zip(&data.scratch_force) {
+        *t -= f;
+    }
+    Ok(())
+}
+
 /// Velocity-product forces on the frame tree's own joints, as if the loops were cut: the
 /// Coriolis, centrifugal and gyroscopic part of each frame's generalised force (N·m about a
 /// revolute frame's z, N along a prismatic one's) at the placements of actuated positions `q`

@@ -114,6 +114,9 @@ pub struct DynamicsData {
     pub(crate) tau_phi: Vec<f64>,
     /// Per frame: composite inertia of its subtree (mass matrix).
     pub(crate) composite: Vec<RigidInertia>,
+    /// Per joint: zero velocities and the effects' forces ([`super::holding_torque`]).
+    pub(crate) scratch_qd: Vec<f64>,
+    pub(crate) scratch_force: Vec<f64>,
 }
 
 impl DynamicsData {
@@ -128,6 +131,8 @@ impl DynamicsData {
             f: vec![Spatial::zero(); nf],
             tau_phi: vec![0.0; nf],
             composite: vec![RigidInertia::zero(); nf],
+            scratch_qd: vec![0.0; model.nq()],
+            scratch_force: vec![0.0; model.nq()],
         }
     }
 }

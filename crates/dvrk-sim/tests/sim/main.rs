@@ -24,6 +24,7 @@ mod endurance;
 mod energy;
 mod inertials;
 mod mjcf;
+mod mtm;
 mod plot;
 mod recording;
 mod reduced;

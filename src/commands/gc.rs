@@ -1,0 +1,90 @@
+//! `dvrk gc`: gravity compensation from a model (dvrk-calib's gravity module): the efforts that
+//! hold the arm still at a configuration, and, with a recording, how they compare with its
+//! efforts where it moves slowest.
+
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use std::path::PathBuf;
+
+#[derive(Debug, Args)]
+pub struct GcArgs {
+    /// Model (built-in name or file): an identified one (`dvrk identify -o`) carries its own
+    /// inertials and effects; `mtmr-wpi` is the MTMR identified on the WPI recordings.
+    #[arg(long, default_value = "mtmr-wpi")]
+    pub model: String,
+    /// Joint positions (rad, m), comma-separated: print the holding torque there (home when absent).
+    #[arg(long, allow_hyphen_values = true)]
+    pub q: Option<String>,
+    /// A joint recording with efforts: compare the holding torque with its efforts at its
+    /// slowest samples, per recorded channel.
+    #[arg(long)]
+    pub recording: Option<PathBuf>,
+    /// Recording format (as `dvrk identify`'s: auto, wpi-csv, mcap, bag).
+    #[arg(long, default_value = "auto")]
+    pub format: String,
+    /// Arm whose /<ARM>/measured_js an MCAP or bag recording carries.
+    #[arg(long, default_value = "MTMR")]
+    pub arm: String,
+    /// The fraction of the recording's samples, slowest first, compared.
+    #[arg(long, default_value_t = 0.02)]
+    pub slowest: f64,
+    /// Gravity in the model's base frame (m/s^2), `x,y,z`.
+    #[arg(long, default_value = "0,0,-9.81", allow_hyphen_values = true)]
+    pub gravity: String,
+    /// Print the result as one JSON object.
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub fn run(args: &GcArgs) -> Result<()> {
+    let g = crate::io::parse_list("--gravity", &args.gravity)?;
+    let [gx, gy, gz] = g[..] else { bail!("--gravity {}: three components x,y,z (m/s^2)", args.gravity) };
+    let gravity = nalgebra::Vector3::new(gx, gy, gz);
+    let model = dvrk_kin::load(&args.model, None).with_context(|| format!("--model {}", args.model))?;
+    // An identified model file carries its inertials; a built-in one has them in models/inertials.
+    let inertials = dvrk_sim::scene::builtin_inertials(&model.name, &model).map(|i| i.with_model(&model));
+    let inertias = match inertials {
+        Ok(i) => i.body_inertias(&model)?,
+        Err(e) => bail!("--model {}: no inertials ({e}); identify it first (`dvrk identify -o`)", args.model),
+    };
+    let q = match &args.q {
+        Some(text) => {
+            let q = crate::io::parse_list("--q", text)?;
+            if q.len() != model.nq() {
+                bail!("--q {text}: {} values for model {}'s {} joints", q.len(), model.name, model.nq());
+            }
+            q
+        }
+        None => model.home().to_vec(),
+    };
+    let tau = dvrk_calib::gravity::torque(&model, inertias.clone(), &q, &gravity).with_context(|| format!("--q {:?}", q))?;
+    let check = match &args.recording {
+        Some(path) => {
+            crate::io::check_outputs(&[("--recording", path.as_path())], &[])?;
+            let (rec, notes) = dvrk_calib::recordings::read_joint_log_parts(path, &args.format, &model, &args.arm, dvrk_calib::recordings::Parts::Measured)
+                .with_context(|| format!("--recording {}", path.display()))?;
+            for n in notes.iter().filter(|_| !args.json) {
+                eprintln!("note: {n}");
+            }
+            Some(dvrk_calib::gravity::check_slow_samples(&model, inertias, &rec, &gravity, args.slowest).with_context(|| format!("--recording {}", path.display()))?)
+        }
+        None => None,
+    };
+    if args.json {
+        let joints: Vec<&str> = model.joints.iter().map(|j| j.name.as_str()).collect();
+        println!("{}", serde_json::json!({ "model": model.name, "q": q, "joints": joints, "holding_torque": tau, "slowest_samples": check }));
+        return Ok(());
+    }
+    println!("holding torque of {} at q = {q:?} (gravity {:?} m/s^2):", model.name, [gx, gy, gz]);
+    for (j, t) in model.joints.iter().zip(&tau) {
+        println!("  {:<20} {t:>10.4} {}", j.name, if j.kind == dvrk_kin::JointType::Prismatic { "N" } else { "N·m" });
+    }
+    if let Some(c) = check {
+        println!("against the recording's {} slowest samples (every channel within {:.2}x its RMS velocity):", c.samples, c.speed_ratio);
+        println!("  {:<28} {:>12} {:>12} {:>10}", "channel", "measured rms", "error rms", "relative");
+        for (i, name) in c.channels.iter().enumerate() {
+            println!("  {name:<28} {:>12.4} {:>12.4} {:>10.3}", c.measured_rms[i], c.error_rms[i], c.relative_error[i]);
+        }
+    }
+    Ok(())
+}
