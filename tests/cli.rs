@@ -212,8 +212,8 @@ fn export_mjcf_writes_a_scene_or_a_model_and_names_bad_input() {
     let out = dir.path().join("suj.xml");
     dvrk_ok(&["export", "mjcf", "suj-ecm", "-o", out.to_str().unwrap()]);
     assert_eq!(std::fs::read_to_string(&out).unwrap().matches("polycoef").count(), 4);
-    let err = crate::util::dvrk_err(&["export", "mjcf", "mtmr", "-o", out.to_str().unwrap()]);
-    assert!(err.contains("mtmr") && err.contains("no built-in inertials"), "{err}");
+    let err = crate::util::dvrk_err(&["export", "mjcf", "cart", "-o", out.to_str().unwrap()]);
+    assert!(err.contains("cart") && err.contains("no built-in inertials"), "{err}");
     let err = crate::util::dvrk_err(&["export", "mjcf", "psm", "--q", "0", "-o", out.to_str().unwrap()]);
     assert!(err.contains("--q"), "{err}");
 }

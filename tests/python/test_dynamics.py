@@ -74,4 +74,4 @@ def test_bad_input_is_named():
     with pytest.raises(ValueError, match="qdd"):
         m.inverse_dynamics(m.home, None, np.full(7, np.nan))
     with pytest.raises(ValueError, match="inertials"):
-        dvrk_twin.Model.load("mtmr").gravity(dvrk_twin.Model.load("mtmr").home)
+        dvrk_twin.Model.load("cart").gravity(dvrk_twin.Model.load("cart").home)
