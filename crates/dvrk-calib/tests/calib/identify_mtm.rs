@@ -96,11 +96,7 @@ fn real_mtm_identified_on_one_predicts_two_better_than_published() {
 #[test]
 fn gravity_compensation_identified_on_two_holds_the_twin_identified_on_one() {
     let Some(two) = wpi("mtm/two_results.csv") else { return };
-    let model = dvrk_kin::load("mtmr", None).unwrap();
-    let r2 = read_wpi_csv(&two, &model).unwrap();
-    let options = IdentifyOptions::mtm();
-    let prior = dvrk_sim::scene::builtin_inertials("mtmr", &model).unwrap().body_inertias(&model).unwrap();
-    let (id, _) = identify(&model, &prior, &r2, &options).unwrap();
+    let (model, r2, options, prior, id) = identified_on(&two);
     let identified = dvrk_calib::identify::output::identified_model(&model, &id, &options.processing, &r2.joint_map(), &prior, "two").unwrap();
     let gc_model = dvrk_kin::Model::compile(identified.spec).unwrap();
     let gc_inertias: Vec<_> = model.bodies.iter().enumerate().map(|(b, body)| id.body_inertia(b, &body.name).unwrap()).collect();
@@ -158,11 +154,7 @@ fn pose(range: &[(f64, f64)], i: usize) -> Vec<f64> {
 #[test]
 fn the_builtin_mtmr_wpi_is_todays_identification_on_one() {
     let Some(one) = wpi("mtm/one_results.csv") else { return };
-    let model = dvrk_kin::load("mtmr", None).unwrap();
-    let r1 = read_wpi_csv(&one, &model).unwrap();
-    let options = IdentifyOptions::mtm();
-    let prior = dvrk_sim::scene::builtin_inertials("mtmr", &model).unwrap().body_inertias(&model).unwrap();
-    let (id, _) = identify(&model, &prior, &r1, &options).unwrap();
+    let (model, _, _, _, id) = identified_on(&one);
     let builtin = dvrk_kin::load("mtmr-wpi", None).unwrap();
     assert_eq!(builtin.spec.inertials.len(), model.bodies.len());
     for (b, body) in model.bodies.iter().enumerate() {
@@ -170,4 +162,15 @@ fn the_builtin_mtmr_wpi_is_todays_identification_on_one() {
         let close = |a: f64, b: f64| (a - b).abs() <= 1e-6 * (1e-3 + a.abs().max(b.abs()));
         assert!(close(now.mass, shipped.mass) && (0..3).all(|k| close(now.com[k], shipped.com[k])), "{}: {now:?} vs {shipped:?} (regenerate models/mtmr-wpi.toml)", body.name);
     }
+}
+
+/// The MTMR identified on the WPI recording `path` with the MTM options: the model, the
+/// recording, the options, the prior and the identification.
+fn identified_on(path: &std::path::Path) -> (dvrk_kin::Model, JointLog, IdentifyOptions, Vec<dvrk_kin::BodyInertia>, dvrk_calib::identify::Identification) {
+    let model = dvrk_kin::load("mtmr", None).unwrap();
+    let rec = read_wpi_csv(path, &model).unwrap();
+    let options = IdentifyOptions::mtm();
+    let prior = dvrk_sim::scene::builtin_inertials("mtmr", &model).unwrap().body_inertias(&model).unwrap();
+    let (id, _) = identify(&model, &prior, &rec, &options).unwrap();
+    (model, rec, options, prior, id)
 }
