@@ -47,6 +47,14 @@ pub struct IdentifyArgs {
     /// validation recording (the fitted one without --validate), as PNG or SVG.
     #[arg(long)]
     pub plot: Option<PathBuf>,
+    /// A joint's cable torque measured on its own (the WPI MTM platform's joint test,
+    /// `joint_test_cable.csv`: position, unused, effort; two slow sweeps): its cubic fit is the
+    /// prior of that joint's `cable_spring` (--cable-joint).
+    #[arg(long)]
+    pub cable_test: Option<PathBuf>,
+    /// The joint --cable-test sweeps.
+    #[arg(long, default_value = "wrist_platform")]
+    pub cable_joint: String,
     /// Print the summary as one JSON object.
     #[arg(long)]
     pub json: bool,
@@ -56,6 +64,7 @@ pub fn run(args: &IdentifyArgs) -> Result<()> {
     let mut inputs = vec![("--recording", args.recording.as_path()), ("--model", std::path::Path::new(&args.model))];
     inputs.extend(args.validate.as_deref().map(|v| ("--validate", v)));
     inputs.extend(args.inertials.as_deref().map(|v| ("--inertials", v)));
+    inputs.extend(args.cable_test.as_deref().map(|v| ("--cable-test", v)));
     crate::io::check_outputs(&inputs, &[("-o", args.output.as_deref()), ("--plot", args.plot.as_deref())])?;
     crate::io::check_plot(args.plot.as_deref())?;
     let g = crate::io::parse_list("--gravity", &args.gravity)?;
@@ -77,7 +86,26 @@ pub fn run(args: &IdentifyArgs) -> Result<()> {
         options.processing.channel_cutoff.clear();
     }
     options.processing.gravity = nalgebra::Vector3::new(gx, gy, gz);
-    let (rec, notes) = read_log(&args.recording, &args.format, &model, &args.arm)?;
+    let (rec, mut notes) = read_log(&args.recording, &args.format, &model, &args.arm)?;
+    if let Some(path) = &args.cable_test {
+        let joint = model.joint_id(&args.cable_joint).with_context(|| format!("--cable-joint {}", args.cable_joint))?;
+        let test = dvrk_calib::identify::cable_prior::from_joint_test(path, joint).with_context(|| format!("--cable-test {}", path.display()))?;
+        let [k1, k2, k3] = test.prior.value;
+        notes.push(format!(
+            "--cable-test {}: {} cable torque {k1:.4} q + {k2:.4} q^2 + {k3:.4} q^3 (+ {:.4}) N·m over {:.2}..{:.2} rad (misfit {:.4} N·m RMS; friction {:.4} N·m): the prior of its cable_spring",
+            path.display(),
+            args.cable_joint,
+            test.constant,
+            test.range.0,
+            test.range.1,
+            test.misfit_rms,
+            test.friction
+        ));
+        if !options.terms.joint_springs.iter().any(|(j, _)| *j == joint) {
+            bail!("--cable-test {}: model {}'s identification fits no cable spring on {} (its options put them on: {})", path.display(), model.name, args.cable_joint, options.terms.joint_springs.iter().map(|(j, _)| model.joints[*j].name.as_str()).collect::<Vec<_>>().join(", "));
+        }
+        options.joint_spring_priors.push(test.prior);
+    }
     let inertias = prior.body_inertias(&model)?;
     let held_out = match &args.validate {
         Some(v) => Some(read_log(v, format, &model, &args.arm).with_context(|| format!("--validate {}", v.display()))?.0),

@@ -3,7 +3,8 @@
 //! CUT (per-channel cut-offs), VSC (per-channel Coulomb velocities), STRIBECK (1), G (gravity),
 //! SPRING (spring channels), DAHL (presliding channels), SIG (their presliding displacements),
 //! MODEL (psm or mtmr: the MTM's recordings and IdentifyOptions::mtm), JS (joint springs
-//! `joint:order,...`), CUTOFF (one cut-off for every channel).
+//! `joint:order,...`), CUTOFF (one cut-off for every channel), CABLE (the MTM platform's joint
+//! test file: the prior of its cable spring).
 //! Prints the fit on `one`, the two-fold cross-validation within `one` (the figure settings are
 //! chosen by) and the held-out error on `two`.
 use dvrk_calib::identify::problem::EffectTerm;
@@ -72,6 +73,12 @@ fn main() {
     if let Some(c) = list("CUTOFF") {
         o.processing.cutoff = c[0];
         o.processing.channel_cutoff.clear();
+    }
+    // CABLE: the MTM platform's joint test as the prior of its cable spring.
+    if let Ok(path) = std::env::var("CABLE") {
+        let test = dvrk_calib::identify::cable_prior::from_joint_test(Path::new(&path), 3).unwrap();
+        eprintln!("cable test: {:?} + {:.4}, range {:?}, misfit {:.4}, friction {:.4}", test.prior.value, test.constant, test.range, test.misfit_rms, test.friction);
+        o.joint_spring_priors.push(test.prior);
     }
     if let Some(c) = list("ORDER") {
         o.processing.filter_order = c[0] as usize;

@@ -43,6 +43,7 @@ mod arm_state;
 mod options;
 mod rapier_build;
 mod rapier_world;
+pub mod teleop;
 pub mod trajectory;
 pub mod warnings;
 

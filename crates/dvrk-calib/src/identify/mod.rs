@@ -12,6 +12,7 @@
 
 pub mod ablation;
 pub mod as_published;
+pub mod cable_prior;
 mod input;
 pub mod output;
 pub mod plot;
@@ -44,6 +45,10 @@ pub struct IdentifyOptions {
     /// Bodies known to be small parts, whose prior is their size instead of the CAD figures
     /// ([`SmallBody`]).
     pub small_bodies: Vec<SmallBody>,
+    /// Priors on joints' configuration-dependent springs ([`Terms::joint_springs`]) measured on
+    /// their own ([`cable_prior::from_joint_test`]: the MTM platform's joint test), in place of
+    /// the wide default.
+    pub joint_spring_priors: Vec<cable_prior::JointSpringPrior>,
 }
 
 /// A body known to weigh at most about `mass_kg` within `radius_m` of its frame's origin (a
@@ -85,6 +90,7 @@ impl IdentifyOptions {
             prior_fraction: 0.25,
             consistency_margin: 0.0,
             small_bodies: Vec::new(),
+            joint_spring_priors: Vec::new(),
         }
     }
 
@@ -387,6 +393,18 @@ pub fn identify_regression(model: &Model, prior: &[BodyInertia], reg: &Regressio
         for k in 0..PARAMETERS_PER_BODY {
             theta0[b * PARAMETERS_PER_BODY + k] = 0.0;
             scale[b * PARAMETERS_PER_BODY + k] = small.scale(k);
+        }
+    }
+    // A prior on a joint's cable spring where the terms fit one (the ablation's steps without
+    // the springs keep the options' priors and have nothing to put them on).
+    for spring in &options.joint_spring_priors {
+        for (i, p) in layout.params.iter().enumerate() {
+            if let Param::Joint { term, joint } = *p {
+                if let (true, Some((v, s))) = (joint == spring.joint, spring.of(term)) {
+                    theta0[i] = v;
+                    scale[i] = s;
+                }
+            }
         }
     }
     let prior_precision = DVector::from_iterator(n, scale.iter().map(|s| 1.0 / (s * s)));

@@ -30,3 +30,4 @@ mod recording;
 mod reduced;
 mod scenes;
 mod sim;
+mod teleop;
