@@ -39,7 +39,7 @@ def tree_map(urdf, model, joint_names):
     return c, b
 
 
-@pytest.mark.parametrize("name", ["psm", "ecm"])
+@pytest.mark.parametrize("name", ["psm", "ecm", "mtmr", "mtmr-wpi"])
 def test_inverse_dynamics_mass_matrix_and_gravity_match_pinocchio(name):
     ours = dvrk_twin.Model.load(name)
     urdf = ours.export_urdf(inertials=True)
