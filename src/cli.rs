@@ -44,6 +44,9 @@ pub enum Command {
     /// Gravity compensation from a model (an identified one): the efforts that hold the arm
     /// still at a configuration; with a recording, against its efforts where it moves slowest.
     Gc(crate::commands::gc::GcArgs),
+    /// A recorded MTM (MCAP or ROS 1 bag) driving a simulated PSM through the console's follow
+    /// mode (scaled relative translation, absolute orientation, alignment, clutch, gripper -> jaw).
+    Teleop(crate::commands::teleop::TeleopArgs),
     /// Which physical effect does the model lack? A recording's efforts against the model's:
     /// ranked candidates with evidence, a verdict, the model with the named effect.
     Discrepancy(crate::commands::discrepancy::DiscrepancyArgs),

@@ -11,6 +11,7 @@ pub mod model;
 pub mod serve;
 pub mod sim;
 pub mod synth;
+pub mod teleop;
 
 use crate::cli::{Cli, Command};
 use model::ModelCommand;
@@ -44,6 +45,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Synth { command } => synth::run(&command),
         Command::Identify(a) => identify::run(&a),
         Command::Gc(a) => gc::run(&a),
+        Command::Teleop(a) => teleop::run(&a),
         Command::Discrepancy(a) => discrepancy::run(&a),
     }
 }

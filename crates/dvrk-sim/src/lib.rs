@@ -44,6 +44,7 @@ mod options;
 mod rapier_build;
 mod rapier_world;
 pub mod teleop;
+pub mod teleop_replay;
 pub mod trajectory;
 pub mod warnings;
 

@@ -14,7 +14,8 @@
 //! from its anchor. Orientation is absolute: the PSM's tip takes the MTM's orientation (times the
 //! alignment offset in [`Align::Offset`] mode). Following starts only when the two orientations
 //! differ by less than [`TeleopConfig::start_tolerance_rad`] ([`Align::Refuse`], the console's
-//! default); while the clutch is pressed nothing is commanded.
+//! default); while the clutch is pressed nothing is commanded. The settings' defaults are the
+//! console's (dVRK `dvrk_teleoperation`: scale 0.2, 5 deg, the gripper-to-jaw map).
 
 use dvrk_kin::Pose;
 use nalgebra::{Rotation3, Vector3};
@@ -39,14 +40,28 @@ pub struct TeleopConfig {
     /// The rotation from the MTM's base frame to the display (= camera) frame.
     pub display_from_mtm: Rotation3<f64>,
     /// Gripper opening (rad) to jaw angle (rad): `jaw = jaw_per_gripper * gripper + jaw_offset`,
-    /// clamped to the jaw's limits by the caller.
+    /// at least `jaw_min` (and within the jaw joint's limits, which the caller applies). The
+    /// console's: a 60 deg gripper opens the jaw to 80 deg, so 4/3, offset 0, jaw at least -20 deg.
     pub jaw_per_gripper: f64,
     pub jaw_offset: f64,
+    /// Lowest jaw command (rad).
+    pub jaw_min: f64,
+    /// Fastest jaw command change (rad/s; the console's 2 pi): a replay applies it between samples.
+    pub jaw_rate: f64,
 }
 
 impl Default for TeleopConfig {
     fn default() -> Self {
-        TeleopConfig { scale: 0.2, start_tolerance_rad: 5f64.to_radians(), align: Align::Refuse, display_from_mtm: Rotation3::identity(), jaw_per_gripper: 1.0, jaw_offset: 0.0 }
+        TeleopConfig {
+            scale: 0.2,
+            start_tolerance_rad: 5f64.to_radians(),
+            align: Align::Refuse,
+            display_from_mtm: Rotation3::identity(),
+            jaw_per_gripper: 80.0 / 60.0,
+            jaw_offset: 0.0,
+            jaw_min: -20f64.to_radians(),
+            jaw_rate: 2.0 * std::f64::consts::PI,
+        }
     }
 }
 
@@ -123,7 +138,7 @@ impl Teleop {
         let position = psm_anchor + self.config.scale * (m_pos - mtm_anchor);
         Some(PsmCommand {
             tip_in_camera: Pose::from_parts(nalgebra::Translation3::from(position), m_rot * offset),
-            jaw: self.config.jaw_per_gripper * mtm.gripper + self.config.jaw_offset,
+            jaw: (self.config.jaw_per_gripper * mtm.gripper + self.config.jaw_offset).max(self.config.jaw_min),
         })
     }
 }

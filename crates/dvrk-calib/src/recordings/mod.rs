@@ -12,6 +12,7 @@
 //!   and bags `joint_log_mcap.rs`, its CSV layout `joint_log_csv.rs`), read as recorded; each
 //!   product prepares what it needs with [`JointLog`]'s operations. A tracked marker's poses:
 //!   `marker_log.rs`.
+//! - An MTM's hand motion for teleoperation: pose, gripper, clutch pedal (`mtm_log.rs`).
 //! - The format of a file, told from its content when asked for `auto` (`format.rs`).
 //!
 //! The ROS 2 message codec is dvrk-sim's (`dvrk_sim::recording::{cdr, ros_msgs}`), which records
@@ -28,6 +29,7 @@ pub(crate) mod joint_states;
 pub(crate) mod marker_log;
 pub(crate) mod markers_to_pose;
 pub(crate) mod mcap_io;
+pub(crate) mod mtm_log;
 pub(crate) mod message_file;
 pub(crate) mod motive_csv;
 pub(crate) mod plain_csv;
@@ -57,5 +59,7 @@ pub use joint_log::{JointLog, NO_SETPOINTS};
 pub use joint_log_mcap::write_mcap as write_joint_log_mcap;
 pub use joint_log_csv::{parse as parse_joint_log_csv, read as read_joint_log_csv, write as write_joint_log_csv, CsvLog};
 pub use joint_states::{read_arm, read_arms, ArmStates, JointStates};
+// An MTM's hand motion (pose, gripper, clutch) for teleoperation.
+pub use mtm_log::{read_mtm, MtmLog, MtmTopics};
 pub use marker_log::{marker_frame, read_mcap as read_marker_mcap, synthetic_topic, MarkerLog};
 pub use wpi_csv::{parse as parse_wpi_csv, read as read_wpi_csv, WPI_RATE};

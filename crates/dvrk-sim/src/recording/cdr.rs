@@ -73,6 +73,20 @@ impl CdrWriter {
             self.f64(*x);
         }
     }
+    /// A sequence of f32 (narrowed from f64).
+    pub fn f32_seq(&mut self, v: &[f64]) {
+        self.u32(v.len() as u32);
+        for x in v {
+            self.u32((*x as f32).to_bits());
+        }
+    }
+    /// A sequence of i32.
+    pub fn i32_seq(&mut self, v: &[i32]) {
+        self.u32(v.len() as u32);
+        for x in v {
+            self.i32(*x);
+        }
+    }
     /// A sequence of strings.
     pub fn string_seq(&mut self, v: &[String]) {
         self.u32(v.len() as u32);
@@ -174,6 +188,25 @@ impl<'a> CdrReader<'a> {
         let mut v = Vec::with_capacity(n);
         for i in 0..n {
             v.push(self.f64(field).map_err(|e| e.replacen(field, &format!("{field}[{i}]"), 1))?);
+        }
+        Ok(v)
+    }
+    /// A sequence of f32 (widened to f64: sensor_msgs/Joy's axes).
+    pub fn f32_seq(&mut self, field: &str) -> Result<Vec<f64>, String> {
+        let n = self.seq_len(field, 4)?;
+        let mut v = Vec::with_capacity(n);
+        for i in 0..n {
+            let bits = self.u32(field).map_err(|e| e.replacen(field, &format!("{field}[{i}]"), 1))?;
+            v.push(f32::from_bits(bits) as f64);
+        }
+        Ok(v)
+    }
+    /// A sequence of i32 (sensor_msgs/Joy's buttons).
+    pub fn i32_seq(&mut self, field: &str) -> Result<Vec<i32>, String> {
+        let n = self.seq_len(field, 4)?;
+        let mut v = Vec::with_capacity(n);
+        for i in 0..n {
+            v.push(self.i32(field).map_err(|e| e.replacen(field, &format!("{field}[{i}]"), 1))?);
         }
         Ok(v)
     }

@@ -110,6 +110,71 @@ impl PoseStamped {
     }
 }
 
+impl TransformStamped {
+    /// CDR bytes of one geometry_msgs/msg/TransformStamped.
+    pub fn encode(&self) -> Vec<u8> {
+        let mut w = CdrWriter::new();
+        self.header.write(&mut w);
+        w.string(&self.child_frame_id);
+        self.translation.iter().chain(&self.rotation).for_each(|x| w.f64(*x));
+        w.finish()
+    }
+    /// From CDR bytes (one geometry_msgs/msg/TransformStamped, as CRTK's `measured_cp` in later
+    /// dVRK releases).
+    pub fn decode(bytes: &[u8]) -> Result<Self, String> {
+        Self::read(&mut CdrReader::new(bytes)?)
+    }
+    /// From ROS 1 bytes (geometry_msgs/TransformStamped in a bag).
+    pub fn decode_ros1(bytes: &[u8]) -> Result<Self, String> {
+        Self::read(&mut CdrReader::ros1(bytes))
+    }
+    fn read(r: &mut CdrReader) -> Result<Self, String> {
+        let header = Header::read(r)?;
+        let child_frame_id = r.string("child_frame_id")?;
+        Ok(TransformStamped { header, child_frame_id, translation: read3(r, "transform.translation")?, rotation: read4(r, "transform.rotation")? })
+    }
+}
+
+/// sensor_msgs/msg/Joy: how the dVRK publishes its foot pedals and buttons (`/footpedals/clutch`:
+/// `buttons[0]` is 1 while pressed, 0 when released, 2 for a quick click).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Joy {
+    pub header: Header,
+    /// Axes (the wire's float32, widened).
+    pub axes: Vec<f64>,
+    pub buttons: Vec<i32>,
+}
+
+impl Joy {
+    /// CDR bytes.
+    pub fn encode(&self) -> Vec<u8> {
+        let mut w = CdrWriter::new();
+        self.header.write(&mut w);
+        w.f32_seq(&self.axes);
+        w.i32_seq(&self.buttons);
+        w.finish()
+    }
+    /// From CDR bytes.
+    pub fn decode(bytes: &[u8]) -> Result<Self, String> {
+        Self::read(&mut CdrReader::new(bytes)?)
+    }
+    /// From ROS 1 bytes (sensor_msgs/Joy in a bag).
+    pub fn decode_ros1(bytes: &[u8]) -> Result<Self, String> {
+        Self::read(&mut CdrReader::ros1(bytes))
+    }
+    fn read(r: &mut CdrReader) -> Result<Self, String> {
+        Ok(Joy { header: Header::read(r)?, axes: r.f32_seq("axes")?, buttons: r.i32_seq("buttons")? })
+    }
+}
+
+/// Schema name and `ros2msg` text of sensor_msgs/msg/Joy.
+pub fn joy_schema() -> (&'static str, String) {
+    ("sensor_msgs/msg/Joy", format!("std_msgs/Header header
+float32[] axes
+int32[] buttons
+{}", header_defs()))
+}
+
 /// tf2_msgs/msg/TFMessage: CDR bytes of `transforms`.
 pub fn encode_tf(transforms: &[TransformStamped]) -> Vec<u8> {
     let mut w = CdrWriter::new();
@@ -298,6 +363,17 @@ pub fn joint_state_schema() -> (&'static str, String) {
 
 #[cfg(test)]
 mod tests {
+    /// Joy and one TransformStamped round-trip through CDR; a Joy's float32 axes and int32
+    /// buttons are 4-byte aligned after the header (as `ros2 bag` writes them).
+    #[test]
+    fn joy_and_transform_stamped_round_trip() {
+        let j = Joy { header: Header::at(3.5, ""), axes: vec![0.25, -1.0], buttons: vec![1, 0, 2] };
+        assert_eq!(Joy::decode(&j.encode()).unwrap(), j);
+        assert!(Joy::decode(&j.encode()[..20]).unwrap_err().contains("axes"));
+        let t = TransformStamped { header: Header::at(1.0, "MTMR_base"), child_frame_id: "MTMR".into(), translation: [0.1, 0.2, 0.3], rotation: [0.0, 0.0, 0.0, 1.0] };
+        assert_eq!(TransformStamped::decode(&t.encode()).unwrap(), t);
+    }
+
     use super::*;
 
     #[test]

@@ -13,6 +13,7 @@
 //! - `/PSM1/measured_cp`, geometry_msgs/msg/PoseStamped: the tool tip (the model's `tip` frame)
 //!   in the arm's base frame `PSM1_base`, which is the base of the arm's serial dVRK kinematics
 //!   (the RCM frame of a PSM or ECM, as the dVRK reports it) or frame 0 for other models;
+//! - `/PSM1/setpoint_cp`, the same type and frame: the tip at the actuators' targets (FK);
 //!
 //! and on `/tf` one foxglove.FrameTransforms (the SDK's protobuf) per sample, a transform per
 //! body: `PSM1/yaw_link` in `world`; once, the link geometry on `/scene` (foxglove.SceneUpdate,
@@ -103,6 +104,7 @@ struct ArmChannels {
     /// The arm's own joints first, then each tool joint's topics.
     topics: Vec<JointChannels>,
     measured_cp: usize,
+    setpoint_cp: usize,
     measured_cv: usize,
     operating_state: usize,
     /// What `operating_state` says now.
@@ -112,7 +114,11 @@ struct ArmChannels {
     /// The tip frame's body and its placement in that body.
     tip_body: usize,
     tip_rel: Pose,
-    /// Kinematics workspace for the tip's Jacobian (`measured_cv`).
+    /// The CRTK base in the model's own placement ([`crtk_base`]), for `setpoint_cp`.
+    base_in_model: Pose,
+    /// The actuators' targets (scratch for `setpoint_cp`).
+    targets: Vec<f64>,
+    /// Kinematics workspace for the tip's Jacobian (`measured_cv`) and `setpoint_cp`.
     kin: dvrk_kin::Data,
     jacobian: nalgebra::Matrix6xX<f64>,
 }
@@ -324,11 +330,7 @@ impl Recorder {
         for arm in &sim.arms {
             let ns = topic_namespace(&arm.name);
             let m = &arm.model;
-            // The serial dVRK base in frame 0 (identity when the model has no serial equivalent).
-            let mut unplaced = m.clone();
-            unplaced.base = Pose::identity();
-            let serial = dvrk_kin::compose::serial_base_transform(&unplaced).unwrap_or_else(|_| Pose::identity());
-            let base_world = m.base * serial;
+            let base_world = crtk_base(m);
             let base = match arm.parent {
                 None => BaseRef::World(base_world),
                 Some((pa, pf)) => {
@@ -352,6 +354,7 @@ impl Recorder {
             arms.push(ArmChannels {
                 topics,
                 measured_cp: w.add_channel(&format!("/{ns}/measured_cp"), &cp_schema, "cdr")?,
+                setpoint_cp: w.add_channel(&format!("/{ns}/setpoint_cp"), &cp_schema, "cdr")?,
                 measured_cv: w.add_channel(&format!("/{ns}/measured_cv"), &cv_schema, "cdr")?,
                 operating_state: w.add_channel(&format!("/{ns}/operating_state"), &state_schema, "cdr")?,
                 state: ArmState::default(),
@@ -359,6 +362,8 @@ impl Recorder {
                 base,
                 tip_body,
                 tip_rel,
+                base_in_model: base_world,
+                targets: vec![0.0; m.nq()],
                 kin: dvrk_kin::Data::new(m),
                 jacobian: nalgebra::Matrix6xX::zeros(m.nq()),
             });
@@ -450,6 +455,23 @@ impl Recorder {
         Ok(([v.x, v.y, v.z], [w.x, w.y, w.z]))
     }
 
+    /// The tool tip at arm `a`'s actuator targets in its base frame (what `setpoint_cp` holds, m):
+    /// the model's FK at the targets, relative to its CRTK base in the model's own placement
+    /// (exact for an arm carried by setup joints too: base and tip ride on the arm's frame 0).
+    /// `None` when a target is not finite.
+    fn setpoint_tip(&mut self, sim: &Sim, a: usize) -> Result<Option<Pose>> {
+        let arm = &sim.arms[a];
+        let c = &mut self.arms[a];
+        for (k, act) in arm.actuators.iter().enumerate() {
+            c.targets[k] = act.target;
+        }
+        if !c.targets.iter().all(|x| x.is_finite()) {
+            return Ok(None);
+        }
+        dvrk_kin::forward_kinematics(&arm.model, &mut c.kin, &c.targets)?;
+        Ok(Some(c.base_in_model.inverse() * c.kin.frames[arm.model.tip]))
+    }
+
     /// The tool tip of arm `a` in its base frame (what `measured_cp` holds), m.
     pub fn tip_in_base(&self, sim: &Sim, a: usize) -> Pose {
         let c = &self.arms[a];
@@ -499,6 +521,13 @@ impl Recorder {
             }
             if let Some(cp) = cp {
                 self.write(mc, t, &cp.encode())?;
+            }
+            let sc = self.arms[a].setpoint_cp;
+            if self.sinks.wanted(sc) {
+                if let Some(p) = self.setpoint_tip(sim, a)? {
+                    let frame = self.arms[a].base_frame_id.clone();
+                    self.write(sc, t, &PoseStamped::from_pose(t, &frame, &p).encode())?;
+                }
             }
             let cv = self.arms[a].measured_cv;
             if self.sinks.wanted(cv) {
@@ -649,4 +678,13 @@ impl Recorder {
         }
         Ok(self.staged.take())
     }
+}
+
+/// Where `measured_cp` is reported for a model placed in the world (its `base`): the base of its
+/// serial dVRK kinematics (a PSM's or ECM's RCM frame), or frame 0 when it has no serial
+/// equivalent.
+pub fn crtk_base(m: &dvrk_kin::Model) -> Pose {
+    let mut unplaced = m.clone();
+    unplaced.base = Pose::identity();
+    m.base * dvrk_kin::compose::serial_base_transform(&unplaced).unwrap_or_else(|_| Pose::identity())
 }

@@ -77,7 +77,7 @@ fn psm_recording_holds_the_simulated_values() {
     // The dVRK's CRTK layout: the jaw on its own topics.
     assert_eq!(
         topics,
-        ["/PSM1/jaw/measured_js", "/PSM1/jaw/setpoint_js", "/PSM1/measured_cp", "/PSM1/measured_cv", "/PSM1/measured_js", "/PSM1/operating_state", "/PSM1/robot_description", "/PSM1/setpoint_js", "/scene", "/tf"]
+        ["/PSM1/jaw/measured_js", "/PSM1/jaw/setpoint_js", "/PSM1/measured_cp", "/PSM1/measured_cv", "/PSM1/measured_js", "/PSM1/operating_state", "/PSM1/robot_description", "/PSM1/setpoint_cp", "/PSM1/setpoint_js", "/scene", "/tf"]
     );
     assert_eq!(m["/PSM1/operating_state"].len(), 1);
     // What does not change, once: the link geometry and the robot description.
@@ -123,6 +123,12 @@ fn psm_recording_holds_the_simulated_values() {
         let want = serial.inverse() * fk[model.tip];
         let gap = (want.translation.vector - pose.translation.vector).norm();
         assert!(gap < 1e-6, "sample {k}: tip {gap} m from FK");
+        // setpoint_cp: FK of the recorded setpoints, in the same frame.
+        let scp = PoseStamped::decode(&m["/PSM1/setpoint_cp"][k].1).unwrap();
+        assert_eq!(scp.header.frame_id, "PSM1_base");
+        let want = serial.inverse() * unplaced.fk(&joined(&sp.position, &jaw_sp.position)).unwrap()[model.tip];
+        let gap = (want.translation.vector - nalgebra::Vector3::from(scp.position)).norm();
+        assert!(gap < 1e-9, "sample {k}: setpoint_cp {gap} m from FK of setpoint_js");
         // measured_cv: the tip's twist in the base's axes, J(q) qd of the unplaced model turned
         // by the serial base (an independent path: no scene placement, no body poses).
         let cv = &m["/PSM1/measured_cv"][k].1;
@@ -219,6 +225,7 @@ fn python_mcap_ros2_reads_the_recording() {
         ["/PSM1/measured_js", js_type],
         ["/PSM1/operating_state", "crtk_msgs/msg/OperatingState"],
         ["/PSM1/robot_description", "std_msgs/msg/String"],
+        ["/PSM1/setpoint_cp", "geometry_msgs/msg/PoseStamped"],
         ["/PSM1/setpoint_js", js_type],
         ["/scene", "foxglove.SceneUpdate"],
         ["/tf", "foxglove.FrameTransforms"]

@@ -76,3 +76,44 @@ fn a_synthetic_mtm_motion_drives_the_psm_scaled_in_the_camera_frame() {
     assert!(worst_position < 0.5e-3 && worst_angle < 1f64.to_radians(), "{worst_position} m, {worst_angle} rad");
     assert!(jaw.abs() < 1e-12, "the jaw closes with the gripper: {jaw}");
 }
+
+/// The replay ([`dvrk_sim::teleop_replay`]) in a scene with an ECM follows in the ECM's camera
+/// frame: a hand motion along the display's x moves PSM1's commanded tip 0.2 times as far along
+/// the camera's x in the world, whatever the PSM's own base; the clutch holds it; an MTM that
+/// starts misaligned waits.
+#[test]
+fn a_replay_in_a_scene_with_an_ecm_moves_the_tip_along_the_cameras_axes() {
+    use dvrk_sim::teleop_replay::{camera_frame, plan, MtmMotion};
+    let scene = dvrk_sim::Scene::load("2psm-ecm").unwrap();
+    let (psm, ecm) = (scene.arm_index("PSM1").unwrap(), scene.arm_index("ECM").unwrap());
+    let (camera, name) = camera_frame(&scene, psm, Some(ecm)).unwrap();
+    assert!(name.starts_with("ECM's camera"), "{name}");
+    // Independently: the ECM model placed by the scene's mount, at home.
+    let ecm_model = &scene.arms[ecm].model;
+    let cam = ecm_model.fk(&ecm_model.home()).unwrap()[ecm_model.tip];
+    assert!((cam.translation.vector - camera.translation.vector).norm() < 1e-12);
+    let psm_model = &scene.arms[psm].model;
+    let tip = |q: &[f64]| psm_model.fk(q).unwrap()[psm_model.tip];
+    let start = tip(&scene.arms[psm].start);
+    // The MTM aligned with the PSM in the camera frame (display = MTM base).
+    let r = camera.rotation.inverse() * start.rotation;
+    let n = 201;
+    let t: Vec<f64> = (0..n).map(|k| k as f64 * 0.005).collect();
+    let poses: Vec<Pose> = (0..n).map(|k| Pose::from_parts(Translation3::new(0.05 * (k.min(100) as f64 / 100.0), 0.0, 0.0), r)).collect();
+    // The clutch over the last 100 samples, while the hand goes on along y.
+    let poses: Vec<Pose> = poses.iter().enumerate().map(|(k, p)| if k > 100 { Pose::from_parts(Translation3::new(0.05, 0.001 * (k - 100) as f64, 0.0), r) } else { *p }).collect();
+    let clutch: Vec<bool> = (0..n).map(|k| k > 100).collect();
+    let motion = MtmMotion { t: &t, poses: &poses, gripper: None, clutch: &clutch };
+    let out = plan(&scene, psm, &camera, &motion, &TeleopConfig::default()).unwrap();
+    let dvrk_sim::trajectory::Trajectory::Samples { q, .. } = &out.trajectory else { panic!() };
+    let moved = tip(&q[100]).translation.vector - start.translation.vector;
+    let want = camera.rotation * Vector3::new(0.01, 0.0, 0.0);
+    assert!((moved - want).norm() < 1e-6, "moved {moved:?} m in the world, want {want:?}");
+    assert_eq!(q[200], q[100], "the clutch holds the PSM");
+    assert_eq!((out.report.following_from, out.report.clutch_presses, out.report.ik_misses), (Some(0.0), 1, 0));
+    // 20 deg off: the console waits, and says how far off.
+    let turned: Vec<Pose> = poses.iter().map(|p| Pose::from_parts(p.translation, p.rotation * Rotation3::from_axis_angle(&Vector3::y_axis(), 20f64.to_radians()))).collect();
+    let out = plan(&scene, psm, &camera, &MtmMotion { poses: &turned, ..motion }, &TeleopConfig::default()).unwrap();
+    assert_eq!(out.report.following_from, None);
+    assert!((out.report.misalignment_at_start_deg - 20.0).abs() < 1e-9);
+}
