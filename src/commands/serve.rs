@@ -40,6 +40,28 @@ pub struct ServeArgs {
     /// by default): the same pacing loop feeds both.
     #[arg(long, num_args = 0..=1, default_missing_value = "")]
     pub live: Option<String>,
+    /// Teleoperation: this MTM's topics on ROS 2 (/MTM/measured_cp, /MTM/gripper/measured_js and
+    /// the clutch pedal), as a dVRK console publishes them, drive a PSM of the scene through the
+    /// console's follow mode.
+    #[arg(long, value_name = "MTM")]
+    pub teleop: Option<String>,
+    /// The PSM that follows (--teleop); the scene's first PSM when absent.
+    #[arg(long, requires = "teleop")]
+    pub teleop_psm: Option<String>,
+    /// The ECM whose camera frame the motion is in (--teleop): the scene's ECM when absent,
+    /// `none` for the PSM's own measured_cp frame.
+    #[arg(long, requires = "teleop")]
+    pub teleop_ecm: Option<String>,
+    /// refuse: follow only once aligned within 5 deg (the console's default); offset: keep the
+    /// orientation difference at follow start.
+    #[arg(long, default_value = "refuse", value_parser = ["refuse", "offset"], requires = "teleop")]
+    pub align: String,
+    /// PSM translation per MTM translation (--teleop).
+    #[arg(long, default_value_t = 0.2, requires = "teleop")]
+    pub scale: f64,
+    /// The clutch pedal's topic (sensor_msgs/Joy).
+    #[arg(long, default_value = "/footpedals/clutch", requires = "teleop")]
+    pub clutch_topic: String,
     /// Print the summary as JSON.
     #[arg(long)]
     pub json: bool,
@@ -61,12 +83,37 @@ pub fn run(args: &ServeArgs) -> Result<()> {
     }
     // Every flag is checked: now the scene.
     let scene = super::sim::load_scene(&args.scene)?;
+    let teleop = match &args.teleop {
+        Some(mtm) => {
+            if !(args.scale.is_finite() && args.scale > 0.0) {
+                bail!("--scale {}: must be a positive number", args.scale);
+            }
+            let kind = |k: &str| scene.arms.iter().find(|a| a.model.name.starts_with(k)).map(|a| a.name.clone());
+            let psm = match &args.teleop_psm {
+                Some(p) => p.clone(),
+                None => kind("psm").with_context(|| format!("--teleop: scene {} has no PSM to drive", args.scene))?,
+            };
+            let ecm = match args.teleop_ecm.as_deref() {
+                Some("none") => None,
+                Some(e) => Some(e.to_string()),
+                None => kind("ecm"),
+            };
+            let config = dvrk_sim::teleop::TeleopConfig {
+                scale: args.scale,
+                align: if args.align == "offset" { dvrk_sim::teleop::Align::Offset } else { dvrk_sim::teleop::Align::Refuse },
+                ..Default::default()
+            };
+            Some(dvrk_sim::serve_teleop::ServeTeleop { mtm: mtm.clone(), psm, ecm, clutch_topic: args.clutch_topic.clone(), config })
+        }
+        None => None,
+    };
     let options = ServeOptions {
         duration: args.duration,
         rate: args.rate,
         ros2: Ros2Options { domain, networks: args.networks.clone(), node: "dvrk_twin".into() },
         record: args.out.as_ref().map(|p| dvrk_sim::RecordOptions { path: p.clone(), rate: args.rate }),
         gravity_compensation: args.gravity_compensation,
+        teleop,
     };
     let stop = crate::signals::stop_flag();
     let sim_options = SimOptions { engine: Some(engine), ..Default::default() };
@@ -93,6 +140,12 @@ pub fn run(args: &ServeArgs) -> Result<()> {
             summary.stderr_dropped,
             summary.rosout_dropped
         );
+        if let Some(t) = &summary.teleop {
+            println!(
+                "teleoperation of {} in {}: {} MTM poses, following {:.2} s, clutched {:.2} s ({} presses), waiting for alignment {:.2} s; IK misses {}",
+                t.psm, t.camera_frame, t.samples, t.following_s, t.clutched_s, t.clutch_presses, t.misaligned_s, t.ik_misses
+            );
+        }
     }
     Ok(())
 }

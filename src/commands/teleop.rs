@@ -98,8 +98,7 @@ pub fn run(args: &TeleopArgs) -> Result<()> {
     };
     let (camera, camera_name) = camera_frame(&scene, psm, ecm)?;
     let motion = MtmMotion { t: &log.t, poses: &log.poses, gripper: log.gripper.as_deref(), clutch: &log.clutch };
-    let mut follow = plan(&scene, psm, &camera, &motion, &config)?;
-    follow.report.camera_frame = camera_name;
+    let follow = plan(&scene, psm, &camera, &camera_name, &motion, &config)?;
     let r = &follow.report;
     let psm_name = &scene.arms[psm].name;
     if r.following_from.is_none() {

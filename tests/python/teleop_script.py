@@ -59,11 +59,28 @@ def quat(r):
     return q
 
 
-def samples(start_position, start_rotation):
-    """(t, position, rotation, gripper, clutch, window name) at RATE over SCRIPT."""
+# The same moves, shorter, for a live twin (real time).
+SHORT = [
+    ("start", 0.5, (0.0, 0.0, 0.0), 0.0, OPEN, False),
+    ("leg x", 1.0, (0.05, 0.0, 0.0), 0.0, OPEN, False),
+    ("hold 1", 0.6, (0.05, 0.0, 0.0), 0.0, OPEN, False),
+    ("clutch down", 0.3, (0.05, 0.0, 0.0), 0.0, OPEN, True),
+    ("clutched move", 0.5, (0.05, 0.0, 0.03), 0.0, OPEN, True),
+    ("clutch up", 0.3, (0.05, 0.0, 0.03), 0.0, OPEN, True),
+    ("leg y", 1.0, (0.05, 0.05, 0.03), 0.0, OPEN, False),
+    ("hold 2", 0.6, (0.05, 0.05, 0.03), 0.0, OPEN, False),
+    ("turn", 0.8, (0.05, 0.05, 0.03), 30.0, OPEN, False),
+    ("hold 3", 0.6, (0.05, 0.05, 0.03), 30.0, OPEN, False),
+    ("close", 0.5, (0.05, 0.05, 0.03), 30.0, 0.0, False),
+    ("hold 4", 0.6, (0.05, 0.05, 0.03), 30.0, 0.0, False),
+]
+
+
+def samples(start_position, start_rotation, script=SCRIPT):
+    """(t, position, rotation, gripper, clutch, window name) at RATE over `script`."""
     out, t = [], 0.0
     prev = (np.zeros(3), 0.0, OPEN)
-    for name, seconds, d, turn, grip, clutch in SCRIPT:
+    for name, seconds, d, turn, grip, clutch in script:
         n = int(round(seconds * RATE))
         for k in range(n):
             s = 0.5 - 0.5 * np.cos(np.pi * (k + 1) / n)

@@ -22,7 +22,7 @@ cyclonedds = pytest.importorskip("cyclonedds")
 pytestmark = pytest.mark.realtime  # see conftest.py
 from cyclonedds.domain import DomainParticipant  # noqa: E402
 from cyclonedds.idl import IdlStruct  # noqa: E402
-from cyclonedds.idl.types import float64, int32, sequence, uint8, uint32  # noqa: E402
+from cyclonedds.idl.types import float32, float64, int32, sequence, uint8, uint32  # noqa: E402
 from cyclonedds.pub import DataWriter  # noqa: E402
 from cyclonedds.qos import Policy, Qos  # noqa: E402
 from cyclonedds.sub import DataReader  # noqa: E402
@@ -124,6 +124,13 @@ class TwistStamped_(IdlStruct, typename="geometry_msgs::msg::dds_::TwistStamped_
     twist: Twist_
 
 
+@dataclass
+class Joy_(IdlStruct, typename="sensor_msgs::msg::dds_::Joy_"):
+    header: Header_
+    axes: sequence[float32]
+    buttons: sequence[int32]
+
+
 # The dVRK's QoS: reliable, volatile, keep last 10.
 QOS = Qos(Policy.Reliability.Reliable(duration(milliseconds=100)), Policy.Durability.Volatile, Policy.History.KeepLast(10))
 PSM_JOINTS = ["outer_yaw", "outer_pitch", "outer_insertion", "outer_roll", "outer_wrist_pitch", "outer_wrist_yaw"]
@@ -182,10 +189,10 @@ def finish(proc):
     return json.loads(out), err
 
 
-def first_sample(peer, topic, timeout=10):
+def first_sample(peer, topic, cls=JointState_, timeout=10):
     deadline = time.time() + timeout
     while time.time() < deadline:
-        got = peer.take(topic)
+        got = peer.take(topic, cls)
         if got:
             return got[-1]
         time.sleep(0.002)
@@ -746,3 +753,72 @@ def test_a_flood_of_refused_commands_with_stderr_unread_never_stalls_the_twin():
     assert len(refused_lines) < 10 * (seconds + 5), len(refused_lines)
     assert summaries and all("/PSM1/servo_jp (wrong length)" in l for l in summaries), summaries[:3]
     assert summary["stderr_dropped"] == 0, summary
+
+
+def test_a_live_mtm_drives_the_twins_psm_through_the_follow_mode():
+    """A console's MTM played by the peer at 200 Hz (`/MTMR/measured_cp`, its gripper, the clutch
+    pedal: the moves of `teleop_script.SHORT`) into `dvrk serve --teleop MTMR`: at the end of
+    each hold the PSM's setpoint_cp has moved 0.2 times the followed hand in PSM1_base, with the
+    hand's orientation; the clutched hand motion is not followed; the jaw closes."""
+    import numpy as np
+    import teleop_script as ts
+
+    domain = unique_domain(5)
+    peer = Peer(domain)
+    peer.reader("/PSM1/setpoint_cp", PoseStamped_)
+    peer.reader("/PSM1/jaw/setpoint_js")
+    pose_w = peer.writer("/MTMR/measured_cp", PoseStamped_)
+    grip_w = peer.writer("/MTMR/gripper/measured_js")
+    clutch_w = peer.writer("/footpedals/clutch", Joy_)
+    proc = serve(domain, 12, "--teleop", "MTMR")
+
+    def pose_of(m):
+        p, o = m.pose.position, m.pose.orientation
+        x, y, z, w = o.x, o.y, o.z, o.w
+        r = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                      [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                      [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+        return np.array([p.x, p.y, p.z]), r
+
+    checked = []
+    try:
+        _, first = first_sample(peer, "/PSM1/setpoint_cp", PoseStamped_)
+        p0, r0 = pose_of(first)
+        rows = ts.samples(np.array([0.0, 0.3, -0.2]), r0, ts.SHORT)
+        ends = dict(zip([w[0] for w in ts.SHORT], np.cumsum([w[1] for w in ts.SHORT])))
+        followed = np.zeros(3)
+        pressed = None
+        start = time.time()
+        for i, (t, p, r, g, clutch, name) in enumerate(rows):
+            while time.time() - start < t:
+                time.sleep(0.0005)
+            if i > 0 and not clutch and not rows[i - 1][4]:
+                followed = followed + (p - rows[i - 1][1])
+            x, y, z, w = ts.quat(r)
+            header = Header_(Time_(0, 0), "MTMR_base")
+            if clutch != pressed:
+                clutch_w.write(Joy_(header, [], [1 if clutch else 0]))
+                pressed = clutch
+            grip_w.write(JointState_(header, ["gripper"], [g], [], []))
+            pose_w.write(PoseStamped_(header, Pose_(Point_(*p), Quaternion_(x, y, z, w))))
+            last_of_window = i + 1 == len(rows) or rows[i + 1][5] != name
+            if last_of_window and name.startswith("hold"):
+                time.sleep(0.05)  # the twin's next steps take the last pose
+                _, sp = first_sample(peer, "/PSM1/setpoint_cp", PoseStamped_)
+                p_sp, r_sp = pose_of(sp)
+                err_p = np.linalg.norm((p_sp - p0) - 0.2 * followed)
+                err_r = np.degrees(np.arccos(np.clip((np.trace(r.T @ r_sp) - 1) / 2, -1, 1)))
+                checked.append((name, err_p, err_r))
+                start += 0.05
+        time.sleep(0.1)
+        _, jaw = first_sample(peer, "/PSM1/jaw/setpoint_js")
+    finally:
+        summary, err = finish(proc)
+    for name, e_p, e_r in checked:
+        print(f"{name}: setpoint_cp {e_p * 1e3:.4f} mm, {e_r:.4f} deg from 0.2 x the followed hand")
+    assert [c[0] for c in checked] == ["hold 1", "hold 2", "hold 3", "hold 4"]
+    assert all(e_p < 0.5e-3 and e_r < 1.0 for _, e_p, e_r in checked), checked
+    assert abs(jaw.position[0]) < 1e-9
+    t = summary["teleop"]
+    assert t["psm"] == "PSM1" and t["following_from"] is not None and t["clutch_presses"] == 1 and t["ik_misses"] == 0, t
+    assert summary["refused"] == 0, err

@@ -293,6 +293,7 @@ pub fn serve<'py>(
         ros2: Ros2Options { domain, networks: nets, node: "dvrk_twin".into() },
         record: out.clone().map(|path| dvrk_sim::RecordOptions { path, rate }),
         gravity_compensation,
+        teleop: None,
     };
     let stop = Arc::new(AtomicBool::new(false));
     let flag = stop.clone();

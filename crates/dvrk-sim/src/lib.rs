@@ -38,6 +38,7 @@ mod run_tally;
 pub mod scene;
 pub mod serve;
 pub mod serve_cp;
+pub mod serve_teleop;
 pub mod sim;
 mod arm_state;
 mod options;

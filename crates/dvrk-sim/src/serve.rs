@@ -55,6 +55,8 @@ pub struct ServeOptions {
     /// Add the model's gravity torque to every arm's controllers (PID and `servo_jf` efforts),
     /// as the dVRK's gravity compensation does, whatever the scene says.
     pub gravity_compensation: bool,
+    /// A console's MTM on ROS 2 driving one of the scene's PSMs ([`crate::serve_teleop`]).
+    pub teleop: Option<crate::serve_teleop::ServeTeleop>,
 }
 
 /// What a served run did.
@@ -81,6 +83,9 @@ pub struct ServeSummary {
     pub worst_lag: f64,
     /// Whether every state stayed finite.
     pub finite: bool,
+    /// What the follow mode did, when an MTM drove a PSM.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub teleop: Option<crate::teleop_replay::FollowReport>,
 }
 
 /// The kind of a command topic.
@@ -276,6 +281,11 @@ pub fn serve(scene: &Scene, sim_options: &SimOptions, options: &ServeOptions, st
             states.push(StateTopic { subscription, arm: a, joints: (arm.q_offset..arm.q_offset + arm.model.nq()).collect() });
         }
     }
+    let mut teleop = match &options.teleop {
+        Some(t) => Some(crate::serve_teleop::LiveTeleop::new(scene, &sim, recorder.ros2_mut().expect("opened with ROS 2"), t)?),
+        None => None,
+    };
+    let mut teleop_refused = Vec::new();
     ready(recorder.ros2().expect("opened with ROS 2"));
     let modes: Vec<Mode> = (0..sim.nq()).map(|i| sim.actuator(i).map(|a| a.mode)).collect::<Result<_>>()?;
     let (mut v_max, mut a_max) = (Vec::with_capacity(sim.nq()), Vec::with_capacity(sim.nq()));
@@ -296,6 +306,9 @@ pub fn serve(scene: &Scene, sim_options: &SimOptions, options: &ServeOptions, st
         apply_states(&mut sim, &mut recorder, &states, &modes, &mut said)?;
         apply_commands(&mut sim, &mut recorder, &topics, &modes, &mut moves, &mut said)?;
         apply_cartesian(&mut sim, &mut recorder, &cartesian, &topics, &modes, &mut moves, &mut said)?;
+        if let Some(t) = teleop.as_mut() {
+            apply_teleop(&mut sim, &mut recorder, t, &topics, &modes, &mut moves, &mut said, &mut teleop_refused)?;
+        }
         warnings.tick(|line| rosout_warning(&recorder, line));
         moves.advance(&mut sim, &mut recorder, &topics)?;
         sim.step();
@@ -307,6 +320,7 @@ pub fn serve(scene: &Scene, sim_options: &SimOptions, options: &ServeOptions, st
         }
         pacer.wait(step as f64 * sim.dt);
     }
+    summary.teleop = teleop.map(|t| t.finish());
     summary.worst_lag = pacer.worst_lag();
     summary.steps = step;
     summary.simulated = step as f64 * sim.dt;
@@ -469,6 +483,32 @@ fn apply_cartesian(sim: &mut Sim, recorder: &mut Recorder, cartesian: &[Cartesia
                 Err(why) => said.refuse(recorder, &name, why),
             }
         }
+    }
+    Ok(())
+}
+
+/// The live MTM's messages through the follow mode into its PSM (`crate::serve_teleop`): a PSM
+/// that follows leaves any move under way, as under a servo command.
+#[allow(clippy::too_many_arguments)]
+fn apply_teleop(
+    sim: &mut Sim,
+    recorder: &mut Recorder,
+    teleop: &mut crate::serve_teleop::LiveTeleop,
+    topics: &[CommandTopic],
+    modes: &[Mode],
+    moves: &mut Moves,
+    said: &mut Said,
+    refused: &mut Vec<crate::serve_teleop::Refused>,
+) -> Result<()> {
+    let enabled = recorder.state(teleop.arm).state == "ENABLED";
+    refused.clear();
+    let followed = teleop.apply(sim, recorder.ros2().expect("opened with ROS 2"), enabled, modes, refused)?;
+    for r in refused.drain(..) {
+        said.refuse(recorder, &r.topic, refusal(r.reason, r.detail));
+    }
+    if followed {
+        moves.cancel(sim, recorder, topics, &teleop.joints, teleop.arm)?;
+        said.summary.commands += 1;
     }
     Ok(())
 }

@@ -86,96 +86,140 @@ pub fn camera_frame(scene: &Scene, psm: usize, ecm: Option<usize>) -> Result<(Po
     }
 }
 
+/// The follow mode on one PSM, sample by sample: what [`plan`] runs over a recording and
+/// `dvrk serve` runs on a live MTM's topics.
+#[derive(Debug, Clone)]
+pub struct Follower {
+    model: Model,
+    camera: Pose,
+    jaw: Option<usize>,
+    teleop: Teleop,
+    jaw_now: Option<f64>,
+    was_clutched: bool,
+    last: Option<(f64, nalgebra::Vector3<f64>)>,
+    /// What it did so far.
+    pub report: FollowReport,
+}
+
+impl Follower {
+    /// Follow with the PSM `model` (placed in the world) named `psm`, in the camera frame
+    /// `camera` (world pose) described by `camera_name`.
+    pub fn new(model: Model, psm: &str, camera: Pose, camera_name: &str, config: &TeleopConfig) -> Follower {
+        let report = FollowReport { psm: psm.into(), camera_frame: camera_name.into(), closest_alignment_deg: f64::INFINITY, ..FollowReport::default() };
+        let jaw = model.joints.iter().position(|j| j.name == "jaw");
+        Follower { model, camera, jaw, teleop: Teleop::new(config.clone()), jaw_now: None, was_clutched: false, last: None, report }
+    }
+
+    /// The follow mode's state now.
+    pub fn state(&self) -> &TeleopState {
+        &self.teleop.state
+    }
+
+    /// One MTM sample at time `t` (s; increasing): the PSM's setpoints `q` (its model's joints,
+    /// rad and m) are moved when following, and left when not (clutched, waiting for alignment,
+    /// or a pose the IK cannot reach). `gripper` false: the jaw holds. Returns whether it followed.
+    pub fn step(&mut self, t: f64, sample: &MtmSample, gripper: bool, q: &mut [f64]) -> Result<bool> {
+        let dt = self.last.map_or(0.0, |(t0, _)| (t - t0).max(0.0));
+        let r = &mut self.report;
+        let tip = self.model.fk(q)?[self.model.tip];
+        let psm_pose = self.camera.inverse() * tip;
+        if r.samples == 0 {
+            let m_rot = self.teleop.config.display_from_mtm * sample.pose.rotation;
+            r.misalignment_at_start_deg = angle_between(&m_rot, &psm_pose.rotation).to_degrees();
+        }
+        r.samples += 1;
+        if sample.clutch && !self.was_clutched {
+            r.clutch_presses += 1;
+        }
+        self.was_clutched = sample.clutch;
+        let jaw_now = *self.jaw_now.get_or_insert_with(|| self.jaw.map_or(0.0, |j| q[j]));
+        let followed = match self.teleop.step(sample, &psm_pose) {
+            Some(c) => {
+                r.following_from.get_or_insert(t);
+                r.following_s += dt;
+                let target = self.camera * c.tip_in_camera;
+                match dvrk_kin::inverse_kinematics(&self.model, &target, q, &servo_ik()) {
+                    Ok(s) => {
+                        // The jaw is the gripper's, not the IK's.
+                        for (k, x) in s.q.iter().enumerate().filter(|(k, _)| Some(*k) != self.jaw) {
+                            q[k] = *x;
+                        }
+                    }
+                    Err(e) => {
+                        r.ik_misses += 1;
+                        r.first_ik_miss.get_or_insert_with(|| format!("at {t:.3} s: {e}"));
+                    }
+                }
+                if let (Some(j), true) = (self.jaw, gripper) {
+                    // Towards the gripper's jaw at most `jaw_rate`, inside the joint's limits.
+                    let want = c.jaw.clamp(self.model.joints[j].lower, self.model.joints[j].upper);
+                    let step = self.teleop.config.jaw_rate * dt;
+                    let now = jaw_now + (want - jaw_now).clamp(-step, step);
+                    self.jaw_now = Some(now);
+                    q[j] = now;
+                    let range = r.jaw_range.get_or_insert([now, now]);
+                    range[0] = range[0].min(now);
+                    range[1] = range[1].max(now);
+                }
+                true
+            }
+            None => {
+                match self.teleop.state {
+                    TeleopState::Misaligned(a) => {
+                        r.misaligned_s += dt;
+                        if a.to_degrees() < r.closest_alignment_deg {
+                            r.closest_alignment_deg = a.to_degrees();
+                            r.closest_alignment_at = t;
+                        }
+                    }
+                    _ => r.clutched_s += dt,
+                }
+                false
+            }
+        };
+        let p = self.model.fk(q)?[self.model.tip].translation.vector;
+        if let Some((_, last)) = self.last {
+            r.tip_path_m += (p - last).norm();
+        }
+        self.last = Some((t, p));
+        Ok(followed)
+    }
+
+    /// The report, with the closest alignment 0 when it never waited.
+    pub fn finish(mut self) -> FollowReport {
+        if !self.report.closest_alignment_deg.is_finite() {
+            self.report.closest_alignment_deg = 0.0;
+        }
+        self.report
+    }
+}
+
 /// Replay `motion` into arm `psm` of `scene` from its start, in the camera frame `camera` (world
 /// pose), with the follow mode's `config`. The PSM must stand on the world (not on setup
 /// joints), so that its setpoints' poses are fixed in the camera frame.
-pub fn plan(scene: &Scene, psm: usize, camera: &Pose, motion: &MtmMotion, config: &TeleopConfig) -> Result<FollowPlan> {
+pub fn plan(scene: &Scene, psm: usize, camera: &Pose, camera_name: &str, motion: &MtmMotion, config: &TeleopConfig) -> Result<FollowPlan> {
     let arm = &scene.arms[psm];
-    if arm.parent.is_some() {
-        return Err(SimError::field(scene.file.as_str(), arm.name.as_str(), "rides on setup joints: teleoperation replays into a PSM mounted on the world (scenes psm, 2psm-ecm, 3psm)".to_string()));
-    }
+    check_fixed(scene, psm)?;
     let n = motion.t.len();
     if n == 0 || motion.poses.len() != n || motion.clutch.len() != n || motion.gripper.is_some_and(|g| g.len() != n) {
         return Err(SimError::value("MTM samples", n as f64, "need poses, clutch (and gripper) for every sample, at least one"));
     }
-    let model: &Model = &arm.model;
-    let jaw = model.joints.iter().position(|j| j.name == "jaw");
-    let ik = servo_ik();
-    let mut teleop = Teleop::new(config.clone());
+    let mut follower = Follower::new(arm.model.clone(), &arm.name, *camera, camera_name, config);
     let mut q = arm.start.clone();
-    let tip = |q: &[f64]| -> Result<Pose> { Ok(model.fk(q)?[model.tip]) };
-    let in_camera = |q: &[f64]| -> Result<Pose> { Ok(camera.inverse() * tip(q)?) };
-    let mut report = FollowReport {
-        psm: arm.name.clone(),
-        samples: n,
-        closest_alignment_deg: f64::INFINITY,
-        ..FollowReport::default()
-    };
     let mut qs = Vec::with_capacity(n);
-    let mut jaw_now = jaw.map(|j| q[j]);
-    let mut was_clutched = false;
-    let mut last_tip = tip(&q)?.translation.vector;
     for k in 0..n {
-        let dt = if k == 0 { 0.0 } else { motion.t[k] - motion.t[k - 1] };
-        let gripper = motion.gripper.map_or(0.0, |g| g[k]);
-        let sample = MtmSample { pose: motion.poses[k], gripper, clutch: motion.clutch[k] };
-        let psm_pose = in_camera(&q)?;
-        if k == 0 {
-            let m_rot = config.display_from_mtm * sample.pose.rotation;
-            report.misalignment_at_start_deg = angle_between(&m_rot, &psm_pose.rotation).to_degrees();
-        }
-        if sample.clutch && !was_clutched {
-            report.clutch_presses += 1;
-        }
-        was_clutched = sample.clutch;
-        match teleop.step(&sample, &psm_pose) {
-            Some(c) => {
-                report.following_from.get_or_insert(motion.t[k]);
-                report.following_s += dt;
-                let target = camera * c.tip_in_camera;
-                match dvrk_kin::inverse_kinematics(model, &target, &q, &ik) {
-                    Ok(s) => {
-                        // The jaw is the gripper's, not the IK's.
-                        let keep_jaw = jaw.map(|j| q[j]);
-                        q = s.q;
-                        if let (Some(j), Some(v)) = (jaw, keep_jaw) {
-                            q[j] = v;
-                        }
-                    }
-                    Err(e) => {
-                        report.ik_misses += 1;
-                        report.first_ik_miss.get_or_insert_with(|| format!("at {:.3} s: {e}", motion.t[k]));
-                    }
-                }
-                if let (Some(j), Some(now), Some(_)) = (jaw, jaw_now.as_mut(), motion.gripper) {
-                    // Towards the gripper's jaw at most `jaw_rate`, inside the joint's limits.
-                    let want = c.jaw.clamp(model.joints[j].lower, model.joints[j].upper);
-                    let step = config.jaw_rate * dt;
-                    *now += (want - *now).clamp(-step, step);
-                    q[j] = *now;
-                    let r = report.jaw_range.get_or_insert([*now, *now]);
-                    r[0] = r[0].min(*now);
-                    r[1] = r[1].max(*now);
-                }
-            }
-            None => match teleop.state {
-                TeleopState::Misaligned(a) => {
-                    report.misaligned_s += dt;
-                    if a.to_degrees() < report.closest_alignment_deg {
-                        report.closest_alignment_deg = a.to_degrees();
-                        report.closest_alignment_at = motion.t[k];
-                    }
-                }
-                _ => report.clutched_s += dt,
-            },
-        }
-        let p = tip(&q)?.translation.vector;
-        report.tip_path_m += (p - last_tip).norm();
-        last_tip = p;
+        let sample = MtmSample { pose: motion.poses[k], gripper: motion.gripper.map_or(0.0, |g| g[k]), clutch: motion.clutch[k] };
+        follower.step(motion.t[k], &sample, motion.gripper.is_some(), &mut q)?;
         qs.push(q.clone());
     }
-    if !report.closest_alignment_deg.is_finite() {
-        report.closest_alignment_deg = 0.0;
+    Ok(FollowPlan { trajectory: Trajectory::Samples { t: motion.t.to_vec(), q: qs }, report: follower.finish() })
+}
+
+/// A PSM carried by setup joints has no fixed place in the camera frame: refused.
+pub fn check_fixed(scene: &Scene, psm: usize) -> Result<()> {
+    let arm = &scene.arms[psm];
+    if arm.parent.is_some() {
+        return Err(SimError::field(scene.file.as_str(), arm.name.as_str(), "rides on setup joints: teleoperation drives a PSM mounted on the world (scenes psm, 2psm-ecm, 3psm)".to_string()));
     }
-    Ok(FollowPlan { trajectory: Trajectory::Samples { t: motion.t.to_vec(), q: qs }, report })
+    Ok(())
 }

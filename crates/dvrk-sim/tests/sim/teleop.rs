@@ -104,7 +104,7 @@ fn a_replay_in_a_scene_with_an_ecm_moves_the_tip_along_the_cameras_axes() {
     let poses: Vec<Pose> = poses.iter().enumerate().map(|(k, p)| if k > 100 { Pose::from_parts(Translation3::new(0.05, 0.001 * (k - 100) as f64, 0.0), r) } else { *p }).collect();
     let clutch: Vec<bool> = (0..n).map(|k| k > 100).collect();
     let motion = MtmMotion { t: &t, poses: &poses, gripper: None, clutch: &clutch };
-    let out = plan(&scene, psm, &camera, &motion, &TeleopConfig::default()).unwrap();
+    let out = plan(&scene, psm, &camera, &name, &motion, &TeleopConfig::default()).unwrap();
     let dvrk_sim::trajectory::Trajectory::Samples { q, .. } = &out.trajectory else { panic!() };
     let moved = tip(&q[100]).translation.vector - start.translation.vector;
     let want = camera.rotation * Vector3::new(0.01, 0.0, 0.0);
@@ -113,7 +113,7 @@ fn a_replay_in_a_scene_with_an_ecm_moves_the_tip_along_the_cameras_axes() {
     assert_eq!((out.report.following_from, out.report.clutch_presses, out.report.ik_misses), (Some(0.0), 1, 0));
     // 20 deg off: the console waits, and says how far off.
     let turned: Vec<Pose> = poses.iter().map(|p| Pose::from_parts(p.translation, p.rotation * Rotation3::from_axis_angle(&Vector3::y_axis(), 20f64.to_radians()))).collect();
-    let out = plan(&scene, psm, &camera, &MtmMotion { poses: &turned, ..motion }, &TeleopConfig::default()).unwrap();
+    let out = plan(&scene, psm, &camera, &name, &MtmMotion { poses: &turned, ..motion }, &TeleopConfig::default()).unwrap();
     assert_eq!(out.report.following_from, None);
     assert!((out.report.misalignment_at_start_deg - 20.0).abs() < 1e-9);
 }
