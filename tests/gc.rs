@@ -30,6 +30,12 @@ fn gc_prints_the_holding_torque_and_names_bad_input() {
     assert!(e.contains("--q 0.1,0.2") && e.contains("2 values") && e.contains("7 joints"), "{e}");
     let e = dvrk_err(&["gc", "--model", "cart"]);
     assert!(e.contains("--model cart") && e.contains("no inertials"), "{e}");
+    // The console's file is an MTM's.
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("gc.json");
+    let e = dvrk_err(&["gc", "--model", "psm", "--console-file", file.to_str().unwrap()]);
+    assert!(e.contains("--console-file") && e.contains("7 joints"), "{e}");
+    assert!(!file.exists(), "nothing written");
 }
 
 /// On WPI's MTM `two` (a recording the built-in `mtmr-wpi` was not identified from), at its 2%

@@ -31,12 +31,26 @@ pub struct GcArgs {
     /// Gravity in the model's base frame (m/s^2), `x,y,z`.
     #[arg(long, default_value = "0,0,-9.81", allow_hyphen_values = true)]
     pub gravity: String,
+    /// Also write the holding torque as the dVRK console's MTM gravity-compensation file
+    /// (gc-MTMR.json, version 2.0: the console's own regressor, fitted to the model's holding
+    /// torque over poses through its joint limits; the fit's residual is printed).
+    #[arg(long)]
+    pub console_file: Option<PathBuf>,
+    /// Poses the console file is fitted over.
+    #[arg(long, default_value_t = 2000)]
+    pub poses: usize,
+    /// The arm's name in the console file (ARM_NAME); MTMR or MTML from the model's name when absent.
+    #[arg(long)]
+    pub arm_name: Option<String>,
     /// Print the result as one JSON object.
     #[arg(long)]
     pub json: bool,
 }
 
 pub fn run(args: &GcArgs) -> Result<()> {
+    let mut inputs: Vec<(&str, &std::path::Path)> = vec![("--model", std::path::Path::new(&args.model))];
+    inputs.extend(args.recording.as_deref().map(|p| ("--recording", p)));
+    crate::io::check_outputs(&inputs, &[("--console-file", args.console_file.as_deref())])?;
     let g = crate::io::parse_list("--gravity", &args.gravity)?;
     let [gx, gy, gz] = g[..] else { bail!("--gravity {}: three components x,y,z (m/s^2)", args.gravity) };
     let gravity = nalgebra::Vector3::new(gx, gy, gz);
@@ -58,9 +72,23 @@ pub fn run(args: &GcArgs) -> Result<()> {
         None => model.home().to_vec(),
     };
     let tau = dvrk_calib::gravity::torque(&model, inertias.clone(), &q, &gravity).with_context(|| format!("--q {:?}", q))?;
+    let console = match &args.console_file {
+        Some(path) => {
+            let arm = match &args.arm_name {
+                Some(a) => a.clone(),
+                None if model.name.to_ascii_lowercase().starts_with("mtml") => "MTML".into(),
+                None => "MTMR".into(),
+            };
+            let source = format!("dvrk-twin {} `dvrk gc --model {}`: the model's holding torque, fitted", env!("CARGO_PKG_VERSION"), args.model);
+            let file = dvrk_calib::gravity::console_file::fit(&model, inertias.clone(), &gravity, args.poses, &arm, &source).map_err(|e| anyhow::anyhow!("--console-file {}: {e}", path.display()))?;
+            let mut text = serde_json::to_string_pretty(&file)?;
+            text.push('\n');
+            Some((path, file, crate::io::stage(path, text.as_bytes()).with_context(|| format!("--console-file {}", path.display()))?))
+        }
+        None => None,
+    };
     let check = match &args.recording {
         Some(path) => {
-            crate::io::check_outputs(&[("--recording", path.as_path())], &[])?;
             let (rec, notes) = dvrk_calib::recordings::read_joint_log_parts(path, &args.format, &model, &args.arm, dvrk_calib::recordings::Parts::Measured)
                 .with_context(|| format!("--recording {}", path.display()))?;
             for n in notes.iter().filter(|_| !args.json) {
@@ -70,14 +98,29 @@ pub fn run(args: &GcArgs) -> Result<()> {
         }
         None => None,
     };
+    let console = match console {
+        Some((path, file, staged)) => {
+            dvrk_kin::atomic::commit_all(vec![staged])?;
+            Some((path, file.fit))
+        }
+        None => None,
+    };
     if args.json {
         let joints: Vec<&str> = model.joints.iter().map(|j| j.name.as_str()).collect();
-        println!("{}", serde_json::json!({ "model": model.name, "q": q, "joints": joints, "holding_torque": tau, "slowest_samples": check }));
+        let fit = console.as_ref().map(|(p, f)| serde_json::json!({ "file": p.display().to_string(), "fit": f }));
+        println!("{}", serde_json::json!({ "model": model.name, "q": q, "joints": joints, "holding_torque": tau, "slowest_samples": check, "console_file": fit }));
         return Ok(());
     }
     println!("holding torque of {} at q = {q:?} (gravity {:?} m/s^2):", model.name, [gx, gy, gz]);
     for (j, t) in model.joints.iter().zip(&tau) {
         println!("  {:<20} {t:>10.4} {}", j.name, if j.kind == dvrk_kin::JointType::Prismatic { "N" } else { "N·m" });
+    }
+    if let Some((p, f)) = &console {
+        println!("wrote {} (the console's regressor fitted over {} poses; residual per joint, N·m):", p.display(), f.poses);
+        println!("  {:<20} {:>12} {:>12} {:>12}", "joint", "torque rms", "residual rms", "residual max");
+        for (j, jt) in model.joints.iter().enumerate() {
+            println!("  {:<20} {:>12.5} {:>12.2e} {:>12.2e}", jt.name, f.torque_rms[j], f.residual_rms[j], f.residual_max[j]);
+        }
     }
     if let Some(c) = check {
         println!("against the recording's {} slowest samples (every channel within {:.2}x its RMS velocity):", c.samples, c.speed_ratio);

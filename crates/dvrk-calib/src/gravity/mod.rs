@@ -1,9 +1,12 @@
 //! Gravity compensation from a model (`dvrk gc`): the efforts that hold the arm still at a
 //! configuration (dvrk-kin's [`dvrk_kin::dynamics::holding_torque`]: weight, springs, cable springs,
-//! effort offsets), and how they compare with a recording's efforts where it moves slowest.
+//! effort offsets), how they compare with a recording's efforts where it moves slowest, and the
+//! same written as the dVRK console's MTM gravity-compensation file ([`console_file`]).
 //!
 //! A product beside calibration, identification and discrepancy: it reads recordings and a model
 //! (an identified one, `dvrk identify -o`), and imports none of them.
+
+pub mod console_file;
 
 use crate::error::{CalibError, Result};
 use crate::recordings::JointLog;
