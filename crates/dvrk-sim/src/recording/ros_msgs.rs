@@ -74,6 +74,25 @@ pub struct JointState {
     pub effort: Vec<f64>,
 }
 
+/// `decode` (from CDR bytes, with their encapsulation header) and `decode_ros1` (from a ROS 1
+/// bag's bytes) of message types that have a `read`.
+macro_rules! decoders {
+    ($($t:ty),*) => {$(
+        impl $t {
+            /// From CDR bytes.
+            pub fn decode(bytes: &[u8]) -> Result<Self, String> {
+                Self::read(&mut CdrReader::new(bytes)?)
+            }
+            /// From ROS 1 bytes (the same message in a bag).
+            pub fn decode_ros1(bytes: &[u8]) -> Result<Self, String> {
+                Self::read(&mut CdrReader::ros1(bytes))
+            }
+        }
+    )*};
+}
+
+decoders!(PoseStamped, TransformStamped, Joy, JointState);
+
 fn read3(r: &mut CdrReader, field: &str) -> Result<[f64; 3], String> {
     Ok([r.f64(&format!("{field}.x"))?, r.f64(&format!("{field}.y"))?, r.f64(&format!("{field}.z"))?])
 }
@@ -97,14 +116,6 @@ impl PoseStamped {
         self.position.iter().chain(&self.orientation).for_each(|x| w.f64(*x));
         w.finish()
     }
-    /// From CDR bytes.
-    pub fn decode(bytes: &[u8]) -> Result<Self, String> {
-        Self::read(&mut CdrReader::new(bytes)?)
-    }
-    /// From ROS 1 bytes (geometry_msgs/PoseStamped in a bag).
-    pub fn decode_ros1(bytes: &[u8]) -> Result<Self, String> {
-        Self::read(&mut CdrReader::ros1(bytes))
-    }
     fn read(r: &mut CdrReader) -> Result<Self, String> {
         Ok(PoseStamped { header: Header::read(r)?, position: read3(r, "pose.position")?, orientation: read4(r, "pose.orientation")? })
     }
@@ -118,15 +129,6 @@ impl TransformStamped {
         w.string(&self.child_frame_id);
         self.translation.iter().chain(&self.rotation).for_each(|x| w.f64(*x));
         w.finish()
-    }
-    /// From CDR bytes (one geometry_msgs/msg/TransformStamped, as CRTK's `measured_cp` in later
-    /// dVRK releases).
-    pub fn decode(bytes: &[u8]) -> Result<Self, String> {
-        Self::read(&mut CdrReader::new(bytes)?)
-    }
-    /// From ROS 1 bytes (geometry_msgs/TransformStamped in a bag).
-    pub fn decode_ros1(bytes: &[u8]) -> Result<Self, String> {
-        Self::read(&mut CdrReader::ros1(bytes))
     }
     fn read(r: &mut CdrReader) -> Result<Self, String> {
         let header = Header::read(r)?;
@@ -153,14 +155,6 @@ impl Joy {
         w.f32_seq(&self.axes);
         w.i32_seq(&self.buttons);
         w.finish()
-    }
-    /// From CDR bytes.
-    pub fn decode(bytes: &[u8]) -> Result<Self, String> {
-        Self::read(&mut CdrReader::new(bytes)?)
-    }
-    /// From ROS 1 bytes (sensor_msgs/Joy in a bag).
-    pub fn decode_ros1(bytes: &[u8]) -> Result<Self, String> {
-        Self::read(&mut CdrReader::ros1(bytes))
     }
     fn read(r: &mut CdrReader) -> Result<Self, String> {
         Ok(Joy { header: Header::read(r)?, axes: r.f32_seq("axes")?, buttons: r.i32_seq("buttons")? })
@@ -222,14 +216,6 @@ impl JointState {
         w.f64_seq(&self.velocity);
         w.f64_seq(&self.effort);
         w.finish()
-    }
-    /// From CDR bytes.
-    pub fn decode(bytes: &[u8]) -> Result<Self, String> {
-        Self::read(&mut CdrReader::new(bytes)?)
-    }
-    /// From ROS 1 bytes (sensor_msgs/JointState in a bag).
-    pub fn decode_ros1(bytes: &[u8]) -> Result<Self, String> {
-        Self::read(&mut CdrReader::ros1(bytes))
     }
     fn read(r: &mut CdrReader) -> Result<Self, String> {
         Ok(JointState { header: Header::read(r)?, name: r.string_seq("name")?, position: r.f64_seq("position")?, velocity: r.f64_seq("velocity")?, effort: r.f64_seq("effort")? })
