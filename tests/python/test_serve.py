@@ -131,6 +131,11 @@ class Joy_(IdlStruct, typename="sensor_msgs::msg::dds_::Joy_"):
     buttons: sequence[int32]
 
 
+@dataclass
+class String_(IdlStruct, typename="std_msgs::msg::dds_::String_"):
+    data: str
+
+
 # The dVRK's QoS: reliable, volatile, keep last 10.
 QOS = Qos(Policy.Reliability.Reliable(duration(milliseconds=100)), Policy.Durability.Volatile, Policy.History.KeepLast(10))
 PSM_JOINTS = ["outer_yaw", "outer_pitch", "outer_insertion", "outer_roll", "outer_wrist_pitch", "outer_wrist_yaw"]
@@ -822,3 +827,127 @@ def test_a_live_mtm_drives_the_twins_psm_through_the_follow_mode():
     t = summary["teleop"]
     assert t["psm"] == "PSM1" and t["following_from"] is not None and t["clutch_presses"] == 1 and t["ik_misses"] == 0, t
     assert summary["refused"] == 0, err
+
+
+# The CRTK contract's message types, as the peer's IDL classes.
+CONTRACT_TYPES = {
+    "sensor_msgs/msg/JointState": JointState_,
+    "geometry_msgs/msg/PoseStamped": PoseStamped_,
+    "geometry_msgs/msg/TwistStamped": TwistStamped_,
+    "crtk_msgs/msg/OperatingState": OperatingState_,
+    "crtk_msgs/msg/StringStamped": StringStamped_,
+    "std_msgs/msg/String": String_,
+}
+
+
+def contract_rows():
+    """tests/python/crtk_contract.csv: the dVRK simulators' CRTK contract, one row per item,
+    with its source (jhu-dvrk/dvrk_simulator_base's document and reference code)."""
+    import csv
+    with open(pathlib.Path(__file__).with_name("crtk_contract.csv")) as f:
+        return list(csv.DictReader(f))
+
+
+@pytest.mark.parametrize("scene,arms", [("psm", ["PSM1"]), ("ecm", ["ECM"]), ("2psm-ecm", ["PSM1", "PSM2", "ECM"])])
+def test_serve_meets_the_crtk_contract_table(scene, arms):
+    """Every row of the contract for every arm of the scene: an endpoint of the twin matches the
+    peer's of the row's type, reliability and durability (DDS matches on the type's name and
+    refuses a transient-local reader a volatile writer), a publisher for `publish` rows, a
+    subscriber for `subscribe` rows. Then a peer that joins late gets `operating_state`,
+    `state` and a PSM's `tool_type` at once (transient local). History depth is not announced
+    in discovery: not checked here."""
+    rows = contract_rows()
+    assert len(rows) == 22  # the contract's items (docs/ros2.md)
+    domain = unique_domain(20 + ["psm", "ecm", "2psm-ecm"].index(scene))
+    peer = Peer(domain)
+    proc = subprocess.Popen([dvrk_binary(), "serve", "--scene", scene, "--domain", str(domain), "--duration", "8", "--json"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    from cyclonedds.pub import DataWriter
+    endpoints = []
+    try:
+        for arm in arms:
+            kind = arm[:3]
+            for row in rows:
+                if kind not in row["arm_kinds"].split("|"):
+                    continue
+                durability = Policy.Durability.TransientLocal if row["durability"] == "transient_local" else Policy.Durability.Volatile
+                qos = Qos(Policy.Reliability.Reliable(duration(milliseconds=100)), durability, Policy.History.KeepLast(int(row["history_depth"])))
+                topic = Topic(peer.dp, f"rt/{arm}/{row['topic']}", CONTRACT_TYPES[row["message_type"]])
+                if row["direction"] == "publish":
+                    endpoints.append((arm, row, DataReader(peer.dp, topic, qos=qos)))
+                else:
+                    endpoints.append((arm, row, DataWriter(peer.dp, topic, qos=qos)))
+        deadline = time.time() + 6.0
+        missing = endpoints
+        while missing and time.time() < deadline:
+            time.sleep(0.2)
+            missing = [e for e in missing if not (e[2].get_matched_publications() if e[1]["direction"] == "publish" else e[2].get_matched_subscriptions())]
+        assert not missing, [f"{a}/{r['topic']} ({r['direction']} {r['message_type']}, {r['durability']})" for a, r, _ in missing]
+        print(f"{scene}: {len(endpoints)} contract endpoints matched")
+        # A late joiner (the twin has run over a second): the events at once.
+        late = Peer(domain)
+        ev = Qos(Policy.Reliability.Reliable(duration(milliseconds=100)), Policy.Durability.TransientLocal, Policy.History.KeepLast(10))
+        want = [(arm, "operating_state", OperatingState_) for arm in arms] + [(arm, "state", StringStamped_) for arm in arms]
+        want += [(arm, "tool_type", String_) for arm in arms if arm.startswith("PSM")]
+        readers = {(a, t): late.reader(f"/{a}/{t}", cls, ev) for a, t, cls in want}
+        got, deadline = {}, time.time() + 2.0
+        while len(got) < len(readers) and time.time() < deadline:
+            for key, r in readers.items():
+                for sample in r.take(N=10):
+                    got.setdefault(key, sample)
+            time.sleep(0.01)
+        assert set(got) == set(readers), sorted(set(readers) - set(got))
+        for (arm, t), sample in got.items():
+            if t == "state":
+                assert sample.string == "ENABLED"
+            if t == "tool_type":
+                assert sample.data, "a PSM says its tool"
+    finally:
+        summary, _ = finish(proc)
+    assert summary["finite"]
+
+
+def test_move_cp_reaches_the_goal_by_an_interpolated_move_and_a_refusal_says_so_on_warning():
+    """`move_cp`: the IK's goal reached by the joints' interpolated move (the arm says busy, its
+    setpoint_cp goes there gradually, not in one step); a goal out of reach is refused on the
+    arm's `warning` topic (crtk_msgs/StringStamped), as the contract has it."""
+    import numpy as np
+
+    domain = unique_domain(30)
+    peer = Peer(domain)
+    peer.reader("/PSM1/setpoint_cp", PoseStamped_)
+    peer.reader("/PSM1/measured_cp", PoseStamped_)
+    peer.reader("/PSM1/warning", StringStamped_)
+    peer.reader("/PSM1/operating_state", OperatingState_, Qos(Policy.Reliability.Reliable(duration(milliseconds=100)), Policy.Durability.TransientLocal, Policy.History.KeepLast(10)))
+    move = peer.writer("/PSM1/move_cp", PoseStamped_)
+    proc = serve(domain, 5)
+    try:
+        _, now = first_sample(peer, "/PSM1/setpoint_cp", PoseStamped_)
+        time.sleep(0.5)
+        _, now = first_sample(peer, "/PSM1/setpoint_cp", PoseStamped_)
+        p = now.pose.position
+        start = np.array([p.x, p.y, p.z])
+        goal = start + np.array([0.01, 0.0, -0.005])
+        peer.take("/PSM1/setpoint_cp", PoseStamped_)
+        move.write(PoseStamped_(Header_(Time_(0, 0), "PSM1_base"), Pose_(Point_(*goal), now.pose.orientation)))
+        trace, busy = [], False
+        t0 = time.time()
+        while time.time() - t0 < 2.0:
+            for _, s in peer.take("/PSM1/setpoint_cp", PoseStamped_):
+                trace.append(np.array([s.pose.position.x, s.pose.position.y, s.pose.position.z]))
+            busy |= any(s.is_busy for _, s in peer.take("/PSM1/operating_state", OperatingState_))
+            time.sleep(0.005)
+        _, m = first_sample(peer, "/PSM1/measured_cp", PoseStamped_)
+        reached = np.array([m.pose.position.x, m.pose.position.y, m.pose.position.z])
+        move.write(PoseStamped_(Header_(Time_(0, 0), "PSM1_base"), Pose_(Point_(2.0, 0.0, 0.0), now.pose.orientation)))
+        _, warning = first_sample(peer, "/PSM1/warning", StringStamped_)
+    finally:
+        summary, err = finish(proc)
+    steps = [np.linalg.norm(b - a) for a, b in zip(trace, trace[1:])]
+    moving = sum(1 for s in steps if s > 1e-7)
+    print(f"move_cp: setpoint moved over {moving} samples (largest step {max(steps) * 1e3:.3f} mm), measured tip {np.linalg.norm(reached - goal) * 1e3:.2f} mm from the goal")
+    assert busy, "the arm said busy while moving"
+    assert moving > 10 and max(steps) < 0.003, "an interpolated move, not a jump"
+    assert np.linalg.norm(trace[-1] - goal) < 1e-6
+    assert np.linalg.norm(reached - goal) < 0.003
+    assert warning.string.startswith("rejected /PSM1/move_cp: "), warning.string
+    assert (summary["commands"], summary["refused"]) == (1, 1), summary

@@ -15,6 +15,7 @@
 //!
 //! - `/PSM1/servo_cp` (geometry_msgs/msg/PoseStamped): a tool-tip pose in `PSM1_base`, through
 //!   the IK from the current setpoints ([`crate::serve_cp`]); a pose out of reach is refused;
+//! - `/PSM1/move_cp`: the same goal, reached by the joints' interpolated move (as `move_jp`);
 //! - `/PSM1/state_command` (crtk_msgs/msg/StringStamped): `enable` (hold where the arm is),
 //!   `disable` (no effort: the arm hangs on its counterweight and cables), `home` (at once: the
 //!   simulated encoders need no index search), `unhome`; motion commands to a disabled arm are
@@ -106,12 +107,14 @@ struct CommandTopic {
     names: Vec<String>,
 }
 
-/// An arm's `servo_cp` subscription and the joints it sets (global and model indices: the arm's
-/// own joints, not the jaw).
+/// An arm's `servo_cp` or `move_cp` subscription and the joints it sets (global and model
+/// indices: the arm's own joints, not the jaw); a move runs in the slot of the arm's `move_jp`.
 struct CartesianTopic {
     subscription: usize,
     arm: usize,
     joints: Vec<(usize, usize)>,
+    /// `Some(slot)`: `move_cp`, an interpolated move in that command topic's slot.
+    move_slot: Option<usize>,
 }
 
 /// An arm's `state_command` subscription and all its joints (global indices).
@@ -275,8 +278,14 @@ pub fn serve(scene: &Scene, sim_options: &SimOptions, options: &ServeOptions, st
                 }
             }
             let ns = topic_namespace(&arm.name);
+            let joints: Vec<(usize, usize)> = groups[0].1.iter().map(|&k| (arm.q_offset + k, k)).collect();
             let subscription = ros2.subscribe(&format!("/{ns}/servo_cp"), "geometry_msgs/msg/PoseStamped")?;
-            cartesian.push(CartesianTopic { subscription, arm: a, joints: groups[0].1.iter().map(|&k| (arm.q_offset + k, k)).collect() });
+            cartesian.push(CartesianTopic { subscription, arm: a, joints: joints.clone(), move_slot: None });
+            // move_cp: the IK's goal reached by the joints' interpolated move (as the console's),
+            // in the slot of the arm's own move_jp (one replaces the other).
+            let slot = topics.iter().position(|t: &CommandTopic| t.arm == a && t.kind == Kind::MoveJp && t.joints.first() == joints.first().map(|j| &j.0));
+            let subscription = ros2.subscribe(&format!("/{ns}/move_cp"), "geometry_msgs/msg/PoseStamped")?;
+            cartesian.push(CartesianTopic { subscription, arm: a, joints, move_slot: slot });
             let subscription = ros2.subscribe(&format!("/{ns}/state_command"), "crtk_msgs/msg/StringStamped")?;
             states.push(StateTopic { subscription, arm: a, joints: (arm.q_offset..arm.q_offset + arm.model.nq()).collect() });
         }
@@ -448,7 +457,7 @@ fn apply_commands(sim: &mut Sim, recorder: &mut Recorder, topics: &[CommandTopic
                     }
                     said.summary.commands += 1;
                 }
-                Err(why) => said.refuse(recorder, &topic_name, why),
+                Err(why) => said.refuse(recorder, sim.time, Some(topic.arm), &topic_name, why),
             }
         }
     }
@@ -469,6 +478,22 @@ fn apply_cartesian(sim: &mut Sim, recorder: &mut Recorder, cartesian: &[Cartesia
                 Err(e) => Err(refusal("not taken", e)),
             };
             match q {
+                Ok(q) if topic.move_slot.is_some() => {
+                    let slot = topic.move_slot.expect("a move's slot");
+                    let global: Vec<usize> = topic.joints.iter().map(|(g, _)| *g).collect();
+                    for &i in &global {
+                        if sim.actuator(i)?.mode == Mode::Effort {
+                            sim.set_mode(i, modes[i])?;
+                        }
+                    }
+                    let start: Vec<f64> = global.iter().map(|&i| sim.actuator(i).map(|a| a.target)).collect::<Result<_>>()?;
+                    let goal: Vec<f64> = topic.joints.iter().map(|&(_, k)| q[k]).collect();
+                    let pick = |l: &[f64]| global.iter().map(|&i| l[i]).collect::<Vec<f64>>();
+                    let m = crate::joint_move::JointMove::new(global.clone(), start, &goal, &pick(&moves.v_max), &pick(&moves.a_max), sim.time);
+                    moves.active[slot] = Some(m);
+                    moves.say_busy(sim, recorder, topics, topic.arm)?;
+                    said.summary.commands += 1;
+                }
                 Ok(q) => {
                     let global: Vec<usize> = topic.joints.iter().map(|(g, _)| *g).collect();
                     moves.cancel(sim, recorder, topics, &global, topic.arm)?;
@@ -480,7 +505,7 @@ fn apply_cartesian(sim: &mut Sim, recorder: &mut Recorder, cartesian: &[Cartesia
                     }
                     said.summary.commands += 1;
                 }
-                Err(why) => said.refuse(recorder, &name, why),
+                Err(why) => said.refuse(recorder, sim.time, Some(topic.arm), &name, why),
             }
         }
     }
@@ -504,7 +529,7 @@ fn apply_teleop(
     refused.clear();
     let followed = teleop.apply(sim, recorder.ros2().expect("opened with ROS 2"), enabled, modes, refused)?;
     for r in refused.drain(..) {
-        said.refuse(recorder, &r.topic, refusal(r.reason, r.detail));
+        said.refuse(recorder, sim.time, None, &r.topic, refusal(r.reason, r.detail));
     }
     if followed {
         moves.cancel(sim, recorder, topics, &teleop.joints, teleop.arm)?;
@@ -521,9 +546,13 @@ struct Said<'a> {
 
 impl Said<'_> {
     /// Count a refused command and say why, on stderr and `/rosout` (a warning), rate-limited
-    /// and without waiting for either.
-    fn refuse(&mut self, recorder: &Recorder, topic: &str, why: Refusal) {
+    /// and without waiting for either, and on arm `arm`'s own `warning` topic (each refusal, as
+    /// the CRTK contract has it: `rejected <topic>: <why>`; a write that never waits).
+    fn refuse(&mut self, recorder: &Recorder, time: f64, arm: Option<usize>, topic: &str, why: Refusal) {
         self.summary.refused += 1;
+        if let Some(a) = arm {
+            recorder.warn(a, time, &format!("rejected {topic}: {}", why.detail));
+        }
         let line = format!("{topic}: command refused: {}", why.detail);
         self.warnings.warn(&format!("{topic} ({})", why.reason), &line, |l| rosout_warning(recorder, l));
     }
@@ -580,7 +609,7 @@ fn apply_states(sim: &mut Sim, recorder: &mut Recorder, states: &[StateTopic], m
                     said.summary.commands += 1;
                     recorder.set_state(topic.arm, sim.time, state)?;
                 }
-                Err(why) => said.refuse(recorder, &name, why),
+                Err(why) => said.refuse(recorder, sim.time, Some(topic.arm), &name, why),
             }
         }
     }

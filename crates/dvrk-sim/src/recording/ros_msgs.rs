@@ -270,6 +270,11 @@ pub fn encode_string_stamped(t: f64, text: &str) -> Vec<u8> {
     w.finish()
 }
 
+/// Schema name and `ros2msg` text of crtk_msgs/msg/StringStamped (`state`, `warning`, ...).
+pub fn string_stamped_schema() -> (&'static str, String) {
+    ("crtk_msgs/msg/StringStamped", format!("std_msgs/Header header\nstring string\n{}", header_defs()))
+}
+
 /// geometry_msgs/msg/TwistStamped at time `t` (s) in `frame`: linear (m/s) and angular (rad/s)
 /// velocity, as the dVRK's `measured_cv`.
 pub fn encode_twist_stamped(t: f64, frame: &str, linear: [f64; 3], angular: [f64; 3]) -> Vec<u8> {

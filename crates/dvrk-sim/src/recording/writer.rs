@@ -39,7 +39,7 @@ use foxglove::Schema;
 use crate::camera::{Eye, StereoCamera};
 use crate::recording::{camera_msgs, description, frame_transform, scene_msgs};
 use crate::recording::ros_msgs::{self, Header, JointState, PoseStamped, TransformStamped};
-use crate::ros2::Ros2;
+use crate::ros2::{Ros2, TopicQos};
 use crate::sim::Sim;
 use dvrk_kin::atomic::Staged;
 use dvrk_kin::Pose;
@@ -107,6 +107,10 @@ struct ArmChannels {
     setpoint_cp: usize,
     measured_cv: usize,
     operating_state: usize,
+    /// The CRTK contract's topics on ROS 2 alone (jhu-dvrk/dvrk_simulator_base): `state`
+    /// (the state's name, an event like `operating_state`), `warning`, and for a PSM
+    /// `tool_type` (latched) and `local/measured_cp`, `local/setpoint_cp` (its own base frame).
+    contract: ContractChannels,
     /// What `operating_state` says now.
     state: ArmState,
     base_frame_id: String,
@@ -121,6 +125,17 @@ struct ArmChannels {
     /// Kinematics workspace for the tip's Jacobian (`measured_cv`) and `setpoint_cp`.
     kin: dvrk_kin::Data,
     jacobian: nalgebra::Matrix6xX<f64>,
+}
+
+/// An arm's topics of the dVRK simulators' CRTK contract beyond what the file records.
+#[derive(Debug, Clone)]
+struct ContractChannels {
+    state: usize,
+    warning: usize,
+    /// `tool_type` and its value (a PSM's).
+    tool_type: Option<(usize, String)>,
+    /// `local/measured_cp`, `local/setpoint_cp` (a PSM's).
+    local: Option<(usize, usize)>,
 }
 
 /// Where the recorder's messages go: an MCAP file ([`McapOut`]), a live view ([`Live`]), a
@@ -168,6 +183,11 @@ impl Sinks {
     /// Add a channel to every sink (`ros2_only`: to ROS 2 alone, for what the file and the
     /// Foxglove view carry in Foxglove's own schema).
     fn add(&mut self, topic: &str, schema: &Schema, encoding: &str, ros2_only: bool) -> Result<usize> {
+        self.add_qos(topic, schema, encoding, ros2_only, TopicQos::Stream)
+    }
+
+    /// [`Sinks::add`] with the topic's QoS on ROS 2.
+    fn add_qos(&mut self, topic: &str, schema: &Schema, encoding: &str, ros2_only: bool, qos: TopicQos) -> Result<usize> {
         let file = match self.file.as_mut().filter(|_| !ros2_only) {
             Some(f) => Some(f.add_channel(topic, schema.clone(), encoding).map_err(|e| SimError::Build(format!("recording channel {topic}: {e}")))?),
             None => None,
@@ -177,7 +197,7 @@ impl Sinks {
             None => None,
         };
         let ros2 = match self.ros2.as_mut() {
-            Some(r) => Some(r.add_channel(topic, &schema.name, &schema.encoding, encoding)?),
+            Some(r) => Some(r.add_channel_qos(topic, &schema.name, &schema.encoding, encoding, qos)?),
             None => None,
         };
         self.channels.push([file, live, ros2]);
@@ -351,12 +371,31 @@ impl Recorder {
                     joints,
                 });
             }
+            let string_stamped = ros2(ros_msgs::string_stamped_schema());
+            let is_psm = m.joints.iter().any(|j| j.name == "jaw");
+            let state = w.add_qos(&format!("/{ns}/state"), &string_stamped, "cdr", true, TopicQos::Event)?;
+            let warning = w.add_qos(&format!("/{ns}/warning"), &string_stamped, "cdr", true, TopicQos::Warning)?;
+            // Exposed as the contract has them; nothing is said on them yet (as its reference).
+            w.add_qos(&format!("/{ns}/info"), &string_stamped, "cdr", true, TopicQos::Warning)?;
+            w.add_qos(&format!("/{ns}/error"), &string_stamped, "cdr", true, TopicQos::Warning)?;
+            let tool_type = match is_psm {
+                true => {
+                    let name = m.spec.tool.as_ref().map_or(String::new(), |t| t.name.clone());
+                    Some((w.add_qos(&format!("/{ns}/tool_type"), &ros2(ros_msgs::string_schema()), "cdr", true, TopicQos::Latched)?, name))
+                }
+                false => None,
+            };
+            let local = match is_psm {
+                true => Some((w.add(&format!("/{ns}/local/measured_cp"), &cp_schema, "cdr", true)?, w.add(&format!("/{ns}/local/setpoint_cp"), &cp_schema, "cdr", true)?)),
+                false => None,
+            };
             arms.push(ArmChannels {
+                contract: ContractChannels { state, warning, tool_type, local },
                 topics,
                 measured_cp: w.add_channel(&format!("/{ns}/measured_cp"), &cp_schema, "cdr")?,
                 setpoint_cp: w.add_channel(&format!("/{ns}/setpoint_cp"), &cp_schema, "cdr")?,
                 measured_cv: w.add_channel(&format!("/{ns}/measured_cv"), &cv_schema, "cdr")?,
-                operating_state: w.add_channel(&format!("/{ns}/operating_state"), &state_schema, "cdr")?,
+                operating_state: w.add_qos(&format!("/{ns}/operating_state"), &state_schema, "cdr", false, TopicQos::Event)?,
                 state: ArmState::default(),
                 base_frame_id: format!("{}_base", arm.name.replace('-', "_")),
                 base,
@@ -427,8 +466,18 @@ impl Recorder {
         let t = time + self.stamp_origin;
         self.arms[a].state = state;
         let bytes = self.arms[a].state.message(t).encode();
-        self.write(self.arms[a].operating_state, t, &bytes)
+        self.write(self.arms[a].operating_state, t, &bytes)?;
+        let c = &self.arms[a];
+        self.write(c.contract.state, t, &ros_msgs::encode_string_stamped(t, &c.state.state))
     }
+
+    /// Say `text` on arm `a`'s `warning` topic (ROS 2; the write never waits) at simulated time
+    /// `time` (s).
+    pub fn warn(&self, a: usize, time: f64, text: &str) {
+        let t = time + self.stamp_origin;
+        self.sinks.log(self.arms[a].contract.warning, stamp_ns(t), &ros_msgs::encode_string_stamped(t, text));
+    }
+
 
     /// The tool tip's velocity of arm `a` in its base frame's axes (what `measured_cv` holds):
     /// linear (m/s, of the tip point) and angular (rad/s), from the model's Jacobian of the
@@ -515,18 +564,33 @@ impl Recorder {
             let cp = self.sinks.wanted(mc).then(|| PoseStamped::from_pose(t, &c.base_frame_id, &self.tip_in_base(sim, a)));
             if self.samples == 0 {
                 messages.insert(0, (c.operating_state, c.state.message(t).encode()));
+                messages.push((c.contract.state, ros_msgs::encode_string_stamped(t, &c.state.state)));
+                if let Some((ch, name)) = &c.contract.tool_type {
+                    messages.push((*ch, ros_msgs::encode_string(name)));
+                }
             }
+            let local = c.contract.local;
             for (ch, bytes) in messages {
                 self.write(ch, t, &bytes)?;
             }
             if let Some(cp) = cp {
                 self.write(mc, t, &cp.encode())?;
+                // The PSM's own base frame: the same as measured_cp's while that is not the
+                // ECM's view.
+                if let Some((lm, _)) = local.filter(|(lm, _)| self.sinks.wanted(*lm)) {
+                    self.write(lm, t, &cp.encode())?;
+                }
             }
             let sc = self.arms[a].setpoint_cp;
-            if self.sinks.wanted(sc) {
+            let ls = local.map(|(_, ls)| ls).filter(|ls| self.sinks.wanted(*ls));
+            if self.sinks.wanted(sc) || ls.is_some() {
                 if let Some(p) = self.setpoint_tip(sim, a)? {
                     let frame = self.arms[a].base_frame_id.clone();
-                    self.write(sc, t, &PoseStamped::from_pose(t, &frame, &p).encode())?;
+                    let bytes = PoseStamped::from_pose(t, &frame, &p).encode();
+                    self.write(sc, t, &bytes)?;
+                    if let Some(ls) = ls {
+                        self.write(ls, t, &bytes)?;
+                    }
                 }
             }
             let cv = self.arms[a].measured_cv;

@@ -69,6 +69,32 @@ fn rosout_writer_qos() -> QosPolicies {
     rosout_qos().modify_by(&QosPolicyBuilder::new().reliability(Reliability::Reliable { max_blocking_time: rustdds::Duration::ZERO }).build())
 }
 
+/// The QoS a published topic takes (jhu-dvrk/dvrk_simulator_base's contract, `ros_qos.py`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TopicQos {
+    /// A stream: reliable, volatile, keep last 10.
+    Stream,
+    /// An event (`operating_state`, `state`): reliable, transient local, keep last 10, so a
+    /// client that joins later gets the last ones at once.
+    Event,
+    /// Latched (`tool_type`): reliable, transient local, keep last 1.
+    Latched,
+    /// A warning stream (`warning`, `info`, `error`): a stream whose writes never wait (written
+    /// from the real-time loop; a full send window drops the line).
+    Warning,
+}
+
+impl TopicQos {
+    fn policies(self) -> QosPolicies {
+        match self {
+            TopicQos::Stream => dvrk_qos(),
+            TopicQos::Event => reliable_qos(Durability::TransientLocal, 10),
+            TopicQos::Latched => reliable_qos(Durability::TransientLocal, 1),
+            TopicQos::Warning => dvrk_qos().modify_by(&QosPolicyBuilder::new().reliability(Reliability::Reliable { max_blocking_time: rustdds::Duration::ZERO }).build()),
+        }
+    }
+}
+
 /// A subscription to one command topic.
 struct Command {
     topic: String,
@@ -136,10 +162,16 @@ impl Ros2 {
     /// (`schema_encoding` `ros2msg`, `encoding` `cdr`), skipped otherwise (Foxglove's own
     /// messages). Its index for [`Ros2::log`].
     pub fn add_channel(&mut self, topic: &str, schema_name: &str, schema_encoding: &str, encoding: &str) -> Result<usize> {
+        self.add_channel_qos(topic, schema_name, schema_encoding, encoding, TopicQos::Stream)
+    }
+
+    /// [`Ros2::add_channel`] with the topic's QoS.
+    pub fn add_channel_qos(&mut self, topic: &str, schema_name: &str, schema_encoding: &str, encoding: &str, qos: TopicQos) -> Result<usize> {
         let writer = match (schema_encoding, encoding, dds_type_name(schema_name)) {
             ("ros2msg", "cdr", Some(type_name)) => {
-                let t = self.participant.create_topic(dds_topic_name(topic), type_name, &self.qos, TopicKind::NoKey).map_err(|e| dds_error(topic, e))?;
-                Some(self.publisher.create_datawriter_no_key::<RawCdr, RawAdapter>(&t, None).map_err(|e| dds_error(topic, e))?)
+                let policies = qos.policies();
+                let t = self.participant.create_topic(dds_topic_name(topic), type_name, &policies, TopicKind::NoKey).map_err(|e| dds_error(topic, e))?;
+                Some(self.publisher.create_datawriter_no_key::<RawCdr, RawAdapter>(&t, Some(policies)).map_err(|e| dds_error(topic, e))?)
             }
             _ => None,
         };
