@@ -951,3 +951,56 @@ def test_move_cp_reaches_the_goal_by_an_interpolated_move_and_a_refusal_says_so_
     assert np.linalg.norm(reached - goal) < 0.003
     assert warning.string.startswith("rejected /PSM1/move_cp: "), warning.string
     assert (summary["commands"], summary["refused"]) == (1, 1), summary
+
+
+def test_the_contracts_state_machine_pause_resume_fault_clear_fault():
+    """pause / resume / fault / clear_fault as the CRTK contract's reference has them: each change
+    on operating_state and on state; a command from the wrong state refused on the arm's warning
+    topic; motion refused while paused."""
+    domain = unique_domain(31)
+    peer = Peer(domain)
+    ev = Qos(Policy.Reliability.Reliable(duration(milliseconds=100)), Policy.Durability.TransientLocal, Policy.History.KeepLast(10))
+    peer.reader("/PSM1/state", StringStamped_, ev)
+    peer.reader("/PSM1/warning", StringStamped_)
+    state = peer.writer("/PSM1/state_command", StringStamped_)
+    servo = peer.writer("/PSM1/servo_jp")
+    proc = serve(domain, 5)
+
+    def say(text):
+        state.write(StringStamped_(Header_(Time_(0, 0), ""), text))
+
+    def wait_state(want, timeout=2.0):
+        deadline = time.time() + timeout
+        while time.time() < deadline:
+            if any(s.string == want for _, s in peer.take("/PSM1/state", StringStamped_)):
+                return
+            time.sleep(0.005)
+        raise AssertionError(f"state never said {want}")
+
+    warnings = []
+    try:
+        wait_state("ENABLED")
+        time.sleep(1.0)  # every peer endpoint matched (the state is latched: it came at once)
+        say("pause")
+        wait_state("PAUSED")
+        servo.write(command(PSM_JOINTS, [0.1, 0.0, 0.1, 0.0, 0.0, 0.0]))  # refused: paused
+        time.sleep(0.3)  # (state commands are taken before motion in a step: not with resume's)
+        say("pause")  # refused: not from PAUSED
+        say("resume")
+        wait_state("ENABLED")
+        say("fault")
+        wait_state("FAULT")
+        say("enable")  # refused: clear the fault first
+        say("clear_fault")
+        wait_state("DISABLED")
+        say("enable")
+        wait_state("ENABLED")
+        time.sleep(0.3)
+        warnings = [s.string for _, s in peer.take("/PSM1/warning", StringStamped_)]
+    finally:
+        summary, err = finish(proc)
+    print(warnings)
+    assert any(w.startswith("rejected /PSM1/servo_jp: ") and "PAUSED" in w for w in warnings), warnings
+    assert any("cannot pause from PAUSED" in w for w in warnings), warnings
+    assert any("cannot enable while in FAULT" in w for w in warnings), warnings
+    assert (summary["commands"], summary["refused"]) == (5, 3), summary

@@ -17,9 +17,11 @@
 //!   the IK from the current setpoints ([`crate::serve_cp`]); a pose out of reach is refused;
 //! - `/PSM1/move_cp`: the same goal, reached by the joints' interpolated move (as `move_jp`);
 //! - `/PSM1/state_command` (crtk_msgs/msg/StringStamped): `enable` (hold where the arm is),
-//!   `disable` (no effort: the arm hangs on its counterweight and cables), `home` (at once: the
-//!   simulated encoders need no index search), `unhome`; motion commands to a disabled arm are
-//!   refused. `operating_state` says each change.
+//!   `disable` (no effort: the arm hangs on its counterweight and cables), `pause` / `resume`
+//!   (hold, commands refused, from and back to ENABLED), `fault` (no effort) / `clear_fault`
+//!   (to DISABLED; `enable` is refused in FAULT), `home` (at once: the simulated encoders need no
+//!   index search), `unhome`; motion commands to an arm that is not enabled are refused.
+//!   `operating_state` and `state` say each change.
 //!
 //! A message may name its joints (in any order: each must be one of the topic's) or leave the
 //! names empty (then it lists them in the arm's order). A command with an unknown name, the
@@ -138,7 +140,12 @@ fn refusal(reason: &'static str, detail: impl Into<String>) -> Refusal {
 
 /// The refusal of a command to an arm that is not enabled.
 fn not_enabled(state: &str) -> Refusal {
-    refusal("arm not enabled", format!("the arm is {state} (send `enable` on state_command)"))
+    let way = match state {
+        "PAUSED" => "send `resume` on state_command",
+        "FAULT" => "send `clear_fault`, then `enable`, on state_command",
+        _ => "send `enable` on state_command",
+    };
+    refusal("arm not enabled", format!("the arm is {state} ({way})"))
 }
 
 /// The values of a command in the topic's joint order, or why it is refused.
@@ -312,7 +319,7 @@ pub fn serve(scene: &Scene, sim_options: &SimOptions, options: &ServeOptions, st
     let mut step = 0u64;
     while steps.is_none_or(|n| step < n) && !stop.load(Ordering::Relaxed) {
         let mut said = Said { summary: &mut summary, warnings: &mut warnings };
-        apply_states(&mut sim, &mut recorder, &states, &modes, &mut said)?;
+        apply_states(&mut sim, &mut recorder, &states, &topics, &modes, &mut moves, &mut said)?;
         apply_commands(&mut sim, &mut recorder, &topics, &modes, &mut moves, &mut said)?;
         apply_cartesian(&mut sim, &mut recorder, &cartesian, &topics, &modes, &mut moves, &mut said)?;
         if let Some(t) = teleop.as_mut() {
@@ -564,7 +571,7 @@ fn rosout_warning(recorder: &Recorder, line: &str) -> bool {
 }
 
 /// Take every waiting `state_command` and apply it.
-fn apply_states(sim: &mut Sim, recorder: &mut Recorder, states: &[StateTopic], modes: &[Mode], said: &mut Said) -> Result<()> {
+fn apply_states(sim: &mut Sim, recorder: &mut Recorder, states: &[StateTopic], topics: &[CommandTopic], modes: &[Mode], moves: &mut Moves, said: &mut Said) -> Result<()> {
     for topic in states {
         loop {
             let ros2 = recorder.ros2().expect("opened with ROS 2");
@@ -574,22 +581,37 @@ fn apply_states(sim: &mut Sim, recorder: &mut Recorder, states: &[StateTopic], m
                 .map_err(|e| refusal("not taken", e))
                 .and_then(|b| crate::recording::ros_msgs::decode_string_stamped(&b).map_err(|e| refusal("not a StringStamped", format!("not a crtk_msgs/StringStamped: {e}"))));
             let mut state = recorder.state(topic.arm).clone();
-            let outcome = command.and_then(|(_, c)| match c.trim().to_ascii_lowercase().as_str() {
-                "enable" => {
-                    // Hold where the arm is now, under the controllers it started with.
-                    for &i in &topic.joints {
-                        sim.set_mode(i, modes[i]).map_err(|e| refusal("failed", e.to_string()))?;
-                        let q = sim.q()[i];
-                        sim.set_target(i, q, 0.0).map_err(|e| refusal("failed", e.to_string()))?;
-                    }
-                    state.state = "ENABLED".into();
-                    Ok(())
+            // Hold where the arm is now, under the controllers it started with.
+            let hold = |sim: &mut Sim| -> std::result::Result<(), Refusal> {
+                for &i in &topic.joints {
+                    sim.set_mode(i, modes[i]).map_err(|e| refusal("failed", e.to_string()))?;
+                    let q = sim.q()[i];
+                    sim.set_target(i, q, 0.0).map_err(|e| refusal("failed", e.to_string()))?;
                 }
-                "disable" => {
-                    for &i in &topic.joints {
-                        sim.set_mode(i, Mode::Effort).map_err(|e| refusal("failed", e.to_string()))?;
-                        sim.set_effort(i, 0.0).map_err(|e| refusal("failed", e.to_string()))?;
-                    }
+                Ok(())
+            };
+            // No effort: the arm hangs on its counterweight and cables.
+            let limp = |sim: &mut Sim| -> std::result::Result<(), Refusal> {
+                for &i in &topic.joints {
+                    sim.set_mode(i, Mode::Effort).map_err(|e| refusal("failed", e.to_string()))?;
+                    sim.set_effort(i, 0.0).map_err(|e| refusal("failed", e.to_string()))?;
+                }
+                Ok(())
+            };
+            // The CRTK contract's state machine (jhu-dvrk/dvrk_simulator_base): ENABLED, DISABLED,
+            // PAUSED, FAULT; a move under way ends with any change.
+            let from = state.state.clone();
+            let outcome = command.and_then(|(_, c)| match c.trim().to_ascii_lowercase().as_str() {
+                "enable" if from == "FAULT" => Err(refusal("not from this state", "cannot enable while in FAULT; issue clear_fault first")),
+                "enable" => hold(sim).map(|()| state.state = "ENABLED".into()),
+                "disable" => limp(sim).map(|()| state.state = "DISABLED".into()),
+                "pause" if from != "ENABLED" => Err(refusal("not from this state", format!("cannot pause from {from}"))),
+                "pause" => hold(sim).map(|()| state.state = "PAUSED".into()),
+                "resume" if from != "PAUSED" => Err(refusal("not from this state", format!("cannot resume from {from}"))),
+                "resume" => hold(sim).map(|()| state.state = "ENABLED".into()),
+                "fault" => limp(sim).map(|()| state.state = "FAULT".into()),
+                "clear_fault" if from != "FAULT" => Err(refusal("not from this state", format!("cannot clear fault from {from}"))),
+                "clear_fault" => {
                     state.state = "DISABLED".into();
                     Ok(())
                 }
@@ -602,8 +624,12 @@ fn apply_states(sim: &mut Sim, recorder: &mut Recorder, states: &[StateTopic], m
                     state.homed = false;
                     Ok(())
                 }
-                other => Err(refusal("unknown state command", format!("unknown state command `{other}` (valid: enable, disable, home, unhome)"))),
+                other => Err(refusal("unknown state command", format!("unknown state command `{other}` (valid: enable, disable, pause, resume, fault, clear_fault, home, unhome)"))),
             });
+            if outcome.is_ok() && state.state != from {
+                let joints: Vec<usize> = topic.joints.clone();
+                moves.cancel(sim, recorder, topics, &joints, topic.arm)?;
+            }
             match outcome {
                 Ok(()) => {
                     said.summary.commands += 1;
