@@ -1004,3 +1004,49 @@ def test_the_contracts_state_machine_pause_resume_fault_clear_fault():
     assert any("cannot pause from PAUSED" in w for w in warnings), warnings
     assert any("cannot enable while in FAULT" in w for w in warnings), warnings
     assert (summary["commands"], summary["refused"]) == (5, 3), summary
+
+
+def test_a_flood_of_valid_servo_jp_keeps_the_rate_and_the_memory_flat():
+    """The contract's flood: servo_jp as fast as the peer can send for 10 s (each a valid
+    setpoint, the newest wins): `measured_js` keeps its rate within 1% and the twin's resident
+    memory does not grow (read from /proc: flat within 5 MB from the second second on)."""
+    import numpy as np
+
+    rate, seconds = 200, 10
+    domain = unique_domain(32)
+    peer = Peer(domain)
+    peer.reader("/PSM1/measured_js")
+    servo = peer.writer("/PSM1/servo_jp")
+    proc = serve(domain, seconds + 6, "--rate", str(rate))
+
+    def rss_mb():
+        with open(f"/proc/{proc.pid}/status") as f:
+            return next(int(l.split()[1]) for l in f if l.startswith("VmRSS:")) / 1024.0
+
+    try:
+        _, first = first_sample(peer, "/PSM1/measured_js")
+        time.sleep(1.0)
+        base = list(first.position)
+        peer.take("/PSM1/measured_js")
+        start, sent, per_second, memory = time.time(), 0, [0] * seconds, []
+        while time.time() - start < seconds:
+            k = sent % 1000
+            target = list(base)
+            target[0] += 0.05 * np.sin(2 * np.pi * k / 1000)
+            servo.write(command(PSM_JOINTS, target))
+            sent += 1
+            if sent % 200 == 0:
+                for arrived, _ in peer.take("/PSM1/measured_js"):
+                    per_second[min(int(arrived - start), seconds - 1)] += 1
+                second = int(time.time() - start)
+                if len(memory) <= second < seconds:
+                    memory.append(rss_mb())
+        for arrived, _ in peer.take("/PSM1/measured_js"):
+            per_second[min(int(arrived - start), seconds - 1)] += 1
+    finally:
+        summary, _ = finish(proc)
+    print(f"servo_jp flood: {sent} sent in {seconds} s ({sent / seconds:.0f}/s), {summary['commands']} applied; measured_js per second {per_second}; RSS per second (MB) {[round(m, 1) for m in memory]}")
+    assert sent > 20 * seconds * rate, "the peer flooded"
+    assert abs(sum(per_second) / seconds - rate) < 0.01 * rate, per_second
+    assert max(memory[1:]) - min(memory[1:]) < 5.0, memory
+    assert summary["refused"] == 0 and summary["commands"] > 0.5 * sent, summary
