@@ -848,7 +848,7 @@ def contract_rows():
         return list(csv.DictReader(f))
 
 
-@pytest.mark.parametrize("scene,arms", [("psm", ["PSM1"]), ("ecm", ["ECM"]), ("2psm-ecm", ["PSM1", "PSM2", "ECM"])])
+@pytest.mark.parametrize("scene,arms", [("psm", ["PSM1"]), ("ecm", ["ECM"]), ("2psm-ecm", ["PSM1", "PSM2", "ECM"]), ("mtm", ["MTMR"])])
 def test_serve_meets_the_crtk_contract_table(scene, arms):
     """Every row of the contract for every arm of the scene: an endpoint of the twin matches the
     peer's of the row's type, reliability and durability (DDS matches on the type's name and
@@ -858,7 +858,7 @@ def test_serve_meets_the_crtk_contract_table(scene, arms):
     in discovery: not checked here."""
     rows = contract_rows()
     assert len(rows) == 22  # the contract's items (docs/ros2.md)
-    domain = unique_domain(20 + ["psm", "ecm", "2psm-ecm"].index(scene))
+    domain = unique_domain(20 + ["psm", "ecm", "2psm-ecm", "mtm"].index(scene))
     peer = Peer(domain)
     proc = subprocess.Popen([dvrk_binary(), "serve", "--scene", scene, "--domain", str(domain), "--duration", "8", "--json"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     from cyclonedds.pub import DataWriter
