@@ -123,7 +123,7 @@ pub struct ConsoleGcFile {
 /// `n` poses spread through `model`'s joint limits: an additive recurrence (Weyl) of the square
 /// roots of the first primes, so the spread is even and the same every run.
 fn spread_poses(model: &Model, n: usize) -> Vec<Vec<f64>> {
-    const ROOTS: [f64; 7] = [1.414_213_562_373_095, 1.732_050_807_568_877, 2.236_067_977_499_79, 2.645_751_311_064_591, 3.316_624_790_355_4, 3.605_551_275_463_989, 4.123_105_625_617_661];
+    let roots = [2.0f64, 3.0, 5.0, 7.0, 11.0, 13.0, 17.0].map(f64::sqrt);
     (0..n)
         .map(|i| {
             model
@@ -131,7 +131,7 @@ fn spread_poses(model: &Model, n: usize) -> Vec<Vec<f64>> {
                 .iter()
                 .enumerate()
                 .map(|(j, jt)| {
-                    let u = ((i as f64 + 0.5) * ROOTS[j % ROOTS.len()]).fract();
+                    let u = ((i as f64 + 0.5) * roots[j % roots.len()]).fract();
                     jt.lower + u * (jt.upper - jt.lower)
                 })
                 .collect()
@@ -172,8 +172,8 @@ pub fn fit(model: &Model, inertias: Vec<BodyInertia>, gravity: &Vector3<f64>, po
     }
     // Columns scaled to unit norm: q^4 of a joint with 3 rad of range beside g sin q.
     let scale: Vec<f64> = (0..PARAMETERS).map(|k| a.column(k).norm().max(1e-300)).collect();
-    for k in 0..PARAMETERS {
-        a.column_mut(k).scale_mut(1.0 / scale[k]);
+    for (k, s) in scale.iter().enumerate() {
+        a.column_mut(k).scale_mut(1.0 / s);
     }
     let svd = a.clone().svd(true, true);
     let theta = svd.solve(&b, 1e-12).map_err(|e| CalibError::data(&model.name, format!("the console's regressor could not be fitted: {e}")))?;
