@@ -28,8 +28,10 @@ impl std::error::Error for CheckFailed {}
 const MAX_MESSAGE_CHARS: usize = 600;
 
 fn main() -> ExitCode {
-    let args = cli::Cli::parse();
+    // The handler first: a SIGTERM in the process's first milliseconds (issue #63) is then ours
+    // (exit 130, nothing staged yet), not the default's 143.
     signals::install();
+    let args = cli::Cli::parse();
     let result = commands::run(args);
     // Outputs reserved but not written (an error, or an optional output not produced).
     dvrk_kin::atomic::remove_all_staged();

@@ -1,5 +1,5 @@
 //! Fuzz targets, one per parser (issue 45, item 4): model TOML, inertials, scene, dVRK JSON,
-//! URDF, the joint CSV readers, the WPI CSV and the MCAP joint-state reader. Each mutates files
+//! URDF, the joint CSV readers, the WPI CSV, the MCAP joint-state reader and the MTM motion reader. Each mutates files
 //! the parser reads every day (the repository's models, scenes and inertials; exported URDF; a
 //! recorded MCAP; the dVRK's own JSON and the WPI recordings where `../shared` has them) with
 //! byte edits, deletions, inserted tokens (`nan`, `1e308`, brackets, quotes...), numbers replaced
@@ -225,5 +225,24 @@ fn mcap_joint_states() {
         let _ = dvrk_calib::discrepancy::read_log(path, "mcap", &model, "PSM1");
         let _ = dvrk_calib::identify::read_log(path, "mcap", &model, "PSM1");
         let _ = dvrk_calib::read_recording(path, &Default::default());
+    });
+}
+
+#[test]
+fn mcap_mtm_motion() {
+    // The MTM scene recorded as `dvrk sim --out` writes it: /MTMR/measured_cp, its joints and
+    // gripper; what `dvrk teleop --mtm` reads (read_mtm), mutated.
+    let dir = tempfile::tempdir().unwrap();
+    let rec = dir.path().join("seed.mcap");
+    let scene = dvrk_sim::Scene::load("mtm").unwrap();
+    let options = dvrk_sim::RunOptions { duration: 0.05, trajectory: dvrk_sim::run::TrajectoryKind::Hold, sim: Default::default() };
+    dvrk_sim::run_recorded(&scene, &options, Some(&dvrk_sim::RecordOptions { path: rec.clone(), rate: 200.0 }), |_| {}).unwrap();
+    let seed = std::fs::read(&rec).unwrap();
+    assert!(dvrk_calib::recordings::read_mtm(&rec, None).is_ok_and(|l| l.arm == "MTMR" && l.len() == 10), "the seed reads");
+    let scratch = Scratch::new("mtm.mcap");
+    fuzz(&[seed], |b| {
+        let path = scratch.with(b);
+        let _ = dvrk_calib::recordings::read_mtm(path, None);
+        let _ = dvrk_calib::recordings::read_mtm(path, Some("MTML"));
     });
 }
