@@ -1050,3 +1050,59 @@ def test_a_flood_of_valid_servo_jp_keeps_the_rate_and_the_memory_flat():
     assert abs(sum(per_second) / seconds - rate) < 0.01 * rate, per_second
     assert max(memory[1:]) - min(memory[1:]) < 5.0, memory
     assert summary["refused"] == 0 and summary["commands"] > 0.5 * sent, summary
+
+
+def test_two_flooding_peers_and_peers_coming_and_going_keep_the_rate_and_the_memory():
+    """Issue #63's re-measure: one peer floods valid servo_jp, a second floods refused ones (5
+    values for 6 joints), and a third joins, reads measured_js for a second and leaves, five
+    times, over 10 s: `measured_js` at its rate within 1%, the twin's resident memory flat."""
+    rate, seconds = 200, 10
+    domain = unique_domain(33)
+    reader = Peer(domain)
+    reader.reader("/PSM1/measured_js")
+    good = Peer(domain).writer("/PSM1/servo_jp")
+    bad = Peer(domain).writer("/PSM1/servo_jp")
+    proc = serve(domain, seconds + 6, "--rate", str(rate))
+
+    def rss_mb():
+        with open(f"/proc/{proc.pid}/status") as f:
+            return next(int(l.split()[1]) for l in f if l.startswith("VmRSS:")) / 1024.0
+
+    visitors = []
+    try:
+        _, first = first_sample(reader, "/PSM1/measured_js")
+        time.sleep(1.0)
+        base = list(first.position)
+        reader.take("/PSM1/measured_js")
+        start, sent, per_second, memory, visitor = time.time(), [0, 0], [0] * seconds, [], None
+        while time.time() - start < seconds:
+            target = list(base)
+            target[0] += 0.02 * ((sent[0] % 200) / 200.0)
+            good.write(command(PSM_JOINTS, target))
+            bad.write(command(PSM_JOINTS[:5], [0.0] * 5))
+            sent[0] += 1
+            sent[1] += 1
+            if sent[0] % 100 == 0:
+                for arrived, _ in reader.take("/PSM1/measured_js"):
+                    per_second[min(int(arrived - start), seconds - 1)] += 1
+                second = int(time.time() - start)
+                if len(memory) <= second < seconds:
+                    memory.append(rss_mb())
+                    # Every other second a peer joins, the next it counts what it got and leaves.
+                    if visitor is None and second % 2 == 0:
+                        visitor = Peer(domain)
+                        visitor.reader("/PSM1/measured_js")
+                    elif visitor is not None:
+                        visitors.append(len(visitor.take("/PSM1/measured_js")))
+                        visitor = None
+            time.sleep(0.0002)
+        for arrived, _ in reader.take("/PSM1/measured_js"):
+            per_second[min(int(arrived - start), seconds - 1)] += 1
+    finally:
+        summary, _ = finish(proc)
+    print(f"two floods: {sent[0]} valid and {sent[1]} refused sent in {seconds} s; applied {summary['commands']}, refused {summary['refused']}; measured_js per second {per_second}; visitors got {visitors}; RSS (MB) {[round(m, 1) for m in memory]}")
+    assert abs(sum(per_second) / seconds - rate) < 0.01 * rate, per_second
+    assert max(memory[1:]) - min(memory[1:]) < 5.0, memory
+    # Each visitor's reader was full after its second (keep last 10: it holds the newest 10).
+    assert len(visitors) >= 4 and all(v == 10 for v in visitors), visitors
+    assert summary["refused"] > 0.5 * sent[1] and summary["commands"] > 0.5 * sent[0], summary
