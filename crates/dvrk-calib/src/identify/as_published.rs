@@ -170,20 +170,14 @@ pub fn relative_error_without(tau: &[f64], pred: impl Fn(usize) -> f64, removed:
 pub fn relative_errors(predicted: &[Vec<f64>], rec: &JointLog, reg_trim: usize, protocol: &Protocol) -> Option<AsPublished> {
     let rows = predicted.first().map_or(0, |t| t.len());
     let w = window(rec, reg_trim, reg_trim + rows, protocol)?;
-    // The cable's torque on the MTM's actuator channels 2..4 (index 1..3), from the platform's
-    // joint angle q4 = a4 + 0.6697 (a2 - a3), as their notebook takes it out.
-    let cable = |c: usize, i: usize| {
-        let a = &rec.position[i];
-        if !protocol.mtm_cable_removed || a.len() != 7 {
-            return 0.0;
-        }
-        let t = wpi_mtm_cable(0.6697 * a[1] - 0.6697 * a[2] + a[3]);
-        match c {
-            1 => 0.6697 * t,
-            2 => -0.6697 * t,
-            3 => t,
-            _ => 0.0,
-        }
+    // The cable's torque on the platform joint (index 3) in the recorded channels, as their
+    // notebook takes it out: the joint angle from the channels through the recording's map
+    // (q4 = a4 + 0.6697 (a2 - a3) on a WPI MTM), the torque back through its transpose.
+    let map = rec.joint_map();
+    let platform = (protocol.mtm_cable_removed && map.nrows() == 7 && map.ncols() == rec.names.len()).then(|| map.row(3).clone_owned());
+    let cable = |c: usize, i: usize| match &platform {
+        Some(row) => row[c] * wpi_mtm_cable((0..row.len()).map(|k| row[k] * rec.position[i][k]).sum()),
+        None => 0.0,
     };
     let relative_error = predicted
         .iter()
