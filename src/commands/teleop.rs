@@ -47,6 +47,13 @@ pub struct TeleopArgs {
     /// Recording rate (Hz).
     #[arg(long, default_value_t = dvrk_sim::RecordOptions::DEFAULT_RATE)]
     pub rate: f64,
+    /// Also serve the run to Foxglove or Lichtblick (WebSocket) on HOST:PORT (127.0.0.1:8765 by
+    /// default), paced to real time unless --realtime says otherwise.
+    #[arg(long, num_args = 0..=1, default_missing_value = "")]
+    pub live: Option<String>,
+    /// Pace the run to this many times wall-clock time (1: as recorded).
+    #[arg(long)]
+    pub realtime: Option<f64>,
     /// Print the result as one JSON object.
     #[arg(long)]
     pub json: bool,
@@ -122,8 +129,16 @@ pub fn run(args: &TeleopArgs) -> Result<()> {
         sim: SimOptions { engine: Some(scene.engine.unwrap_or(Engine::Reduced)), ..Default::default() },
     };
     let record = args.out.as_ref().map(|p| dvrk_sim::RecordOptions { path: p.clone(), rate: args.rate });
+    if let Some(f) = args.realtime {
+        if !(f.is_finite() && f > 0.0) {
+            bail!("--realtime {f}: must be a positive factor of wall-clock time (1: as recorded)");
+        }
+    }
     let stop = crate::signals::stop_flag();
-    let outputs = Outputs { record: record.as_ref(), stop: Some(stop), ..Default::default() };
+    let live = args.live.as_deref().map(|a| crate::commands::sim::start_live(a, &args.scene)).transpose()?.map(|l| std::sync::Mutex::new(Some(l)));
+    // A live view is watched as it happens: real time unless asked otherwise.
+    let realtime = args.realtime.or(live.as_ref().map(|_| 1.0));
+    let outputs = Outputs { record: record.as_ref(), stop: Some(stop), live: live.as_ref(), realtime, ..Default::default() };
     let run = dvrk_sim::run_staged(&scene, &options, &outputs, |_| {})?;
     if !run.summary.finite {
         bail!("the simulation went non-finite; no output was written");
