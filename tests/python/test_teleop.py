@@ -199,4 +199,4 @@ def test_bad_mtm_recordings_get_one_clear_line(tmp_path, psm_start):
     one_error_line(dvrk("teleop", "--mtm", tmp_path / "none.mcap"), "--mtm")
     one_error_line(dvrk("teleop", "--mtm", rec, "--out", rec), "--out")
     one_error_line(dvrk("teleop", "--mtm", rec, "--realtime", "0"), "--realtime 0")
-    one_error_line(dvrk("teleop", "--mtm", rec, "--scale", "-1"), "--scale -1")
+    one_error_line(dvrk("teleop", "--mtm", rec, "--scale", "0"), "--scale 0")
