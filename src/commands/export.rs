@@ -58,7 +58,13 @@ pub fn run(args: &ExportArgs) -> Result<()> {
             let q = super::q_arg(&m, "--q", args.q.as_deref())?;
             dvrk_kin::sdf::export_sdf(&m, &q)?
         }
-        ExportFormat::Mjcf => dvrk_sim::mjcf::export_named(&args.model.model)?,
+        ExportFormat::Mjcf => {
+            let text = dvrk_sim::mjcf::export_named(&args.model.model)?;
+            for line in text.lines().filter_map(|l| l.trim().strip_prefix("<!-- not exported: ")) {
+                eprintln!("note: {}", line.trim_end_matches(" -->"));
+            }
+            text
+        }
     };
     Ok(dvrk_kin::atomic::write_atomic(&args.output, text.as_bytes())?)
 }

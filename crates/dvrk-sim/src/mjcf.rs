@@ -27,6 +27,9 @@
 //! - `<custom>` numerics `dvrk:ARM/joint` carry per actuated joint the drive map, gains, limits
 //!   and tracking-test sine ([`DRIVE_FIELDS`]), so a controller needs nothing but the file.
 //!
+//! - the model's effects (an identified model's friction, springs, offsets: `dvrk_kin::effects`)
+//!   are not exported: an XML comment per arm says which ([`unexported_effects`]).
+//!
 //! Stiff constraints: every equality (connect and hold) gets `solref = (2 dt, 1)`, the shortest
 //! time constant MuJoCo accepts without `refsafe` lengthening it (a critically damped constraint
 //! mode of 1/(2 dt) rad/s), and `solimp = (0.9999, 0.9999, 1e-3)`, MuJoCo's largest impedance: the
@@ -176,6 +179,9 @@ pub fn export_mjcf(scene: &Scene) -> Result<String> {
         num(scene.dt),
         nums(&g)
     );
+    for line in unexported_effects(scene) {
+        let _ = writeln!(out, "  <!-- not exported: {} -->", esc(&line));
+    }
     out += "  <worldbody>\n";
     write_children(&mut out, &bodies, None, &Pose::identity(), 2)?;
     out += "  </worldbody>\n";
@@ -192,6 +198,24 @@ pub fn export_mjcf(scene: &Scene) -> Result<String> {
     out += "</mujoco>\n";
     check_finite(&out, &scene.name)?;
     Ok(out)
+}
+
+/// Per arm whose model carries effects (an identified model's friction, springs, offsets...):
+/// a line naming them. The export has no MuJoCo counterpart for them, so MuJoCo runs the arm
+/// without: said in the file (an XML comment) and by `dvrk export` on stderr.
+pub fn unexported_effects(scene: &Scene) -> Vec<String> {
+    scene
+        .arms
+        .iter()
+        .filter_map(|a| {
+            // Motor inertias go in as the drives' armature (their joint-space diagonal).
+            let motor = dvrk_kin::effects::EffectKind::MotorInertia;
+            let left: Vec<_> = a.model.effects.iter().filter(|e| e.kind != motor).collect();
+            let kinds: std::collections::BTreeSet<String> = left.iter().map(|e| format!("{:?}", e.kind)).collect();
+            let armature = if left.len() < a.model.effects.len() { " (its motor inertias are in the drives' armature, their diagonal)" } else { "" };
+            (!left.is_empty()).then(|| format!("{}: {} effects of its model ({}); MuJoCo runs the arm without them{armature}", a.name, left.len(), kinds.into_iter().collect::<Vec<_>>().join(", ")))
+        })
+        .collect()
 }
 
 /// Write the bodies whose parent is `parent` (placed relative to `parent_pose`), recursively.
