@@ -1,5 +1,5 @@
 //! Fuzz targets, one per parser (issue 45, item 4): model TOML, inertials, scene, dVRK JSON,
-//! URDF, the joint CSV readers, the WPI CSV, the MCAP joint-state reader and the MTM motion reader. Each mutates files
+//! URDF, the joint CSV readers, the WPI CSV, the MCAP joint-state reader, ROS 1 bags and the MTM motion reader. Each mutates files
 //! the parser reads every day (the repository's models, scenes and inertials; exported URDF; a
 //! recorded MCAP; the dVRK's own JSON and the WPI recordings where `../shared` has them) with
 //! byte edits, deletions, inserted tokens (`nan`, `1e308`, brackets, quotes...), numbers replaced
@@ -244,5 +244,35 @@ fn mcap_mtm_motion() {
         let path = scratch.with(b);
         let _ = dvrk_calib::recordings::read_mtm(path, None);
         let _ = dvrk_calib::recordings::read_mtm(path, Some("MTML"));
+    });
+}
+
+#[test]
+fn ros1_bags() {
+    // ROS 1 bags as the dVRK records them (uncompressed, bz2 and lz4 chunks), written by the
+    // Python `rosbags` package from a second of a real WPI recording (dvrk-calib's layout
+    // fixtures), read by the bag reader's every path (chunks, connections, index, decompression).
+    let Some(wpi) = shared("wpi-dvrk-dynamics/insertion-payload/one_no_weight_results.csv") else {
+        eprintln!("SKIPPED: ../shared's WPI recordings are not here");
+        return;
+    };
+    let python = std::process::Command::new("python3").args(["-c", "import mcap_ros2, rosbags, numpy"]).output().is_ok_and(|o| o.status.success());
+    if !python {
+        eprintln!("SKIPPED: python3 with rosbags, mcap-ros2-support and numpy is not available (bash scripts/test.sh installs them)");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let script = root().join("crates/dvrk-calib/tests/calib/writers/dvrk_layouts.py");
+    let out = std::process::Command::new("python3").arg(&script).arg(&wpi).arg(dir.path()).arg("1").output().unwrap();
+    assert!(out.status.success(), "the bag writer failed: {}", String::from_utf8_lossy(&out.stderr));
+    let seeds = files(dir.path(), ".bag");
+    assert!(seeds.len() >= 4, "{} bags", seeds.len());
+    let model = dvrk_kin::load("psm", None).unwrap();
+    let scratch = Scratch::new("fuzz.bag");
+    fuzz(&seeds, |b| {
+        let path = scratch.with(b);
+        let _ = dvrk_calib::identify::read_log(path, "bag", &model, "PSM1");
+        let _ = dvrk_calib::read_recording(path, &Default::default());
+        let _ = dvrk_calib::recordings::read_mtm(path, None);
     });
 }
