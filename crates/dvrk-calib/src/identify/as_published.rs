@@ -65,10 +65,9 @@ impl Protocol {
     /// The protocol of the WPI notebook for `model`: [`Protocol::mtm`] for an arm with its own
     /// coupling and no tool (the MTM), the PSM's ([`Protocol::default`]) otherwise.
     pub fn for_model(model: &dvrk_kin::Model) -> Protocol {
-        if model.spec.tool.is_none() && model.coupling.is_some() && model.nq() == 7 {
-            Protocol::mtm()
-        } else {
-            Protocol::default()
+        match super::ArmKind::of(model) {
+            super::ArmKind::Mtm => Protocol::mtm(),
+            _ => Protocol::default(),
         }
     }
 }

@@ -81,6 +81,26 @@ impl SmallBody {
     }
 }
 
+/// What an arm is, as identification tells it: seven joints with an actuator coupling and a
+/// tool (a PSM), with a coupling and no tool (an MTM), or anything else.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ArmKind {
+    Psm,
+    Mtm,
+    Other,
+}
+
+impl ArmKind {
+    /// The kind of `model`.
+    pub fn of(model: &Model) -> ArmKind {
+        match (model.nq(), model.coupling_matrix().is_some(), model.spec.tool.is_some()) {
+            (7, true, true) => ArmKind::Psm,
+            (7, true, false) => ArmKind::Mtm,
+            _ => ArmKind::Other,
+        }
+    }
+}
+
 impl IdentifyOptions {
     /// Every effect term, the spring on the channels listed.
     pub fn full(spring_channels: Vec<usize>) -> IdentifyOptions {
@@ -200,10 +220,10 @@ impl IdentifyOptions {
     /// (the PSM), [`IdentifyOptions::mtm`] for a 7-joint arm with its own coupling (the MTM),
     /// otherwise every effect term on every channel (springs on none).
     pub fn for_model(model: &Model) -> IdentifyOptions {
-        match (model.nq(), model.coupling_matrix().is_some(), model.spec.tool.is_some()) {
-            (7, true, true) => IdentifyOptions::psm(),
-            (7, true, false) => IdentifyOptions::mtm(),
-            _ => IdentifyOptions::full(Vec::new()),
+        match ArmKind::of(model) {
+            ArmKind::Psm => IdentifyOptions::psm(),
+            ArmKind::Mtm => IdentifyOptions::mtm(),
+            ArmKind::Other => IdentifyOptions::full(Vec::new()),
         }
     }
 
