@@ -204,6 +204,21 @@ def first_sample(peer, topic, cls=JointState_, timeout=10):
     raise AssertionError(f"no {topic} within {timeout} s")
 
 
+def say(writer, text):
+    """A state_command."""
+    writer.write(StringStamped_(Header_(Time_(0, 0), ""), text))
+
+
+def wait_for(peer, topic, cls, matches, what, timeout=2.0):
+    """Wait until a message on `topic` satisfies `matches`."""
+    deadline = time.time() + timeout
+    while time.time() < deadline:
+        if any(matches(s) for _, s in peer.take(topic, cls)):
+            return
+        time.sleep(0.005)
+    raise AssertionError(f"{topic} never said {what}")
+
+
 @pytest.mark.parametrize("rate", [200, 1000])
 def test_measured_js_arrives_at_the_configured_rate(rate):
     domain = unique_domain(rate)
@@ -417,33 +432,24 @@ def test_state_commands_servo_jr_and_measured_cv():
     relative = peer.writer("/PSM1/servo_jr")
     proc = serve(domain, 7)
 
-    def say(text):
-        state.write(StringStamped_(Header_(Time_(0, 0), ""), text))
-
-    def wait_state(want, timeout=2.0):
-        deadline = time.time() + timeout
-        while time.time() < deadline:
-            for _, s in peer.take("/PSM1/operating_state", OperatingState_):
-                if (s.state, s.is_homed) == want:
-                    return
-            time.sleep(0.005)
-        raise AssertionError(f"operating_state never said {want}")
+    def wait_state(want):
+        wait_for(peer, "/PSM1/operating_state", OperatingState_, lambda s: (s.state, s.is_homed) == want, want)
 
     try:
         wait_state(("ENABLED", True))  # repeated every second for late joiners
-        say("disable")
+        say(state, "disable")
         wait_state(("DISABLED", True))
         time.sleep(0.1)
         servo.write(command(PSM_JOINTS, [0.0] * 6))  # refused: disabled
-        say("home")  # refused: disabled
+        say(state, "home")  # refused: disabled
         time.sleep(0.2)
-        say("enable")
+        say(state, "enable")
         wait_state(("ENABLED", True))
-        say("unhome")
+        say(state, "unhome")
         wait_state(("ENABLED", False))
-        say("home")
+        say(state, "home")
         wait_state(("ENABLED", True))
-        say("dance")  # refused: unknown
+        say(state, "dance")  # refused: unknown
         time.sleep(0.3)
         # servo_jr: 0.05 rad more yaw than the setpoint holds now.
         _, sp = first_sample(peer, "/PSM1/setpoint_js")
@@ -860,7 +866,7 @@ def test_serve_meets_the_crtk_contract_table(scene, arms):
     assert len(rows) == 22  # the contract's items (docs/ros2.md)
     domain = unique_domain(20 + ["psm", "ecm", "2psm-ecm", "mtm"].index(scene))
     peer = Peer(domain)
-    proc = subprocess.Popen([dvrk_binary(), "serve", "--scene", scene, "--domain", str(domain), "--duration", "8", "--json"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen([dvrk_binary(), "serve", "--scene", scene, "--domain", str(domain), "--duration", "5", "--json"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     from cyclonedds.pub import DataWriter
     endpoints = []
     try:
@@ -966,34 +972,26 @@ def test_the_contracts_state_machine_pause_resume_fault_clear_fault():
     servo = peer.writer("/PSM1/servo_jp")
     proc = serve(domain, 5)
 
-    def say(text):
-        state.write(StringStamped_(Header_(Time_(0, 0), ""), text))
-
-    def wait_state(want, timeout=2.0):
-        deadline = time.time() + timeout
-        while time.time() < deadline:
-            if any(s.string == want for _, s in peer.take("/PSM1/state", StringStamped_)):
-                return
-            time.sleep(0.005)
-        raise AssertionError(f"state never said {want}")
+    def wait_state(want):
+        wait_for(peer, "/PSM1/state", StringStamped_, lambda s: s.string == want, want)
 
     warnings = []
     try:
         wait_state("ENABLED")
         time.sleep(1.0)  # every peer endpoint matched (the state is latched: it came at once)
-        say("pause")
+        say(state, "pause")
         wait_state("PAUSED")
         servo.write(command(PSM_JOINTS, [0.1, 0.0, 0.1, 0.0, 0.0, 0.0]))  # refused: paused
         time.sleep(0.3)  # (state commands are taken before motion in a step: not with resume's)
-        say("pause")  # refused: not from PAUSED
-        say("resume")
+        say(state, "pause")  # refused: not from PAUSED
+        say(state, "resume")
         wait_state("ENABLED")
-        say("fault")
+        say(state, "fault")
         wait_state("FAULT")
-        say("enable")  # refused: clear the fault first
-        say("clear_fault")
+        say(state, "enable")  # refused: clear the fault first
+        say(state, "clear_fault")
         wait_state("DISABLED")
-        say("enable")
+        say(state, "enable")
         wait_state("ENABLED")
         time.sleep(0.3)
         warnings = [s.string for _, s in peer.take("/PSM1/warning", StringStamped_)]
