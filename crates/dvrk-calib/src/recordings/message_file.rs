@@ -288,6 +288,11 @@ fn bag_index_pos(bytes: &[u8], file_len: usize, path: &Path) -> Result<usize> {
     let start = BAG_MAGIC.len();
     let header_len = u32_at(start).ok_or_else(damaged)?;
     let header = bytes.get(start + 4..start + 4 + header_len).ok_or_else(damaged)?;
+    // The record's data (padding in bags rosbag writes) follows its header: the chunks start
+    // after both, and an index before that is no index (the rosbag crate slices from the one to
+    // the other, and panics when they cross).
+    let data_len = u32_at(start + 4 + header_len).ok_or_else(damaged)?;
+    let chunks_start = (start + 8 + header_len).checked_add(data_len).ok_or_else(damaged)?;
     let mut at = 0;
     while at + 4 <= header.len() {
         let n = u32::from_le_bytes([header[at], header[at + 1], header[at + 2], header[at + 3]]) as usize;
@@ -298,7 +303,10 @@ fn bag_index_pos(bytes: &[u8], file_len: usize, path: &Path) -> Result<usize> {
             if pos == 0 {
                 return Err(CalibError::file(path, "a ROS 1 bag without an index (its recording was not closed); `rosbag reindex` repairs it"));
             }
-            if pos > file_len || pos < start + 4 + header_len {
+            if pos < chunks_start {
+                return Err(CalibError::file(path, format!("a ROS 1 bag whose header record is damaged: its index at byte {pos} is inside the header record (which ends at byte {chunks_start})")));
+            }
+            if pos > file_len {
                 return Err(CalibError::file(
                     path,
                     format!("a truncated ROS 1 bag: its index should start at byte {pos} of {file_len} (was the copy or the recording cut short? `rosbag reindex` repairs a cut recording)"),
@@ -381,6 +389,17 @@ mod tests {
         assert_eq!(bag_index_pos(&b, 6000, Path::new("whole.bag")).unwrap(), 5000);
         let e = bag_index_pos(&b[..20], 6000, Path::new("cut.bag")).unwrap_err().to_string();
         assert!(e.contains("header record is damaged"), "{e}");
+        // An index inside the header record's 4 kB of padding (a flipped byte; the rosbag crate
+        // panicked slicing from the padding's end back to it): named, not read.
+        let mut b = BAG_MAGIC.to_vec();
+        let field = [b"index_pos=".as_slice(), &1000u64.to_le_bytes()].concat();
+        let header = [(field.len() as u32).to_le_bytes().as_slice(), &field].concat();
+        b.extend_from_slice(&(header.len() as u32).to_le_bytes());
+        b.extend_from_slice(&header);
+        b.extend_from_slice(&4096u32.to_le_bytes());
+        b.extend_from_slice(&[b' '; 4096]);
+        let e = bag_index_pos(&b, 9000, Path::new("flipped.bag")).unwrap_err().to_string();
+        assert!(e.contains("flipped.bag") && e.contains("index at byte 1000 is inside the header record (which ends at byte 4139)"), "{e}");
     }
 
     #[test]
