@@ -360,7 +360,29 @@ struct Moves {
     a_max: Vec<f64>,
 }
 
+/// A position command (servo or move) takes joint `i` back from effort mode (`servo_jf`, a
+/// disabled arm) to the mode it started in, `modes[i]`.
+pub(crate) fn leave_effort(sim: &mut Sim, i: usize, modes: &[Mode]) -> Result<()> {
+    if sim.actuator(i)?.mode == Mode::Effort {
+        sim.set_mode(i, modes[i])?;
+    }
+    Ok(())
+}
+
 impl Moves {
+    /// Start a move of `joints` (global indices) from their setpoints to `goal` under the
+    /// console's limits, in command slot `slot` (replacing the move there), and say the arm busy.
+    #[allow(clippy::too_many_arguments)]
+    fn start(&mut self, sim: &mut Sim, recorder: &mut Recorder, topics: &[CommandTopic], slot: usize, joints: &[usize], goal: &[f64], modes: &[Mode]) -> Result<()> {
+        for &i in joints {
+            leave_effort(sim, i, modes)?;
+        }
+        let start: Vec<f64> = joints.iter().map(|&i| sim.actuator(i).map(|a| a.target)).collect::<Result<_>>()?;
+        let pick = |l: &[f64]| joints.iter().map(|&i| l[i]).collect::<Vec<f64>>();
+        self.active[slot] = Some(crate::joint_move::JointMove::new(joints.to_vec(), start, goal, &pick(&self.v_max), &pick(&self.a_max), sim.time));
+        self.say_busy(sim, recorder, topics, topics[slot].arm)
+    }
+
     /// Set the targets of the moves under way for the step about to be taken; end those that
     /// arrived, and say when an arm is no longer busy.
     fn advance(&mut self, sim: &mut Sim, recorder: &mut Recorder, topics: &[CommandTopic]) -> Result<()> {
@@ -430,16 +452,7 @@ fn apply_commands(sim: &mut Sim, recorder: &mut Recorder, topics: &[CommandTopic
                 });
             match values {
                 Ok((v, _)) if topic.kind == Kind::MoveJp => {
-                    for &i in &topic.joints {
-                        if sim.actuator(i)?.mode == Mode::Effort {
-                            sim.set_mode(i, modes[i])?;
-                        }
-                    }
-                    let start: Vec<f64> = topic.joints.iter().map(|&i| sim.actuator(i).map(|a| a.target)).collect::<Result<_>>()?;
-                    let pick = |l: &[f64]| topic.joints.iter().map(|&i| l[i]).collect::<Vec<f64>>();
-                    let m = crate::joint_move::JointMove::new(topic.joints.clone(), start, &v, &pick(&moves.v_max), &pick(&moves.a_max), sim.time);
-                    moves.active[slot] = Some(m);
-                    moves.say_busy(sim, recorder, topics, topic.arm)?;
+                    moves.start(sim, recorder, topics, slot, &topic.joints, &v, modes)?;
                     said.summary.commands += 1;
                 }
                 Ok((v, vd)) => {
@@ -448,9 +461,7 @@ fn apply_commands(sim: &mut Sim, recorder: &mut Recorder, topics: &[CommandTopic
                     for ((&i, x), xd) in topic.joints.iter().zip(v).zip(vd) {
                         match topic.kind {
                             Kind::ServoJp | Kind::ServoJr => {
-                                if sim.actuator(i)?.mode == Mode::Effort {
-                                    sim.set_mode(i, modes[i])?;
-                                }
+                                leave_effort(sim, i, modes)?;
                                 let target = if topic.kind == Kind::ServoJr { sim.actuator(i)?.target + x } else { x };
                                 sim.set_target(i, target, xd)?;
                             }
@@ -486,28 +497,16 @@ fn apply_cartesian(sim: &mut Sim, recorder: &mut Recorder, cartesian: &[Cartesia
             };
             match q {
                 Ok(q) if topic.move_slot.is_some() => {
-                    let slot = topic.move_slot.expect("a move's slot");
                     let global: Vec<usize> = topic.joints.iter().map(|(g, _)| *g).collect();
-                    for &i in &global {
-                        if sim.actuator(i)?.mode == Mode::Effort {
-                            sim.set_mode(i, modes[i])?;
-                        }
-                    }
-                    let start: Vec<f64> = global.iter().map(|&i| sim.actuator(i).map(|a| a.target)).collect::<Result<_>>()?;
                     let goal: Vec<f64> = topic.joints.iter().map(|&(_, k)| q[k]).collect();
-                    let pick = |l: &[f64]| global.iter().map(|&i| l[i]).collect::<Vec<f64>>();
-                    let m = crate::joint_move::JointMove::new(global.clone(), start, &goal, &pick(&moves.v_max), &pick(&moves.a_max), sim.time);
-                    moves.active[slot] = Some(m);
-                    moves.say_busy(sim, recorder, topics, topic.arm)?;
+                    moves.start(sim, recorder, topics, topic.move_slot.expect("a move's slot"), &global, &goal, modes)?;
                     said.summary.commands += 1;
                 }
                 Ok(q) => {
                     let global: Vec<usize> = topic.joints.iter().map(|(g, _)| *g).collect();
                     moves.cancel(sim, recorder, topics, &global, topic.arm)?;
                     for &(i, k) in &topic.joints {
-                        if sim.actuator(i)?.mode == Mode::Effort {
-                            sim.set_mode(i, modes[i])?;
-                        }
+                        leave_effort(sim, i, modes)?;
                         sim.set_target(i, q[k], 0.0)?;
                     }
                     said.summary.commands += 1;

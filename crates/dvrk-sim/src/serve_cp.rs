@@ -6,12 +6,11 @@
 
 use crate::recording::ros_msgs::PoseStamped;
 use crate::{Recorder, Sim};
-use dvrk_kin::{IkOptions, Pose};
-use nalgebra::{Quaternion, Translation3, UnitQuaternion};
+use dvrk_kin::IkOptions;
 
 /// The IK of a servo command: Newton from the current setpoints only (no restarts: a servo
 /// target is near where the arm is, and a miss must not stall the real-time loop).
-fn servo_ik() -> IkOptions {
+pub(crate) fn servo_ik() -> IkOptions {
     IkOptions { frame: None, position_tolerance: 1e-7, orientation_tolerance: 1e-6, max_iterations: 50, restarts: 0 }
 }
 
@@ -26,17 +25,7 @@ pub fn setpoints(sim: &Sim, recorder: &Recorder, a: usize, bytes: &[u8]) -> Resu
         let shown: String = msg.header.frame_id.chars().take(64).collect();
         return Err(format!("the pose is in frame `{shown}`; servo_cp takes poses in `{base}` (measured_cp's frame) or with an empty frame_id"));
     }
-    let [x, y, z] = msg.position;
-    let [qx, qy, qz, qw] = msg.orientation;
-    if !msg.position.iter().chain(&msg.orientation).all(|v| v.is_finite()) {
-        return Err("the pose has a value that is not a finite number".into());
-    }
-    let norm = (qx * qx + qy * qy + qz * qz + qw * qw).sqrt();
-    if (norm - 1.0).abs() > 1e-3 {
-        return Err(format!("the orientation's quaternion has norm {norm:.6}, not 1"));
-    }
-    let rotation = UnitQuaternion::from_quaternion(Quaternion::new(qw, qx, qy, qz)).to_rotation_matrix();
-    let in_base = Pose::from_parts(Translation3::new(x, y, z), rotation);
+    let in_base = msg.pose()?;
     let target = recorder.base_pose(sim, a) * in_base;
     let arm = &sim.arms[a];
     let seed: Vec<f64> = arm.actuators.iter().map(|act| act.target).collect();

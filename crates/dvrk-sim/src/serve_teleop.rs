@@ -18,7 +18,6 @@ use crate::teleop::{MtmSample, TeleopConfig, TeleopState};
 use crate::teleop_replay::{camera_frame, check_fixed, FollowReport, Follower};
 use crate::{Scene, Sim};
 use dvrk_kin::Pose;
-use nalgebra::{Quaternion, Translation3, UnitQuaternion};
 
 /// Which MTM drives which PSM, and how.
 #[derive(Debug, Clone)]
@@ -139,9 +138,7 @@ impl LiveTeleop {
         let followed = self.follower.step(sim.time, &sample, self.gripper_value.is_some(), &mut self.q)?;
         if followed {
             for (k, &i) in self.joints.iter().enumerate() {
-                if sim.actuator(i)?.mode == Mode::Effort {
-                    sim.set_mode(i, modes[i])?;
-                }
+                crate::serve::leave_effort(sim, i, modes)?;
                 sim.set_target(i, self.q[k], 0.0)?;
             }
         }
@@ -162,15 +159,5 @@ impl LiveTeleop {
 
 /// An MTM pose from a PoseStamped's CDR bytes, or why not.
 fn mtm_pose(bytes: &[u8]) -> std::result::Result<Pose, String> {
-    let m = PoseStamped::decode(bytes).map_err(|e| format!("not a geometry_msgs/PoseStamped: {e}"))?;
-    if !m.position.iter().chain(&m.orientation).all(|v| v.is_finite()) {
-        return Err("the pose has a value that is not a finite number".into());
-    }
-    let [x, y, z, w] = m.orientation;
-    let norm = (x * x + y * y + z * z + w * w).sqrt();
-    if (norm - 1.0).abs() > 1e-3 {
-        return Err(format!("the orientation's quaternion has norm {norm:.6}, not 1"));
-    }
-    let r = UnitQuaternion::from_quaternion(Quaternion::new(w, x, y, z)).to_rotation_matrix();
-    Ok(Pose::from_parts(Translation3::new(m.position[0], m.position[1], m.position[2]), r))
+    PoseStamped::decode(bytes).map_err(|e| format!("not a geometry_msgs/PoseStamped: {e}"))?.pose()
 }

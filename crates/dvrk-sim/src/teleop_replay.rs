@@ -12,7 +12,7 @@ use crate::error::{Result, SimError};
 use crate::teleop::{angle_between, MtmSample, Teleop, TeleopConfig, TeleopState};
 use crate::trajectory::Trajectory;
 use crate::Scene;
-use dvrk_kin::{IkOptions, Model, Pose};
+use dvrk_kin::{Model, Pose};
 use serde::Serialize;
 
 /// The master's motion, one entry per sample (slices of equal length).
@@ -63,11 +63,6 @@ pub struct FollowReport {
 pub struct FollowPlan {
     pub trajectory: Trajectory,
     pub report: FollowReport,
-}
-
-/// The IK of a servo command ([`crate::serve_cp`]'s): Newton from the current setpoints, no restarts.
-fn servo_ik() -> IkOptions {
-    IkOptions { frame: None, position_tolerance: 1e-7, orientation_tolerance: 1e-6, max_iterations: 50, restarts: 0 }
 }
 
 /// The camera frame's world pose for PSM `psm` of `scene` and its description: ECM `ecm`'s tip
@@ -138,7 +133,7 @@ impl Follower {
                 r.following_from.get_or_insert(t);
                 r.following_s += dt;
                 let target = self.camera * c.tip_in_camera;
-                match dvrk_kin::inverse_kinematics(&self.model, &target, q, &servo_ik()) {
+                match dvrk_kin::inverse_kinematics(&self.model, &target, q, &crate::serve_cp::servo_ik()) {
                     Ok(s) => {
                         // The jaw is the gripper's, not the IK's.
                         for (k, x) in s.q.iter().enumerate().filter(|(k, _)| Some(*k) != self.jaw) {

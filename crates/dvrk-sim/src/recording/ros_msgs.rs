@@ -121,6 +121,24 @@ impl PoseStamped {
     }
 }
 
+impl PoseStamped {
+    /// The pose it carries (m), as a command takes it: every value finite, the quaternion of
+    /// norm 1 within 1e-3; otherwise why not.
+    pub fn pose(&self) -> Result<dvrk_kin::Pose, String> {
+        if !self.position.iter().chain(&self.orientation).all(|v| v.is_finite()) {
+            return Err("the pose has a value that is not a finite number".into());
+        }
+        let [x, y, z, w] = self.orientation;
+        let norm = (x * x + y * y + z * z + w * w).sqrt();
+        if (norm - 1.0).abs() > 1e-3 {
+            return Err(format!("the orientation's quaternion has norm {norm:.6}, not 1"));
+        }
+        let rotation = nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(w, x, y, z)).to_rotation_matrix();
+        let [px, py, pz] = self.position;
+        Ok(dvrk_kin::Pose::from_parts(nalgebra::Translation3::new(px, py, pz), rotation))
+    }
+}
+
 impl TransformStamped {
     /// CDR bytes of one geometry_msgs/msg/TransformStamped.
     pub fn encode(&self) -> Vec<u8> {

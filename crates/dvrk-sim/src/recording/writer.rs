@@ -478,7 +478,6 @@ impl Recorder {
         self.sinks.log(self.arms[a].contract.warning, stamp_ns(t), &ros_msgs::encode_string_stamped(t, text));
     }
 
-
     /// The tool tip's velocity of arm `a` in its base frame's axes (what `measured_cv` holds):
     /// linear (m/s, of the tip point) and angular (rad/s), from the model's Jacobian of the
     /// tip at the measured joints (the carrying arm, if any, held still).
@@ -574,11 +573,12 @@ impl Recorder {
                 self.write(ch, t, &bytes)?;
             }
             if let Some(cp) = cp {
-                self.write(mc, t, &cp.encode())?;
+                let bytes = cp.encode();
+                self.write(mc, t, &bytes)?;
                 // The PSM's own base frame: the same as measured_cp's while that is not the
                 // ECM's view.
                 if let Some((lm, _)) = local.filter(|(lm, _)| self.sinks.wanted(*lm)) {
-                    self.write(lm, t, &cp.encode())?;
+                    self.write(lm, t, &bytes)?;
                 }
             }
             let sc = self.arms[a].setpoint_cp;
