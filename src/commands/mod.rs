@@ -71,3 +71,9 @@ pub fn q_arg(model: &Model, flag: &str, text: Option<&str>) -> Result<Vec<f64>> 
     model.check_q(&q).map_err(|e| anyhow::anyhow!("{flag}: {e}"))?;
     Ok(q)
 }
+
+/// The scene's first arm of `kind` (`psm`, `ecm`): its model's name or its own starts so
+/// (`psm-wpi.toml`, `PSM2`), for a command that picks one when not told.
+pub fn first_arm_of(scene: &dvrk_sim::Scene, kind: &str) -> Option<usize> {
+    scene.arms.iter().position(|a| a.model.name.starts_with(kind) || a.name.starts_with(&kind.to_uppercase()))
+}

@@ -88,7 +88,7 @@ pub fn run(args: &ServeArgs) -> Result<()> {
             if !(args.scale.is_finite() && args.scale > 0.0) {
                 bail!("--scale {}: must be a positive number", args.scale);
             }
-            let kind = |k: &str| scene.arms.iter().find(|a| a.model.name.starts_with(k)).map(|a| a.name.clone());
+            let kind = |k: &str| super::first_arm_of(&scene, k).map(|a| scene.arms[a].name.clone());
             let psm = match &args.teleop_psm {
                 Some(p) => p.clone(),
                 None => kind("psm").with_context(|| format!("--teleop: scene {} has no PSM to drive", args.scene))?,

@@ -59,11 +59,6 @@ pub struct TeleopArgs {
     pub json: bool,
 }
 
-/// The scene's arms whose model is `kind` (`psm`, `ecm`), by name.
-fn arms_of(scene: &dvrk_sim::Scene, kind: &str) -> Vec<usize> {
-    (0..scene.arms.len()).filter(|&a| scene.arms[a].model.name.starts_with(kind) || scene.arms[a].name.starts_with(&kind.to_uppercase())).collect()
-}
-
 pub fn run(args: &TeleopArgs) -> Result<()> {
     crate::io::check_outputs(&[("--mtm", args.mtm.as_path()), ("--scene", std::path::Path::new(&args.scene))], &[("--out", args.out.as_deref())])?;
     if !(args.scale.is_finite() && args.scale > 0.0) {
@@ -83,12 +78,12 @@ pub fn run(args: &TeleopArgs) -> Result<()> {
     let scene = crate::commands::sim::load_scene(&args.scene)?;
     let psm = match &args.psm {
         Some(name) => scene.arm_index(name).with_context(|| format!("--psm {name}"))?,
-        None => *arms_of(&scene, "psm").first().with_context(|| format!("--scene {}: no PSM to drive", args.scene))?,
+        None => super::first_arm_of(&scene, "psm").with_context(|| format!("--scene {}: no PSM to drive", args.scene))?,
     };
     let ecm = match args.ecm.as_deref() {
         Some("none") => None,
         Some(name) => Some(scene.arm_index(name).with_context(|| format!("--ecm {name}"))?),
-        None => arms_of(&scene, "ecm").first().copied(),
+        None => super::first_arm_of(&scene, "ecm"),
     };
     let log = dvrk_calib::recordings::read_mtm(&args.mtm, args.arm.as_deref()).map_err(|e| anyhow::anyhow!("--mtm: {e}"))?;
     let notes: Vec<String> = log.notes.iter().map(|n| format!("{}: {n}", args.mtm.display())).collect();

@@ -76,6 +76,14 @@ SHORT = [
 ]
 
 
+def matrix(q):
+    """The rotation matrix of quaternion x, y, z, w (unit)."""
+    x, y, z, w = q
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+
+
 def samples(start_position, start_rotation, script=SCRIPT):
     """(t, position, rotation, gripper, clutch, window name) at RATE over `script`."""
     out, t = [], 0.0

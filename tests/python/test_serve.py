@@ -785,11 +785,7 @@ def test_a_live_mtm_drives_the_twins_psm_through_the_follow_mode():
 
     def pose_of(m):
         p, o = m.pose.position, m.pose.orientation
-        x, y, z, w = o.x, o.y, o.z, o.w
-        r = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                      [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                      [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
-        return np.array([p.x, p.y, p.z]), r
+        return np.array([p.x, p.y, p.z]), ts.matrix([o.x, o.y, o.z, o.w])
 
     checked = []
     try:

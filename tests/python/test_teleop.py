@@ -19,13 +19,6 @@ DVRK = os.path.abspath(os.environ.get("DVRK_BIN", os.path.join(ROOT, "target", "
 pytestmark = pytest.mark.skipif(not os.path.isfile(DVRK), reason=f"no dvrk binary at {DVRK} (set DVRK_BIN)")
 
 
-def rot(q):
-    x, y, z, w = q
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
-
-
 def angle_deg(a, b):
     return np.degrees(np.arccos(np.clip((np.trace(a.T @ b) - 1.0) / 2.0, -1.0, 1.0)))
 
@@ -40,7 +33,7 @@ def read(path, topic):
 
 def pose_of(msg):
     p, o = msg.pose.position, msg.pose.orientation
-    return np.array([p.x, p.y, p.z]), rot([o.x, o.y, o.z, o.w])
+    return np.array([p.x, p.y, p.z]), ts.matrix([o.x, o.y, o.z, o.w])
 
 
 def dvrk(*args):

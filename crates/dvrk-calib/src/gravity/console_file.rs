@@ -179,10 +179,11 @@ pub fn fit(model: &Model, inertias: Vec<BodyInertia>, gravity: &Vector3<f64>, po
     let theta = svd.solve(&b, 1e-12).map_err(|e| CalibError::data(&model.name, format!("the console's regressor could not be fitted: {e}")))?;
     let pos: Vec<f64> = (0..PARAMETERS).map(|k| theta[k] / scale[k]).collect();
     let (mut sq, mut max, mut rms, mut lo, mut hi) = (vec![0.0; JOINTS], vec![0.0; JOINTS], vec![0.0; JOINTS], vec![f64::INFINITY; JOINTS], vec![f64::NEG_INFINITY; JOINTS]);
-    for (q, t) in qs.iter().zip(&torques) {
-        let r = regressor(q);
+    // The console's torque at the fitted poses is the scaled fit's (its roll row is empty: 0).
+    let fitted = &a * &theta;
+    for (i, t) in torques.iter().enumerate() {
         for j in 0..JOINTS {
-            let console: f64 = (0..PARAMETERS).map(|k| r[j][k] * pos[k]).sum();
+            let console = if j < 6 { fitted[6 * i + j] } else { 0.0 };
             let d = console - t[j];
             sq[j] += d * d;
             max[j] = f64::max(max[j], d.abs());

@@ -61,6 +61,11 @@ fn gripper_topics(arm: &str) -> [String; 2] {
 
 const CLUTCH_TOPICS: [&str; 2] = ["/footpedals/clutch", "/dvrk/footpedals/clutch"];
 
+/// Whether `topic` carries some arm's gripper ([`gripper_topics`]' layouts, any arm).
+fn is_gripper_topic(topic: &str) -> bool {
+    topic.ends_with("/gripper/measured_js") || topic.ends_with("/state_gripper_current")
+}
+
 /// The arm whose pose a topic carries (`/MTMR/measured_cp` -> `MTMR`), for any arm name.
 fn pose_topic_arm(topic: &str) -> Option<&str> {
     let t = topic.strip_prefix("/dvrk").unwrap_or(topic);
@@ -129,36 +134,34 @@ fn collect(path: &Path) -> Result<Collected> {
 fn keep(path: &Path, m: &Message, c: &mut Collected) -> Result<()> {
     let t = m.log_time();
     if !matches!(m.encoding, Encoding::Cdr | Encoding::Ros1) {
-        if pose_topic_arm(m.topic).is_some() || CLUTCH_TOPICS.contains(&m.topic) || m.topic.ends_with("/gripper/measured_js") {
+        if pose_topic_arm(m.topic).is_some() || CLUTCH_TOPICS.contains(&m.topic) || is_gripper_topic(m.topic) {
             return Err(CalibError::file(path, format!("{} is in {} encoding; a ROS message (cdr or ros1) is read", m.topic, m.encoding.name())));
         }
         return Ok(());
     }
-    {
-        if pose_topic_arm(m.topic).is_some() {
-            let (frame, pose, renormalised) = pose_of(path, m)?;
-            c.poses.entry(m.topic.to_string()).or_default().push((t, frame, pose, renormalised));
-        } else if m.topic.ends_with("/gripper/measured_js") || m.topic.ends_with("/state_gripper_current") {
-            if m.schema != "sensor_msgs/msg/JointState" {
-                return Err(CalibError::file(path, format!("{} carries {}; a gripper's state is a sensor_msgs JointState", m.topic, m.schema)));
-            }
-            let js = crate::recordings::joint_states::decode_joint_state(m).map_err(|e| CalibError::file(path, format!("message {} on {}: {e}", m.index, m.topic)))?;
-            let Some(&g) = js.position.first() else {
-                return Err(CalibError::file(path, format!("message {} on {}: no position (the gripper's opening is position[0])", m.index, m.topic)));
-            };
-            if g.is_finite() {
-                c.grippers.entry(m.topic.to_string()).or_default().push((t, g));
-            }
-        } else if CLUTCH_TOPICS.contains(&m.topic) {
-            if m.schema != "sensor_msgs/msg/Joy" {
-                return Err(CalibError::file(path, format!("{} carries {}; the dVRK's pedals are sensor_msgs Joy", m.topic, m.schema)));
-            }
-            let joy = if m.encoding == Encoding::Ros1 { Joy::decode_ros1(m.data) } else { Joy::decode(m.data) }.map_err(|e| CalibError::file(path, format!("message {} on {}: {e}", m.index, m.topic)))?;
-            let Some(&b) = joy.buttons.first() else {
-                return Err(CalibError::file(path, format!("message {} on {}: no buttons (the pedal is buttons[0])", m.index, m.topic)));
-            };
-            c.clutch.entry(m.topic.to_string()).or_default().push((t, b == 1));
+    if pose_topic_arm(m.topic).is_some() {
+        let (frame, pose, renormalised) = pose_of(path, m)?;
+        c.poses.entry(m.topic.to_string()).or_default().push((t, frame, pose, renormalised));
+    } else if is_gripper_topic(m.topic) {
+        if m.schema != "sensor_msgs/msg/JointState" {
+            return Err(CalibError::file(path, format!("{} carries {}; a gripper's state is a sensor_msgs JointState", m.topic, m.schema)));
         }
+        let js = crate::recordings::joint_states::decode_joint_state(m).map_err(|e| CalibError::file(path, format!("message {} on {}: {e}", m.index, m.topic)))?;
+        let Some(&g) = js.position.first() else {
+            return Err(CalibError::file(path, format!("message {} on {}: no position (the gripper's opening is position[0])", m.index, m.topic)));
+        };
+        if g.is_finite() {
+            c.grippers.entry(m.topic.to_string()).or_default().push((t, g));
+        }
+    } else if CLUTCH_TOPICS.contains(&m.topic) {
+        if m.schema != "sensor_msgs/msg/Joy" {
+            return Err(CalibError::file(path, format!("{} carries {}; the dVRK's pedals are sensor_msgs Joy", m.topic, m.schema)));
+        }
+        let joy = if m.encoding == Encoding::Ros1 { Joy::decode_ros1(m.data) } else { Joy::decode(m.data) }.map_err(|e| CalibError::file(path, format!("message {} on {}: {e}", m.index, m.topic)))?;
+        let Some(&b) = joy.buttons.first() else {
+            return Err(CalibError::file(path, format!("message {} on {}: no buttons (the pedal is buttons[0])", m.index, m.topic)));
+        };
+        c.clutch.entry(m.topic.to_string()).or_default().push((t, b == 1));
     }
     Ok(())
 }
