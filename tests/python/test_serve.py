@@ -138,6 +138,9 @@ class String_(IdlStruct, typename="std_msgs::msg::dds_::String_"):
 
 # The dVRK's QoS: reliable, volatile, keep last 10.
 QOS = Qos(Policy.Reliability.Reliable(duration(milliseconds=100)), Policy.Durability.Volatile, Policy.History.KeepLast(10))
+# A counting reader keeps every sample, so a count measures what the twin published, not how
+# often a busy test loop (or a loaded CI machine) came round to drain a 10-deep history.
+COUNT = Qos(Policy.Reliability.Reliable(duration(milliseconds=100)), Policy.Durability.Volatile, Policy.History.KeepLast(100000))
 PSM_JOINTS = ["outer_yaw", "outer_pitch", "outer_insertion", "outer_roll", "outer_wrist_pitch", "outer_wrist_yaw"]
 
 
@@ -694,7 +697,7 @@ def test_a_flood_of_refused_commands_with_stderr_unread_never_stalls_the_twin():
     rate, flood, seconds = 200, 10_000, 10
     domain = unique_domain(11)
     peer = Peer(domain)
-    peer.reader("/PSM1/measured_js")
+    peer.reader("/PSM1/measured_js", qos=COUNT)
     peer.reader("/PSM1/setpoint_js")
     servo = peer.writer("/PSM1/servo_jp")
     proc = serve(domain, 20, "--rate", str(rate))  # stderr=PIPE, not read until the run ends
@@ -1009,7 +1012,7 @@ def test_a_flood_of_valid_servo_jp_keeps_the_rate_and_the_memory_flat():
     rate, seconds = 200, 10
     domain = unique_domain(32)
     peer = Peer(domain)
-    peer.reader("/PSM1/measured_js")
+    peer.reader("/PSM1/measured_js", qos=COUNT)
     servo = peer.writer("/PSM1/servo_jp")
     proc = serve(domain, seconds + 6, "--rate", str(rate))
 
@@ -1053,7 +1056,7 @@ def test_two_flooding_peers_and_peers_coming_and_going_keep_the_rate_and_the_mem
     rate, seconds = 200, 10
     domain = unique_domain(33)
     reader = Peer(domain)
-    reader.reader("/PSM1/measured_js")
+    reader.reader("/PSM1/measured_js", qos=COUNT)
     good = Peer(domain).writer("/PSM1/servo_jp")
     bad = Peer(domain).writer("/PSM1/servo_jp")
     proc = serve(domain, seconds + 6, "--rate", str(rate))
