@@ -19,6 +19,21 @@ pub fn parse_list(flag: &str, text: &str) -> Result<Vec<f64>> {
         .collect()
 }
 
+/// The largest gravity a `--gravity` flag takes (m/s^2): ten times the Earth's.
+pub const MAX_GRAVITY: f64 = 98.1;
+
+/// A `--gravity` flag's `x,y,z` (m/s^2), at most [`MAX_GRAVITY`] in magnitude (beyond, the
+/// torques are no arm's, and 1e308 overflowed to NaN N·m).
+pub fn parse_gravity(text: &str) -> Result<nalgebra::Vector3<f64>> {
+    let g = parse_list("--gravity", text)?;
+    let [x, y, z] = g[..] else { bail!("--gravity {text}: three components x,y,z (m/s^2)") };
+    let g = nalgebra::Vector3::new(x, y, z);
+    if !(g.norm() <= MAX_GRAVITY) {
+        bail!("--gravity {text}: its magnitude is at most {MAX_GRAVITY} m/s^2");
+    }
+    Ok(g)
+}
+
 /// Stage `contents` for `path` (written, not yet visible): commit with
 /// [`dvrk_kin::atomic::commit_all`] once every output of the command is staged.
 pub fn stage(path: &Path, contents: &[u8]) -> Result<dvrk_kin::atomic::Staged> {

@@ -43,13 +43,26 @@ fn main() -> ExitCode {
         }
         Err(e) => {
             // A message quoting file content is cut (readers quote short excerpts; this is the net).
-            let top = dvrk_kin::text_file::excerpt(&e.to_string(), MAX_MESSAGE_CHARS);
-            eprintln!("error: {top}");
-            // Causes whose text the message already quotes are not repeated.
-            for cause in e.chain().skip(1).map(|c| c.to_string()).filter(|c| !top.contains(c.as_str())) {
-                eprintln!("  caused by: {}", dvrk_kin::text_file::excerpt(&cause, MAX_MESSAGE_CHARS));
-            }
+            eprintln!("error: {}", dvrk_kin::text_file::excerpt(&one_line(&e), MAX_MESSAGE_CHARS));
             ExitCode::from(1)
         }
     }
+}
+
+/// An error and its causes on one line (a launcher's log keeps one line per failure): each cause
+/// after a colon, a cause the text already quotes left out, and a cause that starts with the
+/// file the context just named ("--recording F" then "F: ...") joined without saying F twice.
+fn one_line(e: &anyhow::Error) -> String {
+    let mut line = e.to_string();
+    for cause in e.chain().skip(1).map(|c| c.to_string()) {
+        if line.contains(cause.as_str()) {
+            continue;
+        }
+        let named = line.rsplit(' ').next().unwrap_or_default();
+        match cause.strip_prefix(named).and_then(|rest| rest.strip_prefix(": ")) {
+            Some(rest) if !named.is_empty() => line = format!("{line}: {rest}"),
+            _ => line = format!("{line}: {cause}"),
+        }
+    }
+    line.replace('\n', " ")
 }

@@ -58,6 +58,10 @@ fn bad_files_and_flags_are_errors_not_panics() {
     assert_one_line(&dvrk_err(&["model", "show", missing.to_str().unwrap()]), &["nope.toml", "psm"]);
     assert_one_line(&dvrk_err(&["fk", "psm", "--q", "1,2,3"]), &["--q", "expected 7, got 3"]);
     assert_one_line(&dvrk_err(&["fk", "psm", "--q", "0,0,0.1,0,0,0,inf"]), &["--q", "inf"]);
+    // Issue 63: 1e308 is said as given, never as the NaN it overflowed to.
+    assert_one_line(&dvrk_err(&["gc", "--gravity", "1e308,0,0"]), &["--gravity 1e308,0,0", "at most 98.1 m/s^2"]);
+    assert_one_line(&dvrk_err(&["identify", "--recording", json.to_str().unwrap(), "--model", "psm", "--gravity", "0,0,-1e308"]), &["--gravity 0,0,-1e308", "at most 98.1 m/s^2"]);
+    assert_one_line(&dvrk_err(&["gc", "--q", "1e308,0,0,0,0,0,0"]), &["--q", "joint outer_yaw = 1.000000e308", "outside its limits"]);
     assert_one_line(&dvrk_err(&["fk", "psm", "--q", "3,0,0.1,0,0,0,0"]), &["outer_yaw", "3", "limits"]);
     assert_one_line(&dvrk_err(&["ik", "psm", "--pose", "0,0,0,0,0,0,2"]), &["--pose", "norm"]);
     assert_one_line(&dvrk_err(&["ik", "psm", "--pose", "0,0,0,0,0"]), &["--pose", "7"]);
@@ -203,8 +207,10 @@ fn a_rate_the_time_step_does_not_divide_is_refused_with_the_rates_on_either_side
     assert_one_line(&dvrk_err(&["sim", "--scene", "psm", "--duration", "0.05", "--out", o, "--rate", "300"]), &["300", "333.333 Hz (every 3 steps)", "250 Hz (every 4 steps)"]);
     assert!(!out.exists());
     assert_one_line(&dvrk_err(&["sim", "--scene", "psm", "--duration", "0.05", "--out", o, "--rate", "700"]), &["700", "1000 Hz (every step)", "500 Hz (every 2 steps)"]);
+    assert_one_line(&dvrk_err(&["sim", "--scene", "psm", "--duration", "0.05", "--out", o, "--rate", "150"]), &["150", "166.667 Hz (every 6 steps)", "142.857 Hz (every 7 steps)"]);
     // Before any DDS participant starts: the serve loop's check comes first.
     assert_one_line(&dvrk_err(&["serve", "--scene", "psm", "--domain", "231", "--duration", "0.05", "--rate", "300"]), &["publishing rate (Hz) = 300", "333.333 Hz", "250 Hz"]);
+    assert_one_line(&dvrk_err(&["serve", "--scene", "psm", "--domain", "231", "--duration", "0.05", "--rate", "700"]), &["publishing rate (Hz) = 700", "1000 Hz", "500 Hz"]);
     crate::util::dvrk_ok(&["sim", "--scene", "psm", "--duration", "0.05", "--out", o, "--rate", "250"]);
     assert!(out.exists());
 }
@@ -247,9 +253,17 @@ fn a_device_or_fifo_input_is_refused_at_once() {
     let fifo = dir.path().join("in.fifo");
     assert!(std::process::Command::new("mkfifo").arg(&fifo).status().unwrap().success());
     let report = dir.path().join("r.json");
+    let (out_csv, out_mcap) = (dir.path().join("o.csv"), dir.path().join("o.mcap"));
+    let (out_csv, out_mcap) = (out_csv.to_str().unwrap(), out_mcap.to_str().unwrap());
     for input in ["/dev/zero", fifo.to_str().unwrap()] {
-        let cases: [Vec<&str>; 6] = [
+        let replay = format!("replay:{input}");
+        let cases: Vec<Vec<&str>> = vec![
             vec!["identify", "--recording", input, "--model", "psm"],
+            vec!["fk", "psm", "--input", input, "--output", out_csv],
+            vec!["gc", "--recording", input],
+            vec!["calib", "pivot", "--recording", input],
+            vec!["teleop", "--mtm", input, "--scene", "psm", "--out", out_mcap],
+            vec!["sim", "--scene", "psm", "--trajectory", &replay, "--duration", "0.01"],
             vec!["discrepancy", "--model", "psm", "--recording", input, "--report", report.to_str().unwrap()],
             vec!["sim", "--scene", input, "--duration", "0.01"],
             vec!["serve", "--scene", input],

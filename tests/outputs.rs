@@ -183,7 +183,14 @@ fn a_symlinked_output_replaces_its_target_and_keeps_the_link() {
     assert!(std::fs::symlink_metadata(&link).unwrap().file_type().is_symlink(), "the link is kept");
     assert_eq!(std::fs::read_link(&link).unwrap(), Path::new("real.urdf"));
     assert!(std::fs::read_to_string(&real).unwrap().starts_with("<?xml"), "its target is replaced");
-    assert_eq!(listing(dir.path()), ["link.urdf", "real.urdf"], "no temporary file left");
+    // A recorder's --out alike.
+    let (real, link) = (dir.path().join("real.mcap"), dir.path().join("link.mcap"));
+    std::fs::write(&real, "old").unwrap();
+    std::os::unix::fs::symlink("real.mcap", &link).unwrap();
+    dvrk_ok(&["sim", "--scene", "psm", "--duration", "0.01", "--out", link.to_str().unwrap()]);
+    assert!(std::fs::symlink_metadata(&link).unwrap().file_type().is_symlink(), "the link is kept");
+    assert!(std::fs::read(&real).unwrap().starts_with(b"\x89MCAP"), "its target is replaced");
+    assert_eq!(listing(dir.path()), ["link.mcap", "link.urdf", "real.mcap", "real.urdf"], "no temporary file left");
 }
 
 /// A FIFO, a socket or a device (here through a link to /dev/null) as an output is refused with
@@ -208,7 +215,20 @@ fn a_fifo_socket_or_device_output_is_refused() {
     let e = dvrk_err(&["synth", "hidden-effect", "--seed", "1", "--duration", "1", "-o", dir.path().join("h.mcap").to_str().unwrap(), "--answer", dev.to_str().unwrap()]);
     assert!(e.contains("--answer: is a character device (the link's target /dev/null)"), "{e}");
     assert!(std::fs::symlink_metadata(&dev).unwrap().file_type().is_symlink());
-    assert_eq!(listing(dir.path()), ["dev.json", "out.mcap", "out.urdf"], "nothing written");
+    // The recorders' --out as well (the probe's `serve --out /dev/full` made the device a file;
+    // a device is reached here through a link, so a regression cannot replace /dev/null itself).
+    let fifo = dir.path().join("rec.mcap");
+    mkfifo(&fifo);
+    let e = dvrk_err(&["sim", "--scene", "psm", "--duration", "0.01", "--out", fifo.to_str().unwrap()]);
+    assert!(e.contains("--out: is a FIFO"), "{e}");
+    let dev_mcap = dir.path().join("dev.mcap");
+    std::os::unix::fs::symlink("/dev/null", &dev_mcap).unwrap();
+    let e = dvrk_err(&["serve", "--scene", "psm", "--domain", "232", "--duration", "0.05", "--out", dev_mcap.to_str().unwrap()]);
+    assert!(e.contains("--out: is a character device (the link's target /dev/null)"), "{e}");
+    let e = dvrk_err(&["serve", "--scene", "psm", "--domain", "232", "--duration", "0.05", "--out", fifo.to_str().unwrap()]);
+    assert!(e.contains("--out: is a FIFO"), "{e}");
+    assert!(std::fs::metadata(&fifo).unwrap().file_type().is_fifo() && std::fs::symlink_metadata(&dev_mcap).unwrap().file_type().is_symlink());
+    assert_eq!(listing(dir.path()), ["dev.json", "dev.mcap", "out.mcap", "out.urdf", "rec.mcap"], "nothing written");
 }
 
 /// Two runs writing one `--out` at once: the second is refused at its start (both used to exit 0

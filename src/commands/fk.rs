@@ -126,7 +126,10 @@ pub fn run(args: &FkArgs) -> Result<()> {
 /// with `strict`).
 fn batch(m: &Model, input: &std::path::Path, output: &std::path::Path, frame: usize, strict: bool) -> Result<()> {
     let name = input.display().to_string();
-    let mut reader = csv::Reader::from_path(input).with_context(|| format!("{name}: cannot read"))?;
+    // Bounded like every text recording (a FIFO, a device or a giant line refused with one line).
+    use dvrk_kin::text_file::{read_recording_text, MAX_LINE_BYTES, MAX_RECORDING_TEXT_BYTES};
+    let text = read_recording_text(input, MAX_RECORDING_TEXT_BYTES, MAX_LINE_BYTES)?;
+    let mut reader = csv::Reader::from_reader(text.as_bytes());
     let header = reader.headers().with_context(|| format!("{name}: cannot read the header"))?.clone();
     let support = m.frame_support(frame);
     let mut held = Vec::new();
@@ -143,7 +146,7 @@ fn batch(m: &Model, input: &std::path::Path, output: &std::path::Path, frame: us
                     "{name}: missing column {col} or {joint} (frame {} of model {} depends on it; header: {})",
                     m.frames[frame].name,
                     m.name,
-                    header.iter().collect::<Vec<_>>().join(",")
+                    dvrk_kin::text_file::excerpt(&header.iter().collect::<Vec<_>>().join(","), 120)
                 )),
             }
         })

@@ -51,9 +51,7 @@ pub fn run(args: &GcArgs) -> Result<()> {
     let mut inputs: Vec<(&str, &std::path::Path)> = vec![("--model", std::path::Path::new(&args.model))];
     inputs.extend(args.recording.as_deref().map(|p| ("--recording", p)));
     crate::io::check_outputs(&inputs, &[("--console-file", args.console_file.as_deref())])?;
-    let g = crate::io::parse_list("--gravity", &args.gravity)?;
-    let [gx, gy, gz] = g[..] else { bail!("--gravity {}: three components x,y,z (m/s^2)", args.gravity) };
-    let gravity = nalgebra::Vector3::new(gx, gy, gz);
+    let gravity = crate::io::parse_gravity(&args.gravity)?;
     let model = dvrk_kin::load(&args.model, None).with_context(|| format!("--model {}", args.model))?;
     // An identified model file carries its inertials; a built-in one has them in models/inertials.
     let inertials = dvrk_sim::scene::builtin_inertials(&model.name, &model).map(|i| i.with_model(&model));
@@ -67,6 +65,7 @@ pub fn run(args: &GcArgs) -> Result<()> {
             if q.len() != model.nq() {
                 bail!("--q {text}: {} values for model {}'s {} joints", q.len(), model.name, model.nq());
             }
+            model.check_q(&q).map_err(|e| anyhow::anyhow!("--q: {e}"))?;
             q
         }
         None => model.home().to_vec(),
@@ -111,7 +110,7 @@ pub fn run(args: &GcArgs) -> Result<()> {
         println!("{}", serde_json::json!({ "model": model.name, "q": q, "joints": joints, "holding_torque": tau, "slowest_samples": check, "console_file": fit }));
         return Ok(());
     }
-    println!("holding torque of {} at q = {q:?} (gravity {:?} m/s^2):", model.name, [gx, gy, gz]);
+    println!("holding torque of {} at q = {q:?} (gravity {:?} m/s^2):", model.name, [gravity.x, gravity.y, gravity.z]);
     for (j, t) in model.joints.iter().zip(&tau) {
         println!("  {:<20} {t:>10.4} {}", j.name, if j.kind == dvrk_kin::JointType::Prismatic { "N" } else { "N·m" });
     }

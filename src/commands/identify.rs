@@ -67,8 +67,7 @@ pub fn run(args: &IdentifyArgs) -> Result<()> {
     inputs.extend(args.cable_test.as_deref().map(|v| ("--cable-test", v)));
     crate::io::check_outputs(&inputs, &[("-o", args.output.as_deref()), ("--plot", args.plot.as_deref())])?;
     crate::io::check_plot(args.plot.as_deref())?;
-    let g = crate::io::parse_list("--gravity", &args.gravity)?;
-    let [gx, gy, gz] = g[..] else { bail!("--gravity {}: three components x,y,z (m/s^2)", args.gravity) };
+    let gravity = crate::io::parse_gravity(&args.gravity)?;
     // The recording's format (read from its first bytes when `auto`) before any model is loaded.
     let format = dvrk_calib::recordings::resolve_format(&args.recording, &args.format).with_context(|| format!("--recording {}", args.recording.display()))?;
     let model = dvrk_kin::load(&args.model, None).with_context(|| format!("--model {}", args.model))?;
@@ -85,7 +84,7 @@ pub fn run(args: &IdentifyArgs) -> Result<()> {
         options.processing.cutoff = c;
         options.processing.channel_cutoff.clear();
     }
-    options.processing.gravity = nalgebra::Vector3::new(gx, gy, gz);
+    options.processing.gravity = gravity;
     let (rec, mut notes) = read_log(&args.recording, &args.format, &model, &args.arm)?;
     if let Some(path) = &args.cable_test {
         let joint = model.joint_id(&args.cable_joint).with_context(|| format!("--cable-joint {}", args.cable_joint))?;

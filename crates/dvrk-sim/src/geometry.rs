@@ -127,8 +127,20 @@ impl ArmGeometry {
     }
 }
 
+/// The largest mesh file read (bytes): the dVRK's STL meshes are a few MB each.
+pub const MAX_MESH_BYTES: u64 = 256 << 20;
+
 /// A triangle mesh from an STL (binary or ASCII) or OBJ file, scaled to metres.
 pub fn load_mesh(path: &Path, scale: f64) -> std::result::Result<TriMesh, String> {
+    // Only a regular file of a mesh's size is parsed (a FIFO would wait, a device never end).
+    let file = dvrk_kin::text_file::open_input(path).map_err(|e| match e {
+        dvrk_kin::KinError::File { message, .. } => message,
+        e => e.to_string(),
+    })?;
+    let size = file.metadata().map_err(|e| format!("cannot read: {e}"))?.len();
+    if size > MAX_MESH_BYTES {
+        return Err(format!("{size} bytes: a mesh file is at most {MAX_MESH_BYTES} bytes"));
+    }
     let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
     let (vertices, indices): (Vec<RVec>, Vec<[u32; 3]>) = match ext.as_deref() {
         Some("stl") => {

@@ -418,5 +418,20 @@ mod tests {
         bytes[at + 6] = b'9';
         let e = for_each_mcap(&bytes, Path::new("bad.mcap"), |_| Ok(())).unwrap_err().to_string();
         assert!(e.starts_with("bad.mcap: a chunk ending by byte") && e.contains("is damaged: its CRC is"), "{e}");
+        // Without chunks the data section's CRC (in its end record) guards the messages.
+        let mut w = mcap::WriteOptions::new().use_chunks(false).create(std::io::Cursor::new(Vec::new())).unwrap();
+        let schema = w.add_schema("std_msgs/msg/String", "ros2msg", b"string data").unwrap();
+        let channel = w.add_channel(schema, "/x", "cdr", &BTreeMap::new()).unwrap();
+        for i in 0..20u64 {
+            let header = mcap::records::MessageHeader { channel_id: channel, sequence: i as u32, log_time: i, publish_time: i };
+            w.write_to_known_channel(&header, format!("hello {i:03}").as_bytes()).unwrap();
+        }
+        w.finish().unwrap();
+        let mut bytes = w.into_inner().into_inner();
+        assert_eq!(for_each_mcap(&bytes, Path::new("good.mcap"), |_| Ok(())).unwrap(), 20);
+        let at = bytes.windows(9).position(|x| x == b"hello 010").unwrap();
+        bytes[at + 6] = b'9';
+        let e = for_each_mcap(&bytes, Path::new("flat.mcap"), |_| Ok(())).unwrap_err().to_string();
+        assert!(e.starts_with("flat.mcap: the data section is damaged: its CRC is"), "{e}");
     }
 }

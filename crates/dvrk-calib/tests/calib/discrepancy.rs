@@ -299,6 +299,9 @@ fn malformed_velocities_are_refused_as_efforts_are() {
     assert_eq!(good.len(), 200);
     let e = read(&write("short.mcap", vec![0.1; 3])).unwrap_err();
     assert!(e.contains("short.mcap") && e.contains("/PSM1/measured_js at t = 1 s") && e.contains("3 velocities for 7 joints"), "{e}");
+    // Too many is as wrong as too few (the probe's 7 for 6 joints read as if absent).
+    let e = read(&write("long.mcap", vec![0.1; 9])).unwrap_err();
+    assert!(e.contains("long.mcap") && e.contains("9 velocities for 7 joints"), "{e}");
     let mut nan = vec![0.1; 7];
     nan[2] = f64::NAN;
     let e = read(&write("nan.mcap", nan)).unwrap_err();

@@ -288,6 +288,16 @@ fn a_model_file_mesh_replaces_a_body_s_solids_and_bad_meshes_are_named() {
     let m = write("[[meshes]]\nbody = \"no_link\"\nfile = \"cube.stl\"\n");
     let e = ArmGeometry::new(&m).unwrap_err().to_string();
     assert!(e.contains("meshes[0].body: `no_link` is not a body of psm (valid: "), "{e}");
+    // Issue 63: a mesh that never ends or never starts is refused at once, naming the file.
+    #[cfg(unix)]
+    {
+        assert!(std::process::Command::new("mkfifo").arg(dir.path().join("fifo.stl")).status().unwrap().success());
+        for file in ["fifo.stl", "/dev/zero"] {
+            let m = write(&format!("[[meshes]]\nbody = \"yaw_link\"\nfile = \"{file}\"\n"));
+            let e = ArmGeometry::new(&m).unwrap_err().to_string();
+            assert!(e.contains("meshes[0].file: ") && e.contains(file.trim_start_matches('/')) && e.contains("not a regular file"), "{e}");
+        }
+    }
 }
 
 #[test]
