@@ -726,10 +726,10 @@ def test_a_flood_of_refused_commands_with_stderr_unread_never_stalls_the_twin():
             servo.write(bad)
             sent += 1
         print(f"measured_js per second under the flood: {per_second} (--rate {rate}); longest gap {worst_gap * 1e3:.1f} ms")
-        # The method of the rate test above (messages counted over the time): within 1% over
-        # the 10 s, and every second within 5% (the arrivals are binned by a polling peer).
+        # The issue's figure: within 1% over the 10 s and every second (arrivals binned by a
+        # peer that polls every millisecond; measured 200-201 every second).
         assert abs(sum(per_second) / seconds - rate) < 0.01 * rate, per_second
-        assert all(abs(n - rate) < 0.05 * rate for n in per_second), per_second
+        assert all(abs(n - rate) <= 0.01 * rate for n in per_second), per_second
         # Valid commands afterwards reach setpoint_js at once.
         time.sleep(0.3)
         _, sp = first_sample(peer, "/PSM1/setpoint_js")
@@ -750,9 +750,9 @@ def test_a_flood_of_refused_commands_with_stderr_unread_never_stalls_the_twin():
             latencies.append(seen)
             time.sleep(0.2)
         print(f"valid servo_jp after the flood: in setpoint_js after {', '.join(f'{x * 1e3:.1f}' for x in latencies)} ms (setpoint_js every {1e3 / rate:.0f} ms)")
-        # The issue asks 10 ms; a sample every 5 ms plus delivery on a loaded 2-core machine:
-        # 50 ms at most (the step test above allows 100 ms).
-        assert max(latencies) < 0.05, latencies
+        # The issue asks 10 ms (measured 0.7-4.3 ms: a sample every 5 ms plus delivery): the
+        # median within it, and none past 50 ms on a loaded 2-core machine.
+        assert sorted(latencies)[len(latencies) // 2] < 0.010 and max(latencies) < 0.05, latencies
     finally:
         summary, err = finish(proc)
     lines = err.splitlines()
