@@ -32,6 +32,7 @@ mod error;
 pub mod filter;
 pub mod gravity;
 pub mod identify;
+pub mod linalg;
 pub mod mocap;
 pub mod recordings;
 pub mod replay;

@@ -7,6 +7,7 @@ use super::signals::Prepared;
 use super::signature::Series;
 use super::stats::{bounded_least_squares, solve_normal_equations, Bounds};
 use crate::error::Result;
+use crate::linalg::tr_mul;
 use nalgebra::{DMatrix, DVector};
 
 /// Rows (train or held out) of the active joints, each divided by its noise floor, sample-major.
@@ -51,9 +52,55 @@ impl<'a> Rows<'a> {
 pub struct Fitter<'a> {
     pub prep: &'a Prepared,
     pub nuisance: Option<&'a Nuisance>,
+    /// The nuisance fitted to the last few training vectors, and their whitening where taken
+    /// ([`Fitter::theta`], [`Fitter::whitened`]).
+    memo: std::sync::Mutex<Vec<Memo>>,
+}
+
+/// Training vectors whose nuisance fit is kept: every candidate of a round is scored against
+/// the same residual, and its own refit's residual is whitened and held out in turn.
+const MEMO: usize = 4;
+
+/// A training vector, the nuisance fitted to it, and its whitened self once asked for.
+struct Memo {
+    v: DVector<f64>,
+    theta: DVector<f64>,
+    white: Option<DVector<f64>>,
+}
+
+impl<'a> Fitter<'a> {
+    pub fn new(prep: &'a Prepared, nuisance: Option<&'a Nuisance>) -> Self {
+        Fitter { prep, nuisance, memo: Default::default() }
+    }
 }
 
 impl Fitter<'_> {
+    /// The nuisance fitted to training vector `v` (scaled units), kept for the next call with
+    /// the same `v` (each fit reads the nuisance's whole matrix, larger than the cache), and
+    /// `v` whitened with it when `white`.
+    fn memo(&self, n: &Nuisance, v: &DVector<f64>, white: bool) -> (DVector<f64>, Option<DVector<f64>>) {
+        let mut memo = self.memo.lock().unwrap_or_else(|e| e.into_inner());
+        let at = match memo.iter().position(|m| &m.v == v) {
+            Some(at) => at,
+            None => {
+                if memo.len() == MEMO {
+                    memo.remove(0);
+                }
+                memo.push(Memo { v: v.clone(), theta: n.theta(v), white: None });
+                memo.len() - 1
+            }
+        };
+        let m = &mut memo[at];
+        if white && m.white.is_none() {
+            m.white = Some(v - n.predict(&m.theta, 0, v.len()));
+        }
+        (m.theta.clone(), m.white.clone())
+    }
+
+    fn theta(&self, n: &Nuisance, v: &DVector<f64>) -> DVector<f64> {
+        self.memo(n, v, false).0
+    }
+
     /// Squared size of a training residual, the nuisance refitted to it.
     pub fn rss(&self, v: &DVector<f64>) -> f64 {
         match self.nuisance {
@@ -66,7 +113,7 @@ impl Fitter<'_> {
     pub fn normal_equations(&self, c: &DMatrix<f64>, y: &DVector<f64>) -> (DMatrix<f64>, DVector<f64>) {
         match self.nuisance {
             Some(n) => n.normal_equations(c, y),
-            None => (c.tr_mul(c), c.tr_mul(y)),
+            None => (tr_mul(c, c), tr_mul(c, y)),
         }
     }
 
@@ -86,7 +133,7 @@ impl Fitter<'_> {
         if self.nuisance.is_none() {
             return bounded_least_squares(c, y, bounds);
         }
-        solve_normal_equations(g.clone(), c.tr_mul(wy), bounds).unwrap_or_else(|| bounded_least_squares(c, y, bounds))
+        solve_normal_equations(g.clone(), tr_mul(c, wy), bounds).unwrap_or_else(|| bounded_least_squares(c, y, bounds))
     }
 
     /// Columns `C` (training rows) with the nuisance's fit taken out of each: `W C`.
@@ -100,7 +147,7 @@ impl Fitter<'_> {
     /// The training residual with the nuisance's fit taken out (what is left to look white).
     pub fn whitened(&self, v: &DVector<f64>) -> DVector<f64> {
         match self.nuisance {
-            Some(n) => v - n.predict(&n.theta(v), 0, v.len()),
+            Some(n) => self.memo(n, v, true).1.unwrap_or_else(|| v.clone()),
             None => v.clone(),
         }
     }
@@ -128,7 +175,7 @@ impl Fitter<'_> {
     /// A held-out residual `h` with the nuisance fitted to training residual `v` taken out.
     pub fn held_out(&self, v: &DVector<f64>, h: &DVector<f64>) -> DVector<f64> {
         match self.nuisance {
-            Some(n) => h - n.predict(&n.theta(v), v.len(), h.len()),
+            Some(n) => h - n.predict(&self.theta(n, v), v.len(), h.len()),
             None => h.clone(),
         }
     }
@@ -136,7 +183,7 @@ impl Fitter<'_> {
     /// The inertial parameters' change the nuisance fits to training residual `v`
     /// ([`Nuisance::parameters`]); `None` without a nuisance.
     pub fn nuisance_parameters(&self, v: &DVector<f64>) -> Option<DVector<f64>> {
-        self.nuisance.map(|n| n.parameters(&n.theta(v)))
+        self.nuisance.map(|n| n.parameters(&self.theta(n, v)))
     }
 
     /// The nuisance fitted to training residual `v`, as efforts `[sample][joint]` at every sample
@@ -147,7 +194,7 @@ impl Fitter<'_> {
         let mut out = vec![vec![0.0; nq]; p.t.len()];
         if let Some(n) = self.nuisance {
             let na = p.active.len();
-            let all = n.predict(&n.theta(v), 0, p.t.len() * na);
+            let all = n.predict(&self.theta(n, v), 0, p.t.len() * na);
             for (i, row) in out.iter_mut().enumerate() {
                 for (a, &k) in p.active.iter().enumerate() {
                     row[k] = all[i * na + a] * p.floor[k];

@@ -19,6 +19,7 @@
 use super::candidates::Table;
 use super::signals::Prepared;
 use crate::error::{CalibError, Result};
+use crate::linalg::{mul, tr_mul};
 use dvrk_kin::dynamics::PARAMETERS_PER_BODY;
 use dvrk_kin::{BodyInertia, DynamicsData, DynamicsModel, Model};
 use nalgebra::{Cholesky, DMatrix, DVector, Dyn, Vector3};
@@ -101,7 +102,7 @@ fn grams(n: &DMatrix<f64>, na: usize) -> (DMatrix<f64>, Vec<DMatrix<f64>>) {
     let parts: Vec<DMatrix<f64>> = (0..FOLDS).map(|f| {
         let r = fold_rows(f, samples, na);
         let nf = n.rows(r.start, r.len());
-        nf.tr_mul(&nf)
+        tr_mul(&nf, &nf)
     }).collect();
     (parts.iter().fold(DMatrix::zeros(n.ncols(), n.ncols()), |a, g| a + g), parts)
 }
@@ -199,13 +200,13 @@ impl Nuisance {
 
     /// `L^-1 N_train^T v` for a training-row vector `v`.
     fn project(&self, v: &DVector<f64>) -> DVector<f64> {
-        let g = self.n.rows(0, self.train).tr_mul(v);
+        let g = tr_mul(&self.n.rows(0, self.train), v);
         self.chol.l_dirty().solve_lower_triangular(&g).unwrap_or(g)
     }
 
     /// `L^-1 N_train^T C` for training-row columns `C`.
     fn project_columns(&self, c: &DMatrix<f64>) -> DMatrix<f64> {
-        let g = self.n.rows(0, self.train).tr_mul(c);
+        let g = tr_mul(&self.n.rows(0, self.train), c);
         self.chol.l_dirty().solve_lower_triangular(&g).unwrap_or(g)
     }
 
@@ -216,13 +217,13 @@ impl Nuisance {
 
     /// The nuisance fitted to training residual `v` (scaled units).
     pub fn theta(&self, v: &DVector<f64>) -> DVector<f64> {
-        self.chol.solve(&self.n.rows(0, self.train).tr_mul(v))
+        self.chol.solve(&tr_mul(&self.n.rows(0, self.train), v))
     }
 
     /// Training-row columns `C` less the nuisance fitted to each: `W C`.
     pub fn whitened_columns(&self, c: &DMatrix<f64>) -> DMatrix<f64> {
         let nt = self.n.rows(0, self.train);
-        c - nt * self.chol.solve(&nt.tr_mul(c))
+        c - mul(&nt, &self.chol.solve(&tr_mul(&nt, c)))
     }
 
     /// The inertial parameters' change of a fitted nuisance `theta` (kg, kg m, kg m^2; every
@@ -233,13 +234,13 @@ impl Nuisance {
 
     /// The fitted nuisance's contribution on rows `start..start + len` (scaled units).
     pub fn predict(&self, theta: &DVector<f64>, start: usize, len: usize) -> DVector<f64> {
-        self.n.rows(start, len) * theta
+        mul(&self.n.rows(start, len), theta)
     }
 
     /// The Gram matrix and right-hand side of `min |y - C x|_W^2` over `x`: `C^T W C`, `C^T W y`.
     pub fn normal_equations(&self, c: &DMatrix<f64>, y: &DVector<f64>) -> (DMatrix<f64>, DVector<f64>) {
         let (zc, zy) = (self.project_columns(c), self.project(y));
-        (c.tr_mul(c) - zc.tr_mul(&zc), c.tr_mul(y) - zc.tr_mul(&zy))
+        (tr_mul(c, c) - zc.tr_mul(&zc), tr_mul(c, y) - zc.tr_mul(&zy))
     }
 }
 
@@ -247,7 +248,7 @@ impl Nuisance {
 fn factor(n: &DMatrix<f64>, train: usize, lambda: f64) -> Result<Cholesky<f64, Dyn>> {
     // `tr_mul`: no transposed copy of the rows (as large as `N` itself on a long recording).
     let nt = n.rows(0, train);
-    let mut p = nt.tr_mul(&nt);
+    let mut p = tr_mul(&nt, &nt);
     for d in 0..p.nrows() {
         p[(d, d)] += lambda;
     }
@@ -261,7 +262,7 @@ impl Nuisance {
     pub fn cross_validated(&self, y: &DVector<f64>, c: &DMatrix<f64>, bounds: &[super::stats::Bounds]) -> Result<(DVector<f64>, DVector<f64>)> {
         let rows = self.n.nrows();
         // Totals once; each fold's training sums are the totals less the fold's own.
-        let (nc, ny, cc, cy) = (self.n.tr_mul(c), self.n.tr_mul(y), c.tr_mul(c), c.tr_mul(y));
+        let (nc, ny, cc, cy) = (tr_mul(&self.n, c), tr_mul(&self.n, y), tr_mul(c, c), tr_mul(c, y));
         let (mut e0, mut e1) = (DVector::zeros(rows), DVector::zeros(rows));
         for (f, gf) in self.fold_grams.iter().enumerate() {
             let r = fold_rows(f, rows / self.na.max(1), self.na);
@@ -271,14 +272,14 @@ impl Nuisance {
                 g[(d, d)] += self.lambda;
             }
             let ch = g.cholesky().ok_or_else(|| CalibError::data("inertia nuisance", "a fold's prior normal matrix is not positive definite"))?;
-            let (ntc, nty) = (&nc - nf.tr_mul(&cf), &ny - nf.tr_mul(&yf));
-            e0.rows_mut(r.start, r.len()).copy_from(&(yf - nf * ch.solve(&nty)));
+            let (ntc, nty) = (&nc - tr_mul(&nf, &cf), &ny - tr_mul(&nf, &yf));
+            e0.rows_mut(r.start, r.len()).copy_from(&(yf - mul(&nf, &ch.solve(&nty))));
             // The candidate's normal equations in the metric the nuisance leaves (as
             // [`Nuisance::normal_equations`]).
             let l = ch.l();
             let (zc, zy) = (l.solve_lower_triangular(&ntc).unwrap_or_else(|| ntc.clone()), l.solve_lower_triangular(&nty).unwrap_or_else(|| nty.clone()));
-            let gc = &cc - cf.tr_mul(&cf) - zc.tr_mul(&zc);
-            let bc = &cy - cf.tr_mul(&yf) - zc.tr_mul(&zy);
+            let gc = &cc - tr_mul(&cf, &cf) - zc.tr_mul(&zc);
+            let bc = &cy - tr_mul(&cf, &yf) - zc.tr_mul(&zy);
             let Some(x) = super::stats::solve_normal_equations(gc, bc, bounds) else {
                 // Columns the other parts do not determine: the fold gets the null's prediction.
                 e1.rows_mut(r.start, r.len()).copy_from(&e0.rows(r.start, r.len()));
@@ -286,7 +287,7 @@ impl Nuisance {
             };
             let x = x?;
             let t1 = ch.solve(&(&nty - &ntc * &x));
-            e1.rows_mut(r.start, r.len()).copy_from(&(yf - cf * &x - nf * &t1));
+            e1.rows_mut(r.start, r.len()).copy_from(&(yf - mul(&cf, &x) - mul(&nf, &t1)));
         }
         Ok((e0, e1))
     }

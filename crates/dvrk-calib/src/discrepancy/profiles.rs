@@ -54,7 +54,7 @@ pub(super) fn latency<'x>(b: &Baseline, measured_time: &mut Option<Nuisance>, la
     let (prep, base, r) = (b.prep, &b.base, &b.r);
     let shift = |tau: f64| sub(&shifted(base, prep.dt, tau), base);
     let lat_grid: Vec<f64> = (0..=60).map(|i| i as f64 * 1e-3).collect();
-    let first = Fitter { prep, nuisance: lagged.or(measured_time.as_ref()) };
+    let first = Fitter::new(prep, lagged.or(measured_time.as_ref()));
     let score = score_profile(&first, r, &lat_grid, &shift, None);
     let held = |fitter: &Fitter, score: &Score| {
         let (effect, own) = profile_efforts(fitter, r, &shift(score.signature_at.unwrap_or(0.0)));
@@ -67,7 +67,7 @@ pub(super) fn latency<'x>(b: &Baseline, measured_time: &mut Option<Nuisance>, la
     match measured_time.take() {
         Some(n) if tau > 0.0 => {
             let moved = n.into_retimed(&|t| shifted(t, prep.dt, tau))?;
-            let fitter = Fitter { prep, nuisance: Some(&moved) };
+            let fitter = Fitter::new(prep, Some(&moved));
             let score = score_profile(&fitter, r, &lat_grid, &shift, None);
             let effort = held(&fitter, &score);
             drop(moved);
@@ -76,7 +76,7 @@ pub(super) fn latency<'x>(b: &Baseline, measured_time: &mut Option<Nuisance>, la
         }
         unmoved => {
             *measured_time = unmoved;
-            let effort = held(&Fitter { prep, nuisance: lagged.or(measured_time.as_ref()) }, &score);
+            let effort = held(&Fitter::new(prep, lagged.or(measured_time.as_ref())), &score);
             Ok((score, effort))
         }
     }

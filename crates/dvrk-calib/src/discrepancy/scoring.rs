@@ -141,6 +141,9 @@ pub(super) fn lr(n_eff: f64, rss0: f64, rss1: f64) -> f64 {
 }
 
 /// Fit and score a linear candidate (the inertia nuisance refitted with it).
+/// Bootstrap resamples whitened together (16 columns of a recording's rows: a few MB).
+const BOOTSTRAP_BATCH: usize = 16;
+
 pub(super) fn score_linear(c: &Candidate, fit: &Fitter, r: &Table, o: &Options, rng: &mut ChaCha8Rng) -> Result<Score> {
     let prep = fit.prep;
     let (train, hold) = (Rows::train(prep), Rows::held_out(prep));
@@ -185,24 +188,33 @@ pub(super) fn score_linear(c: &Candidate, fit: &Fitter, r: &Table, o: &Options, 
         let na = prep.active.len();
         let steps = train.range.len();
         let mut exceed = 0;
-        for _ in 0..o.bootstrap {
-            let mut ys = DVector::zeros(y.len());
-            let mut i = 0;
-            while i < steps {
-                let s = rng.random_range(0..steps.saturating_sub(block).max(1));
-                for d in 0..block.min(steps - i) {
-                    for k in 0..na {
-                        ys[(i + d) * na + k] = white[(s + d) * na + k];
+        // Resamples whitened a batch at a time: one pass over the nuisance's rows for the batch.
+        let mut done = 0;
+        while done < o.bootstrap {
+            let batch = BOOTSTRAP_BATCH.min(o.bootstrap - done);
+            let mut ys = DMatrix::zeros(y.len(), batch);
+            for mut col in ys.column_iter_mut() {
+                let mut i = 0;
+                while i < steps {
+                    let s = rng.random_range(0..steps.saturating_sub(block).max(1));
+                    for d in 0..block.min(steps - i) {
+                        for k in 0..na {
+                            col[(i + d) * na + k] = white[(s + d) * na + k];
+                        }
                     }
+                    i += block;
                 }
-                i += block;
             }
-            // `W` is linear: the refit's whitened residual is `W ys - (W a) xs`.
-            let wys = fit.whitened(&ys);
-            let xs = fit.solve_given(&g, &a, &ys, &wys, &bounds)?;
-            if per_joint_ratio(&train, &wys, &(&wys - &aw * &xs)).0 >= stat {
-                exceed += 1;
+            let wys = fit.whitened_columns(&ys);
+            for (ys, wys) in ys.column_iter().zip(wys.column_iter()) {
+                let (ys, wys) = (ys.into_owned(), wys.into_owned());
+                // `W` is linear: the refit's whitened residual is `W ys - (W a) xs`.
+                let xs = fit.solve_given(&g, &a, &ys, &wys, &bounds)?;
+                if per_joint_ratio(&train, &wys, &(&wys - &aw * &xs)).0 >= stat {
+                    exceed += 1;
+                }
             }
+            done += batch;
         }
         (1 + exceed) as f64 / (o.bootstrap + 1) as f64
     } else {
@@ -213,7 +225,7 @@ pub(super) fn score_linear(c: &Candidate, fit: &Fitter, r: &Table, o: &Options, 
     let cov = g.try_inverse().unwrap_or_else(|| DMatrix::from_element(p, p, f64::INFINITY)) * (s2 / frac);
     // A model error that changes along the recording, or a law that is not the truth's, moves
     // the estimate between parts of the motion more than the noise would: widen by that.
-    let mut cov = cov * block_scale(&train, &a, &(fit.whitened(&e1) + &a * &x), &x, &bounds, frac, c.focus)?;
+    let mut cov = cov * block_scale(&train, &a, &(&white + &a * &x), &x, &bounds, frac, c.focus)?;
     // Not narrower than the score's scatter ([`consistency::sandwich_variance`]), each parameter
     // through its column less the others' share of it.
     for i in 0..p {

@@ -170,7 +170,7 @@ fn analyse(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog, prep: &
     };
     let measured_time = measured_time;
     let nuisance = lagged.as_ref().or(measured_time.as_ref());
-    let fit = Fitter { prep, nuisance };
+    let fit = Fitter::new(prep, nuisance);
     let drives = profiles::drives(&b, &fit, &wanted, o)?;
     // 3. The linear candidates and the payloads, scored.
     let gates = Gates::new(o);
