@@ -191,7 +191,11 @@ def serve(domain, seconds, *extra):
     )
 
 
-def finish(proc):
+def finish(proc, stop=True):
+    """The twin's summary and stderr. `stop`: end it now, as Ctrl-C does (a test's --duration is
+    an upper bound; a stopped twin prints the same summary), not at the end of its duration."""
+    if stop and proc.poll() is None:
+        proc.send_signal(signal.SIGINT)
     out, err = proc.communicate(timeout=60)
     assert proc.returncode == 0, err
     return json.loads(out), err
@@ -365,7 +369,7 @@ def test_a_servo_jp_step_responds_as_the_simulator_does_for_the_same_command(tmp
         target[0] += step
         servo.write(command(PSM_JOINTS, target))
     finally:
-        summary, _ = finish(proc)
+        summary, _ = finish(proc, stop=False)
     assert summary["commands"] == 1
     setpoint, measured = [], []
     with open(out, "rb") as f:
@@ -528,7 +532,7 @@ def test_servo_jf_on_a_gravity_compensated_arm_moves_it_as_the_simulator_predict
         time.sleep(0.8)
         effort.write(command(PSM_JOINTS, effort=push))
     finally:
-        summary, _ = finish(proc)
+        summary, _ = finish(proc, stop=False)
     assert summary["commands"] == 1
     measured, applied = [], []
     with open(out, "rb") as f:
@@ -754,7 +758,7 @@ def test_a_flood_of_refused_commands_with_stderr_unread_never_stalls_the_twin():
         # median within it, and none past 50 ms on a loaded 2-core machine.
         assert sorted(latencies)[len(latencies) // 2] < 0.010 and max(latencies) < 0.05, latencies
     finally:
-        summary, err = finish(proc)
+        summary, err = finish(proc, stop=False)
     lines = err.splitlines()
     refused_lines = [l for l in lines if "command refused" in l]
     summaries = [l for l in lines if "commands refused in the last" in l]
