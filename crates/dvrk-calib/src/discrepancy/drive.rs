@@ -174,20 +174,34 @@ pub fn link_inertias(model: &dvrk_kin::Model, dm: &DynamicsModel, prep: &Prepare
     Ok(out)
 }
 
-/// Linear interpolation of analysed-sample values `v` at raw sample `s`.
-fn at_raw(prep: &Prepared, v: &[f64], s: usize) -> f64 {
+/// Linear interpolation of analysed-sample values `v` at a raw sample's place ([`raw_places`]).
+fn at_raw(v: &[f64], (i, w): (usize, f64)) -> f64 {
+    if w == 0.0 {
+        v[i]
+    } else {
+        v[i] * (1.0 - w) + v[i + 1] * w
+    }
+}
+
+/// [`at_raw`]'s place of every raw sample `0..=n`: the analysed sample at or before it and the
+/// next one's weight (the analysed samples are every `stride`-th raw one, signals::prepare;
+/// before the first and after the last, their values). Looked up, not divided for, per read.
+fn raw_places(prep: &Prepared, n: usize) -> Vec<(usize, f64)> {
     let k = &prep.keep;
-    if s <= k[0] {
-        return v[0];
-    }
-    if s >= k[k.len() - 1] {
-        return v[v.len() - 1];
-    }
-    // The analysed samples are every `stride`-th raw one (signals::prepare): no search.
-    let stride = k[1] - k[0];
-    let i = ((s - k[0]) / stride).min(k.len() - 2);
-    let w = (s - k[i]) as f64 / stride as f64;
-    v[i] * (1.0 - w) + v[i + 1] * w
+    let (first, last) = (k[0], k[k.len() - 1]);
+    (0..=n)
+        .map(|s| {
+            if s <= first {
+                (0, 0.0)
+            } else if s >= last {
+                (k.len() - 1, 0.0)
+            } else {
+                let stride = k[1] - k[0];
+                let i = ((s - first) / stride).min(k.len() - 2);
+                (i, (s - k[i]) as f64 / stride as f64)
+            }
+        })
+        .collect()
 }
 
 /// Continue `v` before `first` by its point reflection about that sample:
@@ -234,7 +248,8 @@ pub fn signature(prep: &Prepared, jl: &JointLoad, law: Law, nq: usize) -> Table 
     // contact still ringing there, held or reflected, becomes a step (it made the last 50 ms
     // of a play's signature wrong by 10 times the residual's RMS). The load goes on as its point
     // reflection; 0.1 s on, the filter no longer looks.
-    let load_at = |s: usize| if s > last { 2.0 * driven[driven.len() - 1] - at_raw(prep, &driven, (2 * last).saturating_sub(s)) } else { at_raw(prep, &driven, s) };
+    let places = raw_places(prep, n);
+    let load_at = |s: usize| if s > last { 2.0 * driven[driven.len() - 1] - at_raw(&driven, places[(2 * last).saturating_sub(s)]) } else { at_raw(&driven, places[s]) };
     // State: motor deviation z, link deviation y from the band's motion, and their rates. The
     // start is in the contact, on the slowly forced link's own path: a soft drive started at rest
     // (or after a spin-up on the load reflected) rang at its own mode (5 Hz, in the band) for a
@@ -258,8 +273,8 @@ pub fn signature(prep: &Prepared, jl: &JointLoad, law: Law, nq: usize) -> Table 
         Vector4::new(z, 0.0, z + y, p1 / ke - ce / (ke * ke) * p2)
     };
     for s in first..n {
-        let (load, m, g) = (load_at(s), at_raw(prep, &inertia_j, s).max(1e-9), at_raw(prep, &stiffness_j, s));
-        let dl = at_raw(prep, &rate_j, s);
+        let (load, m, g) = (load_at(s), at_raw(&inertia_j, places[s]).max(1e-9), at_raw(&stiffness_j, places[s]));
+        let dl = at_raw(&rate_j, places[s]);
         // The outputs at this sample come from the state at this sample: read after the step to
         // the next one, with the load held over it, they led the load by half a sample (0.5 ms:
         // a compliance's signature 5% off, its stiffness 3-4% low).
@@ -347,7 +362,7 @@ pub fn signature(prep: &Prepared, jl: &JointLoad, law: Law, nq: usize) -> Table 
     let acc = derivative(&rate, dt);
     for k in (0..nq).filter(|&k| k != j) {
         let (mk, gk, ck) = (column(&jl.inertia, k), column(&jl.stiffness, k), column(&jl.rate, k));
-        let raw: Vec<f64> = (0..n).map(|s| at_raw(prep, &mk, s) * acc[s] + at_raw(prep, &gk, s) * rel[s] + at_raw(prep, &ck, s) * rate[s]).collect();
+        let raw: Vec<f64> = (0..n).map(|s| at_raw(&mk, places[s]) * acc[s] + at_raw(&gk, places[s]) * rel[s] + at_raw(&ck, places[s]) * rate[s]).collect();
         for (row, v) in table.iter_mut().zip(prep.band(&raw)) {
             row[k] = v;
         }
