@@ -13,8 +13,9 @@
 //!   limit as the drive does (past ten times it, refused); the joint leaves PID until its next
 //!   position command.
 //!
-//! - `/PSM1/servo_cp` (geometry_msgs/msg/PoseStamped): a tool-tip pose in `PSM1_base`, through
-//!   the IK from the current setpoints ([`crate::serve_cp`]); a pose out of reach is refused;
+//! - `/PSM1/servo_cp` (geometry_msgs/msg/PoseStamped): a tool-tip pose in `PSM1_base`, the ECM's
+//!   camera (`ECM_view`) or `world`, through the IK from the current setpoints
+//!   ([`crate::serve_cp`]); a pose out of reach, or in another frame, is refused;
 //! - `/PSM1/move_cp`: the same goal, reached by the joints' interpolated move (as `move_jp`);
 //! - `/PSM1/state_command` (crtk_msgs/msg/StringStamped): `enable` (hold where the arm is),
 //!   `disable` (no effort: the arm hangs on its counterweight and cables), `pause` / `resume`

@@ -1,8 +1,10 @@
-//! `servo_cp` for the served twin ([`crate::serve`]): a tool-tip pose in the arm's base frame
-//! (`PSM1_base`, what `measured_cp` reports), taken to joint setpoints through the model's IK
-//! from the current setpoints, as the dVRK console servos in Cartesian space. A pose the IK
-//! cannot reach within the joint limits is refused with the IK's reason, and so is a pose in
-//! another frame.
+//! `servo_cp` for the served twin ([`crate::serve`]): a tool-tip pose taken to joint setpoints
+//! through the model's IK from the current setpoints, as the dVRK console servos in Cartesian
+//! space. The pose's `frame_id` says where it is: the arm's base frame (`PSM1_base`, what
+//! `measured_cp` reports, or an empty `frame_id`, as the dVRK reads it), `ECM_view` (the scene's
+//! ECM camera, its tool tip as the dVRK defines the camera frame: `ECM-SUJ * DH * tooltip-offset`,
+//! followed live as the ECM moves), or `world` (the scene's). A pose the IK cannot reach within
+//! the joint limits is refused with the IK's reason, and so is a pose in another frame.
 
 use crate::recording::ros_msgs::PoseStamped;
 use crate::{Recorder, Sim};
@@ -20,15 +22,33 @@ pub fn setpoints(sim: &Sim, recorder: &Recorder, a: usize, bytes: &[u8]) -> Resu
     let msg = PoseStamped::decode(bytes).map_err(|e| format!("not a geometry_msgs/PoseStamped: {e}"))?;
     // The pose is taken in the frame `measured_cp` reports; another frame is refused, not
     // silently read as this one (an empty frame_id is taken to mean it, as the dVRK does).
-    let base = recorder.base_frame_id(a);
-    if !msg.header.frame_id.is_empty() && msg.header.frame_id != base {
-        let shown: String = msg.header.frame_id.chars().take(64).collect();
-        return Err(format!("the pose is in frame `{shown}`; servo_cp takes poses in `{base}` (measured_cp's frame) or with an empty frame_id"));
-    }
-    let in_base = msg.pose()?;
-    let target = recorder.base_pose(sim, a) * in_base;
+    let pose = msg.pose()?;
+    let target = frame_pose(sim, recorder, a, &msg.header.frame_id)? * pose;
     let arm = &sim.arms[a];
     let seed: Vec<f64> = arm.actuators.iter().map(|act| act.target).collect();
     let solution = dvrk_kin::inverse_kinematics(&arm.model, &target, &seed, &servo_ik()).map_err(|e| e.to_string())?;
     Ok(solution.q)
+}
+
+/// The name of the ECM camera's frame in a command's `frame_id`.
+pub const ECM_VIEW: &str = "ECM_view";
+
+/// The world pose of the frame a command for arm `a` names in its `frame_id`: its base frame
+/// (or an empty `frame_id`), [`ECM_VIEW`] (the scene's ECM tool tip now), or `world`.
+pub fn frame_pose(sim: &Sim, recorder: &Recorder, a: usize, frame_id: &str) -> Result<dvrk_kin::Pose, String> {
+    let base = recorder.base_frame_id(a);
+    if frame_id.is_empty() || frame_id == base {
+        return Ok(recorder.base_pose(sim, a));
+    }
+    if frame_id == "world" {
+        return Ok(dvrk_kin::Pose::identity());
+    }
+    if frame_id == ECM_VIEW {
+        return match sim.arms.iter().position(|arm| arm.name == "ECM") {
+            Some(e) => Ok(recorder.base_pose(sim, e) * recorder.tip_in_base(sim, e)),
+            None => Err(format!("the pose is in frame `{ECM_VIEW}`, but this scene has no arm named ECM")),
+        };
+    }
+    let shown: String = frame_id.chars().take(64).collect();
+    Err(format!("the pose is in frame `{shown}`; servo_cp takes poses in `{base}` (measured_cp's frame, or an empty frame_id), `{ECM_VIEW}` (the ECM's camera) or `world`"))
 }
