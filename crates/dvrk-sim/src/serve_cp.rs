@@ -1,12 +1,13 @@
 //! `servo_cp` for the served twin ([`crate::serve`]): a tool-tip pose taken to joint setpoints
 //! through the model's IK from the current setpoints, as the dVRK console servos in Cartesian
-//! space. The pose's `frame_id` says where it is: the arm's base frame (`PSM1_base`, what
-//! `measured_cp` reports, or an empty `frame_id`, as the dVRK reads it), `ECM_view` (the scene's
-//! ECM camera, its tool tip as the dVRK defines the camera frame: `ECM-SUJ * DH * tooltip-offset`,
-//! followed live as the ECM moves), or `world` (the scene's). A pose the IK cannot reach within
+//! space. The pose's `frame_id` says where it is: the arm's base frame (`PSM1_base`), `ECM_view`
+//! (the scene's ECM camera, its tool tip as the dVRK defines the camera frame: `ECM-SUJ * DH *
+//! tooltip-offset`, followed live as the ECM moves), `world` (the scene's), or empty: the frame
+//! `measured_cp` reports in (the camera for a PSM in a scene with an ECM, else the base). A pose the IK cannot reach within
 //! the joint limits is refused with the IK's reason, and so is a pose in another frame.
 
 use crate::recording::ros_msgs::PoseStamped;
+use crate::recording::writer::VIEW_FRAME;
 use crate::{Recorder, Sim};
 use dvrk_kin::IkOptions;
 
@@ -30,25 +31,24 @@ pub fn setpoints(sim: &Sim, recorder: &Recorder, a: usize, bytes: &[u8]) -> Resu
     Ok(solution.q)
 }
 
-/// The name of the ECM camera's frame in a command's `frame_id`.
-pub const ECM_VIEW: &str = "ECM_view";
-
-/// The world pose of the frame a command for arm `a` names in its `frame_id`: its base frame
-/// (or an empty `frame_id`), [`ECM_VIEW`] (the scene's ECM tool tip now), or `world`.
+/// The world pose of the frame a command for arm `a` names in its `frame_id`: `measured_cp`'s
+/// frame (also for an empty `frame_id`, as the dVRK reads it: the ECM's camera for a PSM in a
+/// scene with an ECM), the arm's base frame, [`VIEW_FRAME`] (the ECM's camera now) or `world`.
 pub fn frame_pose(sim: &Sim, recorder: &Recorder, a: usize, frame_id: &str) -> Result<dvrk_kin::Pose, String> {
+    let (reported, pose) = recorder.report_frame(sim, a);
+    if frame_id.is_empty() || frame_id == reported {
+        return Ok(pose);
+    }
     let base = recorder.base_frame_id(a);
-    if frame_id.is_empty() || frame_id == base {
+    if frame_id == base {
         return Ok(recorder.base_pose(sim, a));
     }
     if frame_id == "world" {
         return Ok(dvrk_kin::Pose::identity());
     }
-    if frame_id == ECM_VIEW {
-        return match sim.arms.iter().position(|arm| arm.name == "ECM") {
-            Some(e) => Ok(recorder.base_pose(sim, e) * recorder.tip_in_base(sim, e)),
-            None => Err(format!("the pose is in frame `{ECM_VIEW}`, but this scene has no arm named ECM")),
-        };
+    if frame_id == VIEW_FRAME {
+        return recorder.view_pose(sim).ok_or_else(|| format!("the pose is in frame `{VIEW_FRAME}`, but this scene has no arm named ECM"));
     }
     let shown: String = frame_id.chars().take(64).collect();
-    Err(format!("the pose is in frame `{shown}`; servo_cp takes poses in `{base}` (measured_cp's frame, or an empty frame_id), `{ECM_VIEW}` (the ECM's camera) or `world`"))
+    Err(format!("the pose is in frame `{shown}`; servo_cp takes poses in `{base}` (the arm's base), `{VIEW_FRAME}` (the ECM's camera), `world`, or with an empty frame_id (measured_cp's frame, `{reported}`)"))
 }

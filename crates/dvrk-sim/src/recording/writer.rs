@@ -11,6 +11,8 @@
 //! - `/PSM1/operating_state`, crtk_msgs/msg/OperatingState: `ENABLED`, homed, not busy, once at
 //!   the first sample (the dVRK publishes it when it changes, and a simulated arm starts enabled);
 //! - `/PSM1/measured_cp`, geometry_msgs/msg/PoseStamped: the tool tip (the model's `tip` frame)
+//!   in the ECM's camera frame ([`VIEW_FRAME`]) where the scene has an ECM, as the dVRK reports
+//!   a PSM with setup joints; else
 //!   in the arm's base frame `PSM1_base`, which is the base of the arm's serial dVRK kinematics
 //!   (the RCM frame of a PSM or ECM, as the dVRK reports it) or frame 0 for other models;
 //! - `/PSM1/setpoint_cp`, the same type and frame: the tip at the actuators' targets (FK);
@@ -235,7 +237,14 @@ pub struct Recorder {
     /// Added to simulated time in every stamp (s): 0 for a recording, the wall clock's start
     /// for a served twin ([`Recorder::set_stamp_origin`]).
     stamp_origin: f64,
+    /// The scene's arm named `ECM`: its camera is the frame a PSM's `measured_cp` and
+    /// `setpoint_cp` are reported in ([`VIEW_FRAME`]), as the dVRK does with setup joints.
+    view_arm: Option<usize>,
 }
+
+/// The `frame_id` of a PSM's Cartesian reports in a scene with an ECM: the ECM's camera frame
+/// (its tool tip, the dVRK's `ECM-SUJ * DH * tooltip-offset`), followed live.
+pub const VIEW_FRAME: &str = "ECM_view";
 
 /// An arm's CRTK operating state: `ENABLED` and homed, as a simulated arm starts.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -421,7 +430,8 @@ impl Recorder {
             let topic = format!("/{}/robot_description", topic_namespace(&arm.name));
             statics.push((w.add_channel(&topic, &string_schema, "cdr")?, ros_msgs::encode_string(&urdf)));
         }
-        Ok(Recorder { sinks: w, staged, tmp, path, stride, arms, tf, tf_ros2, body_names, samples: 0, camera: None, statics, statics_sent: None, tf_buf: Vec::new(), stamp_origin: 0.0 })
+        let view_arm = sim.arms.iter().position(|a| a.name == "ECM");
+        Ok(Recorder { sinks: w, staged, tmp, path, stride, arms, tf, tf_ros2, body_names, samples: 0, camera: None, statics, statics_sent: None, tf_buf: Vec::new(), stamp_origin: 0.0, view_arm })
     }
 
     /// Simulated time between samples (s) for a sim of time step `dt`.
@@ -520,7 +530,22 @@ impl Recorder {
         Ok(Some(c.base_in_model.inverse() * c.kin.frames[arm.model.tip]))
     }
 
-    /// The tool tip of arm `a` in its base frame (what `measured_cp` holds), m.
+    /// The world pose of the ECM's camera ([`VIEW_FRAME`]) now, if the scene has an ECM.
+    pub fn view_pose(&self, sim: &Sim) -> Option<Pose> {
+        self.view_arm.map(|e| sim.body_pose(e, self.arms[e].tip_body) * self.arms[e].tip_rel)
+    }
+
+    /// The frame arm `a`'s `measured_cp` and `setpoint_cp` are in, and its world pose now: a
+    /// PSM's (an arm with `local/*` topics) is the ECM's camera where the scene has an ECM, any
+    /// other arm's its base frame.
+    pub fn report_frame(&self, sim: &Sim, a: usize) -> (&str, Pose) {
+        match self.view_pose(sim).filter(|_| self.arms[a].contract.local.is_some() && Some(a) != self.view_arm) {
+            Some(view) => (VIEW_FRAME, view),
+            None => (&self.arms[a].base_frame_id, self.base_pose(sim, a)),
+        }
+    }
+
+    /// The tool tip of arm `a` in its base frame (what `local/measured_cp` holds), m.
     pub fn tip_in_base(&self, sim: &Sim, a: usize) -> Pose {
         let c = &self.arms[a];
         self.base_pose(sim, a).inverse() * sim.body_pose(a, c.tip_body) * c.tip_rel
@@ -559,8 +584,15 @@ impl Recorder {
                 messages.push((g.measured_js, measured.encode()));
                 messages.push((g.setpoint_js, setpoint.encode()));
             }
+            let local = c.contract.local;
             let mc = c.measured_cp;
-            let cp = self.sinks.wanted(mc).then(|| PoseStamped::from_pose(t, &c.base_frame_id, &self.tip_in_base(sim, a)));
+            let in_base = self.tip_in_base(sim, a);
+            let (frame, frame_pose) = self.report_frame(sim, a);
+            let in_frame = match frame == c.base_frame_id {
+                true => in_base,
+                false => frame_pose.inverse() * self.base_pose(sim, a) * in_base,
+            };
+            let cp = (self.sinks.wanted(mc) || local.is_some()).then(|| (PoseStamped::from_pose(t, frame, &in_frame), PoseStamped::from_pose(t, &c.base_frame_id, &in_base)));
             if self.samples == 0 {
                 messages.insert(0, (c.operating_state, c.state.message(t).encode()));
                 messages.push((c.contract.state, ros_msgs::encode_string_stamped(t, &c.state.state)));
@@ -568,28 +600,36 @@ impl Recorder {
                     messages.push((*ch, ros_msgs::encode_string(name)));
                 }
             }
-            let local = c.contract.local;
             for (ch, bytes) in messages {
                 self.write(ch, t, &bytes)?;
             }
-            if let Some(cp) = cp {
+            if let Some((cp, cp_local)) = cp {
                 let bytes = cp.encode();
-                self.write(mc, t, &bytes)?;
-                // The PSM's own base frame: the same as measured_cp's while that is not the
-                // ECM's view.
+                if self.sinks.wanted(mc) {
+                    self.write(mc, t, &bytes)?;
+                }
+                // The PSM's own base frame (the same bytes while measured_cp is in it).
                 if let Some((lm, _)) = local.filter(|(lm, _)| self.sinks.wanted(*lm)) {
-                    self.write(lm, t, &bytes)?;
+                    let local_bytes = if cp_local.header.frame_id == cp.header.frame_id { bytes } else { cp_local.encode() };
+                    self.write(lm, t, &local_bytes)?;
                 }
             }
             let sc = self.arms[a].setpoint_cp;
             let ls = local.map(|(_, ls)| ls).filter(|ls| self.sinks.wanted(*ls));
             if self.sinks.wanted(sc) || ls.is_some() {
                 if let Some(p) = self.setpoint_tip(sim, a)? {
-                    let frame = self.arms[a].base_frame_id.clone();
-                    let bytes = PoseStamped::from_pose(t, &frame, &p).encode();
-                    self.write(sc, t, &bytes)?;
+                    let base_frame = self.arms[a].base_frame_id.clone();
+                    let local_bytes = PoseStamped::from_pose(t, &base_frame, &p).encode();
+                    if self.sinks.wanted(sc) {
+                        let (frame, frame_pose) = self.report_frame(sim, a);
+                        let bytes = match frame == base_frame {
+                            true => local_bytes.clone(),
+                            false => PoseStamped::from_pose(t, frame, &(frame_pose.inverse() * self.base_pose(sim, a) * p)).encode(),
+                        };
+                        self.write(sc, t, &bytes)?;
+                    }
                     if let Some(ls) = ls {
-                        self.write(ls, t, &bytes)?;
+                        self.write(ls, t, &local_bytes)?;
                     }
                 }
             }
