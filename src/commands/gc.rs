@@ -65,7 +65,11 @@ pub fn run(args: &GcArgs) -> Result<()> {
             if q.len() != model.nq() {
                 bail!("--q {text}: {} values for model {}'s {} joints", q.len(), model.name, model.nq());
             }
-            model.check_q(&q).map_err(|e| anyhow::anyhow!("--q: {e}"))?;
+            // A pose past the limits is evaluated as given (the console's fit samples past them),
+            // and said.
+            if let Err(e) = model.check_q(&q) {
+                eprintln!("note: --q: {e}: evaluated as given");
+            }
             q
         }
         None => model.home().to_vec(),
