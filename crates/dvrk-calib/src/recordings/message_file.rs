@@ -402,9 +402,9 @@ mod tests {
         assert!(e.contains("flipped.bag") && e.contains("index at byte 1000 is inside the header record (which ends at byte 4139)"), "{e}");
     }
 
-    #[test]
-    fn a_chunk_whose_crc_does_not_match_is_an_error() {
-        let mut w = mcap::WriteOptions::new().compression(None).create(std::io::Cursor::new(Vec::new())).unwrap();
+    /// Twenty messages `hello 000` .. `hello 019` on one channel, written with `options`.
+    fn hello_mcap(options: mcap::WriteOptions) -> Vec<u8> {
+        let mut w = options.create(std::io::Cursor::new(Vec::new())).unwrap();
         let schema = w.add_schema("std_msgs/msg/String", "ros2msg", b"string data").unwrap();
         let channel = w.add_channel(schema, "/x", "cdr", &BTreeMap::new()).unwrap();
         for i in 0..20u64 {
@@ -412,22 +412,19 @@ mod tests {
             w.write_to_known_channel(&header, format!("hello {i:03}").as_bytes()).unwrap();
         }
         w.finish().unwrap();
-        let mut bytes = w.into_inner().into_inner();
+        w.into_inner().into_inner()
+    }
+
+    #[test]
+    fn a_chunk_whose_crc_does_not_match_is_an_error() {
+        let mut bytes = hello_mcap(mcap::WriteOptions::new().compression(None));
         assert_eq!(for_each_mcap(&bytes, Path::new("good.mcap"), |_| Ok(())).unwrap(), 20);
         let at = bytes.windows(9).position(|x| x == b"hello 010").unwrap();
         bytes[at + 6] = b'9';
         let e = for_each_mcap(&bytes, Path::new("bad.mcap"), |_| Ok(())).unwrap_err().to_string();
         assert!(e.starts_with("bad.mcap: a chunk ending by byte") && e.contains("is damaged: its CRC is"), "{e}");
         // Without chunks the data section's CRC (in its end record) guards the messages.
-        let mut w = mcap::WriteOptions::new().use_chunks(false).create(std::io::Cursor::new(Vec::new())).unwrap();
-        let schema = w.add_schema("std_msgs/msg/String", "ros2msg", b"string data").unwrap();
-        let channel = w.add_channel(schema, "/x", "cdr", &BTreeMap::new()).unwrap();
-        for i in 0..20u64 {
-            let header = mcap::records::MessageHeader { channel_id: channel, sequence: i as u32, log_time: i, publish_time: i };
-            w.write_to_known_channel(&header, format!("hello {i:03}").as_bytes()).unwrap();
-        }
-        w.finish().unwrap();
-        let mut bytes = w.into_inner().into_inner();
+        let mut bytes = hello_mcap(mcap::WriteOptions::new().use_chunks(false));
         assert_eq!(for_each_mcap(&bytes, Path::new("good.mcap"), |_| Ok(())).unwrap(), 20);
         let at = bytes.windows(9).position(|x| x == b"hello 010").unwrap();
         bytes[at + 6] = b'9';
