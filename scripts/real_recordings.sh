@@ -5,8 +5,9 @@
 # stdout per recording in OUTDIR; compare two binaries' OUTDIRs to see what a change moved.
 # Usage: scripts/real_recordings.sh BIN OUTDIR   (about 5 minutes on 2 cores)
 set -u
-B=$(realpath "$1"); O=$2; mkdir -p "$O"; cd "$O"
+B=$(realpath "$1"); O=$2
 X=$(realpath "$(dirname "$0")/../../shared/data/external/wpi-dvrk-dynamics")
+mkdir -p "$O"; cd "$O"
 W=$X/insertion-payload
 "$B" identify --recording "$W/one_no_weight_results.csv" --format wpi-csv --model psm -o base.toml > /dev/null 2>&1
 for f in "$W"/*.csv; do n=$(basename "$f" .csv); [ "$n" = one_no_weight_results ] && continue
