@@ -1,7 +1,7 @@
 //! The reduced engine's step allocates nothing (issue 42): a counting global allocator around
 //! 1000 steps of each arm scene, PID on the tracking sine, then of a PSM with a presliding
 //! friction (its Dahl state) and of a batch of PSMs on two threads. Its own test binary, one
-//! test: the count is process-wide.
+//! test, no harness: the count is process-wide.
 
 use dvrk_sim::{BatchSim, Engine, Scene, Sim, SimOptions};
 use stats_alloc::{Region, StatsAlloc, INSTRUMENTED_SYSTEM};
@@ -10,7 +10,14 @@ use std::alloc::System;
 #[global_allocator]
 static GLOBAL: &StatsAlloc<System> = &INSTRUMENTED_SYSTEM;
 
-#[test]
+/// No test harness (`harness = false`): libtest's main thread books the running test (a map
+/// entry, allocated) while the test's thread already counts, and on a loaded machine that landed
+/// inside the count (CI, session 46: "psm: 4 allocations in 1000 steps", not reproducible alone).
+fn main() {
+    a_reduced_step_allocates_nothing();
+    println!("a_reduced_step_allocates_nothing: ok");
+}
+
 fn a_reduced_step_allocates_nothing() {
     for name in ["psm", "ecm", "3psm", "2psm-ecm"] {
         let scene = Scene::load(name).unwrap();
