@@ -75,10 +75,9 @@ impl<'a> Fitter<'a> {
 }
 
 impl Fitter<'_> {
-    /// The nuisance fitted to training vector `v` (scaled units), kept for the next call with
-    /// the same `v` (each fit reads the nuisance's whole matrix, larger than the cache), and
-    /// `v` whitened with it when `white`.
-    fn memo(&self, n: &Nuisance, v: &DVector<f64>, white: bool) -> (DVector<f64>, Option<DVector<f64>>) {
+    /// `read` of training vector `v`'s entry (the nuisance fitted to it), made if not kept: each
+    /// fit reads the nuisance's whole matrix, larger than the cache.
+    fn memo<T>(&self, n: &Nuisance, v: &DVector<f64>, read: impl FnOnce(&mut Memo) -> T) -> T {
         let mut memo = self.memo.lock().unwrap_or_else(|e| e.into_inner());
         let at = match memo.iter().position(|m| &m.v == v) {
             Some(at) => at,
@@ -90,15 +89,12 @@ impl Fitter<'_> {
                 memo.len() - 1
             }
         };
-        let m = &mut memo[at];
-        if white && m.white.is_none() {
-            m.white = Some(v - n.predict(&m.theta, 0, v.len()));
-        }
-        (m.theta.clone(), m.white.clone())
+        read(&mut memo[at])
     }
 
+    /// The nuisance fitted to training vector `v` (scaled units).
     fn theta(&self, n: &Nuisance, v: &DVector<f64>) -> DVector<f64> {
-        self.memo(n, v, false).0
+        self.memo(n, v, |m| m.theta.clone())
     }
 
     /// Squared size of a training residual, the nuisance refitted to it.
@@ -147,7 +143,7 @@ impl Fitter<'_> {
     /// The training residual with the nuisance's fit taken out (what is left to look white).
     pub fn whitened(&self, v: &DVector<f64>) -> DVector<f64> {
         match self.nuisance {
-            Some(n) => self.memo(n, v, true).1.unwrap_or_else(|| v.clone()),
+            Some(n) => self.memo(n, v, |m| m.white.get_or_insert_with(|| v - n.predict(&m.theta, 0, v.len())).clone()),
             None => v.clone(),
         }
     }

@@ -140,10 +140,10 @@ pub(super) fn lr(n_eff: f64, rss0: f64, rss1: f64) -> f64 {
     (n_eff * (rss0 / rss1.max(1e-300)).ln()).max(0.0)
 }
 
-/// Fit and score a linear candidate (the inertia nuisance refitted with it).
 /// Bootstrap resamples whitened together (16 columns of a recording's rows: a few MB).
 const BOOTSTRAP_BATCH: usize = 16;
 
+/// Fit and score a linear candidate (the inertia nuisance refitted with it).
 pub(super) fn score_linear(c: &Candidate, fit: &Fitter, r: &Table, o: &Options, rng: &mut ChaCha8Rng) -> Result<Score> {
     let prep = fit.prep;
     let (train, hold) = (Rows::train(prep), Rows::held_out(prep));

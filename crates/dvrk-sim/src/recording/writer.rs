@@ -587,12 +587,13 @@ impl Recorder {
             let local = c.contract.local;
             let mc = c.measured_cp;
             let in_base = self.tip_in_base(sim, a);
+            // The report frame (once per sample: the ECM's camera moves), and from the base to
+            // it where it is not the base.
             let (frame, frame_pose) = self.report_frame(sim, a);
-            let in_frame = match frame == c.base_frame_id {
-                true => in_base,
-                false => frame_pose.inverse() * self.base_pose(sim, a) * in_base,
-            };
-            let cp = (self.sinks.wanted(mc) || local.is_some()).then(|| (PoseStamped::from_pose(t, frame, &in_frame), PoseStamped::from_pose(t, &c.base_frame_id, &in_base)));
+            let frame = frame.to_string();
+            let base_to_frame = (frame != c.base_frame_id).then(|| frame_pose.inverse() * self.base_pose(sim, a));
+            let in_frame = base_to_frame.map_or(in_base, |m| m * in_base);
+            let cp = (self.sinks.wanted(mc) || local.is_some()).then(|| (PoseStamped::from_pose(t, &frame, &in_frame), PoseStamped::from_pose(t, &c.base_frame_id, &in_base)));
             if self.samples == 0 {
                 messages.insert(0, (c.operating_state, c.state.message(t).encode()));
                 messages.push((c.contract.state, ros_msgs::encode_string_stamped(t, &c.state.state)));
@@ -621,10 +622,9 @@ impl Recorder {
                     let base_frame = self.arms[a].base_frame_id.clone();
                     let local_bytes = PoseStamped::from_pose(t, &base_frame, &p).encode();
                     if self.sinks.wanted(sc) {
-                        let (frame, frame_pose) = self.report_frame(sim, a);
-                        let bytes = match frame == base_frame {
-                            true => local_bytes.clone(),
-                            false => PoseStamped::from_pose(t, frame, &(frame_pose.inverse() * self.base_pose(sim, a) * p)).encode(),
+                        let bytes = match base_to_frame {
+                            None => local_bytes.clone(),
+                            Some(m) => PoseStamped::from_pose(t, &frame, &(m * p)).encode(),
                         };
                         self.write(sc, t, &bytes)?;
                     }
