@@ -1,9 +1,15 @@
 #!/usr/bin/env python3
 """How often `dvrk discrepancy` names the effect an independent generator hid (issue #62 item 5).
 
-Every case of tests/python/independent_psm.py x N seeds: generate the recording, run
-`dvrk discrepancy --model psm --recording R --marker-topic T --marker-link L --report r.json
---no-tracking`, compare the report with the truth, print a markdown table.
+Every case of tests/python/independent_psm.py (kinematic: a tracker, no efforts) and
+tests/python/independent_payload.py (a weight added to a real recording's efforts) x N seeds:
+generate the recording, run `dvrk discrepancy --model psm --recording R --marker-topic T
+--marker-link L --report r.json --no-tracking` (the effort cases: `--model M`, M identified by
+`dvrk identify` on the real recording the weight is added to), compare the report with the truth,
+print a markdown table. A payload is named correctly on its body or with its body among the
+report's `payload.equivalent` (the recording's gravity cannot tell them apart); its interval is
+the first moment's (`payload.first_moment_ci95`) against the truth's mass times the crank or the
+distance from the remote centre.
 
   .venv/bin/python scripts/independent_table.py --bin /tmp/dvrk-base --seeds 20 [--cases a,b]
 """
@@ -22,16 +28,34 @@ from concurrent.futures import ProcessPoolExecutor
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "tests", "python"))
 import independent_psm as gen  # noqa: E402
+import independent_payload as pay  # noqa: E402
+
+ALL_CASES = gen.CASES + pay.CASES
 
 
-def run_one(binary, case, seed, workdir, keep):
+def identified_model(binary, workdir):
+    """The model `dvrk identify` makes of the real recording the effort cases add a weight to."""
+    out = os.path.join(workdir, "base-identified.toml")
+    if not os.path.exists(out):
+        subprocess.run([binary, "identify", "--recording", pay.BASE, "--format", "wpi-csv",
+                        "--model", "psm", "-o", out], check=True, capture_output=True)
+    return out
+
+
+def run_one(binary, case, seed, workdir, keep, model=None):
     rec = os.path.join(workdir, f"{case}-{seed}.mcap")
     report = os.path.join(workdir, f"{case}-{seed}.json")
-    streams, truth = gen.generate(case, seed)
-    gen.write_mcap(rec, streams)
-    cmd = [binary, "discrepancy", "--model", "psm", "--recording", rec,
-           "--marker-topic", truth["marker_topic"], "--marker-link", str(truth["marker_link"]),
-           "--report", report, "--no-tracking"]
+    if case in pay.CASES:
+        streams, truth = pay.generate(case, seed)
+        gen.write_mcap(rec, streams)
+        cmd = [binary, "discrepancy", "--model", model, "--recording", rec, "--report", report,
+               "--no-tracking"]
+    else:
+        streams, truth = gen.generate(case, seed)
+        gen.write_mcap(rec, streams)
+        cmd = [binary, "discrepancy", "--model", "psm", "--recording", rec,
+               "--marker-topic", truth["marker_topic"], "--marker-link", str(truth["marker_link"]),
+               "--report", report, "--no-tracking"]
     start = time.monotonic()
     p = subprocess.run(cmd, capture_output=True, text=True)
     wall = time.monotonic() - start
@@ -54,6 +78,9 @@ def run_one(binary, case, seed, workdir, keep):
 def matches(e, truth_effect):
     if e.get("name") != truth_effect["name"]:
         return False
+    if truth_effect["name"] == "payload_mass":
+        equivalent = [q["link"] for q in (e.get("payload") or {}).get("equivalent", [])]
+        return truth_effect["link"] in [e.get("link")] + equivalent
     for key in ("joint", "link"):
         if truth_effect.get(key) is not None and e.get(key) != truth_effect[key]:
             return False
@@ -86,8 +113,12 @@ def classify(run):
 def ci_and_ratio(hit, truth):
     """Whether the named effect's 95% interval covers the truth, and fitted / true."""
     (param, true), = [(k, v) for k, v in truth["parameters"].items()][:1]
-    fitted = (hit.get("parameters") or {}).get(param)
-    ci = (hit.get("ci95") or {}).get(param)
+    if param == "first_moment":
+        fitted = (hit.get("payload") or {}).get("first_moment")
+        ci = (hit.get("payload") or {}).get("first_moment_ci95")
+    else:
+        fitted = (hit.get("parameters") or {}).get(param)
+        ci = (hit.get("ci95") or {}).get(param)
     covers = None
     if ci is not None and len(ci) == 2:
         lo = -float("inf") if ci[0] is None else ci[0]
@@ -104,7 +135,7 @@ def table(runs):
     lines = ["| case | runs | named correctly | named wrong | ambiguous | none | errors | CI covers truth "
              "| median fitted/true | wall s/run (median, max) | what was named |",
              "|---|---|---|---|---|---|---|---|---|---|---|"]
-    for case in gen.CASES:
+    for case in ALL_CASES:
         rs = by_case.get(case)
         if not rs:
             continue
@@ -138,7 +169,7 @@ def main():
     p.add_argument("--bin", default=os.environ.get("DVRK_BIN", "target/release/dvrk"))
     p.add_argument("--seeds", type=int, default=20)
     p.add_argument("--first-seed", type=int, default=1)
-    p.add_argument("--cases", default=",".join(gen.CASES))
+    p.add_argument("--cases", default=",".join(ALL_CASES))
     p.add_argument("--jobs", type=int, default=2, help="parallel runs (at most 2)")
     p.add_argument("--workdir", help="keep the recordings and reports here")
     p.add_argument("--json", help="write every run (truth, verdict, effects, wall) here")
@@ -148,11 +179,12 @@ def main():
         sys.exit(f"no dvrk binary at {binary} (--bin)")
     cases = [c for c in a.cases.split(",") if c]
     for c in cases:
-        if c not in gen.CASES:
-            sys.exit(f"unknown case {c}; cases: {', '.join(gen.CASES)}")
+        if c not in ALL_CASES:
+            sys.exit(f"unknown case {c}; cases: {', '.join(ALL_CASES)}")
     workdir = a.workdir or tempfile.mkdtemp(prefix="independent-")
     os.makedirs(workdir, exist_ok=True)
-    jobs = [(binary, c, s, workdir, bool(a.workdir)) for c in cases
+    model = identified_model(binary, workdir) if any(c in pay.CASES for c in cases) else None
+    jobs = [(binary, c, s, workdir, bool(a.workdir), model) for c in cases
             for s in range(a.first_seed, a.first_seed + a.seeds)]
     start = time.monotonic()
     with ProcessPoolExecutor(max_workers=max(1, min(a.jobs, 2))) as pool:
@@ -168,6 +200,8 @@ def main():
         print(f"\nerror: {r['case']} seed {r['seed']}: {' '.join(r['error'])}")
     if not a.workdir:
         try:
+            if model:
+                os.remove(model)
             os.rmdir(workdir)
         except OSError:
             pass

@@ -320,17 +320,21 @@ def write_mcap(path, streams):
 
     arm = streams["arm"]
     events = []  # (ns, order, topic, kind, message)
+    # Efforts on measured_js where the streams have them (e_enc); no setpoint_js without q_set.
+    effort = streams.get("e_enc")
+    kinds = [("measured_js", streams["q_enc"], streams["v_enc"], effort)]
+    if streams["q_set"] is not None:
+        kinds.insert(0, ("setpoint_js", streams["q_set"], streams["v_set"], None))
     for i, t in enumerate(streams["t_js"]):
         ns, stamp = _stamp(t)
-        for kind, q, v in (("setpoint_js", streams["q_set"], streams["v_set"]),
-                           ("measured_js", streams["q_enc"], streams["v_enc"])):
+        for kind, q, v, e in kinds:
             hdr = {"stamp": stamp, "frame_id": ""}
             events.append((ns, 0, f"/{arm}/{kind}", "js",
                            {"header": hdr, "name": JOINTS, "position": q[i, :6].tolist(),
-                            "velocity": v[i, :6].tolist(), "effort": []}))
+                            "velocity": v[i, :6].tolist(), "effort": [] if e is None else e[i, :6].tolist()}))
             events.append((ns, 1, f"/{arm}/jaw/{kind}", "js",
                            {"header": hdr, "name": [JAW], "position": [float(q[i, 6])],
-                            "velocity": [float(v[i, 6])], "effort": []}))
+                            "velocity": [float(v[i, 6])], "effort": [] if e is None else [float(e[i, 6])]}))
     for i, t in enumerate(streams["t_marker"]):
         ns, stamp = _stamp(t)
         p, qq = streams["marker_pos"][i], streams["marker_quat"][i]

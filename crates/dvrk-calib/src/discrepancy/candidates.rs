@@ -39,15 +39,24 @@ pub struct Candidate {
     /// A nonlinear parameter profiled on a grid: its name and, per grid value, the columns that
     /// replace [`Candidate::columns`] (the fit keeps the best).
     pub profile: Option<(&'static str, Vec<(f64, Vec<Signature>)>)>,
+    /// Parameters the effect is written with as they are (a Stribeck term's `fc` 0 and the
+    /// smoothing its columns were taken at, [`super::friction_terms`]).
+    pub fixed: Vec<(&'static str, f64)>,
 }
 
 impl Candidate {
-    /// `kind on joint`, `kind on link`, `kind on actuator N` (1-based), or `coupling_error dRC`.
+    /// `kind on joint`, `kind on link`, `kind on actuator N` (1-based), or `coupling_error dRC`;
+    /// a Coulomb friction's other terms and a cross spring name their parameter (`coulomb_friction
+    /// fs on outer_yaw`, `actuator_cross_spring k6 on actuator 5`).
     pub fn label(&self, model: &dvrk_kin::Model) -> String {
+        let kind = match self.names.first().map(String::as_str) {
+            Some(term) if self.kind == EffectKind::ActuatorCrossSpring || (matches!(self.kind, EffectKind::CoulombFriction | EffectKind::ActuatorCoulombFriction) && term != "fc") => format!("{} {term}", self.kind.name()),
+            _ => self.kind.name().to_string(),
+        };
         match (&self.joint, &self.link) {
-            (Some(j), _) => format!("{} on {}", self.kind.name(), model.joints[*j].name),
-            (_, Some(l)) => format!("{} on {l}", self.kind.name()),
-            _ if self.actuator.is_some() => format!("{} on actuator {}", self.kind.name(), self.actuator.unwrap_or(0) + 1),
+            (Some(j), _) => format!("{kind} on {}", model.joints[*j].name),
+            (_, Some(l)) => format!("{kind} on {l}"),
+            _ if self.actuator.is_some() => format!("{kind} on actuator {}", self.actuator.unwrap_or(0) + 1),
             // One candidate per entry of the coupling matrix.
             _ if self.kind == EffectKind::CouplingError => format!("{} {}", self.kind.name(), self.names.join(" ")),
             _ => self.kind.name().to_string(),
@@ -68,7 +77,7 @@ impl Candidate {
     /// The model-file parameters of fitted values `x` (in [`Candidate::names`] order) and the
     /// profiled parameter's chosen value.
     pub fn parameters(&self, x: &[f64], profiled: Option<f64>) -> BTreeMap<String, f64> {
-        let mut p = BTreeMap::new();
+        let mut p: BTreeMap<String, f64> = self.fixed.iter().map(|(n, v)| ((*n).to_string(), *v)).collect();
         if let (Some((name, _)), Some(v)) = (&self.profile, profiled) {
             p.insert((*name).into(), v);
         }
@@ -120,12 +129,12 @@ impl Candidate {
     }
 }
 
-fn names(n: &[&str]) -> Vec<String> {
+pub(super) fn names(n: &[&str]) -> Vec<String> {
     n.iter().map(|s| s.to_string()).collect()
 }
 
 /// A joint-local column: `f(sample)` on joint `j`, 0 elsewhere.
-fn local(prep: &Prepared, nq: usize, j: usize, f: impl Fn(usize) -> f64) -> Signature {
+pub(super) fn local(prep: &Prepared, nq: usize, j: usize, f: impl Fn(usize) -> f64) -> Signature {
     Signature::on_joint(nq, j, (0..prep.t.len()).map(f).collect())
 }
 
@@ -157,7 +166,7 @@ pub fn actuator_friction_sign(prep: &Prepared, nq: usize, w: &[(usize, f64)], v:
 }
 
 /// A per-actuator signal `a(sample)` as joint efforts: `w_j a` on each joint of `w`.
-fn spread(nq: usize, w: &[(usize, f64)], a: &[f64]) -> Signature {
+pub(super) fn spread(nq: usize, w: &[(usize, f64)], a: &[f64]) -> Signature {
     let mut out = Signature::on_joints(nq, a.len());
     for (j, c) in w {
         out.set(*j, a.iter().map(|x| c * x).collect());
@@ -183,7 +192,7 @@ fn actuators(model: &dvrk_kin::Model, prep: &Prepared) -> Vec<Candidate> {
         let grid: Vec<(f64, Vec<Signature>)> = COULOMB_SMOOTHING.iter().map(|&v| (v, sign(v))).collect();
         let one = |kind, n: &[&str], columns: Vec<Signature>, profile| {
             let focus = focus_of(prep, &columns[0]);
-            Candidate { kind, joint: None, link: None, actuator: Some(a), names: names(n), columns, at: vec![0.0; n.len()], range: None, focus, profile }
+            Candidate { kind, joint: None, link: None, actuator: Some(a), names: names(n), columns, at: vec![0.0; n.len()], range: None, focus, profile, fixed: vec![] }
         };
         out.push(one(EffectKind::ActuatorCoulombFriction, &["fc"], sign(COULOMB_SMOOTHING_DEFAULT), Some(("smoothing", grid))));
         out.push(one(EffectKind::ActuatorViscousFriction, &["fv"], vec![spread(nq, &w, &at(&dot, &prep.qd))], None));
@@ -274,6 +283,7 @@ pub fn build(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f64; 3
             range: None,
             focus: j,
             profile: Some(("smoothing", grid)),
+            fixed: vec![],
         });
         out.push(Candidate {
             kind: EffectKind::ViscousFriction,
@@ -286,6 +296,7 @@ pub fn build(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f64; 3
             range: None,
             focus: j,
             profile: None,
+            fixed: vec![],
         });
         // k (q - rest) = k q - (k rest): linear in (k, k rest).
         out.push(Candidate {
@@ -299,6 +310,7 @@ pub fn build(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f64; 3
             range: None,
             focus: j,
             profile: None,
+            fixed: vec![],
         });
         if let Some((_, d)) = offsets.iter().find(|(k, _)| *k == j) {
             out.push(Candidate {
@@ -313,10 +325,12 @@ pub fn build(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f64; 3
                 range: (model.joints[j].kind == dvrk_kin::JointType::Prismatic).then(|| EffectKind::JointOffset.range_on("offset", true).into_iter().collect()),
                 focus: j,
                 profile: None,
+                fixed: vec![],
             });
         }
     }
     out.extend(actuators(model, prep));
+    out.extend(super::friction_terms::candidates(model, prep));
     out.extend(counterweight(predictor, arm, gravity, prep, base)?);
     out.extend(coupling(predictor, arm, gravity, prep, base)?);
     Ok(out)
@@ -369,7 +383,7 @@ fn counterweight(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f6
     let effect = model_effect(kind, BTreeMap::from([("mu".into(), at[0]), ("mass".into(), at[1])]));
     let columns = finite_differences(predictor, arm, gravity, prep, base, &effect, &[("mu".into(), 1e-3), ("mass".into(), 1e-3)])?;
     let focus = focus_of(prep, &columns[1]);
-    Ok(vec![Candidate { kind, joint: None, link: None, actuator: None, names: names(&["mu", "mass"]), columns, at: at.to_vec(), range: None, focus, profile: None }])
+    Ok(vec![Candidate { kind, joint: None, link: None, actuator: None, names: names(&["mu", "mass"]), columns, at: at.to_vec(), range: None, focus, profile: None, fixed: vec![] }])
 }
 
 /// The coupling entries a recording can show: non-zero, in a row that couples (not the
@@ -419,6 +433,7 @@ fn coupling(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f64; 3]
             range: Some(vec![dvrk_kin::effects::coupling_error_range(&c, r)]),
             focus,
             profile: None,
+            fixed: vec![],
         });
     }
     Ok(out)
@@ -441,7 +456,7 @@ mod tests {
     }
 
     fn candidate(kind: EffectKind, names: &[&str], at: &[f64]) -> Candidate {
-        Candidate { kind, joint: None, link: None, actuator: None, names: super::names(names), columns: vec![], at: at.to_vec(), range: None, focus: 0, profile: None }
+        Candidate { kind, joint: None, link: None, actuator: None, names: super::names(names), columns: vec![], at: at.to_vec(), range: None, focus: 0, profile: None, fixed: vec![] }
     }
 
     /// A fit's bounds are the physical ranges less the model's own value: a coupling entry

@@ -148,6 +148,33 @@ impl<'a> EffectReporter<'a> {
             .collect()
     }
 
+    /// The half-width (kg m) of a 95% interval of payload candidate `c`'s first moment about
+    /// `pivot` (or its mass times `crank`) from its fits without each of the recording's
+    /// [`super::nuisance::FOLDS`] parts (the jackknife, Student's t at their number less one);
+    /// `None` where fewer than three parts give one. The first moment is linear in the fit
+    /// (`m (at - pivot) + (m dx, m dy, m dz)`), defined for any mass.
+    fn first_moment_spread(&self, c: &Candidate, pivot: &[f64; 3], crank: Option<f64>) -> Option<f64> {
+        if c.columns.len() != 4 {
+            return None;
+        }
+        let fits = self.fit.fold_fits(self.r, &c.columns, &c.bounds()).ok()?;
+        let moments: Vec<f64> = fits
+            .iter()
+            .flatten()
+            .map(|x| match crank {
+                Some(r) => x[0] * r,
+                None => (0..3).map(|k| (x[0] * (c.at[k + 1] - pivot[k]) + x[k + 1]).powi(2)).sum::<f64>().sqrt(),
+            })
+            .collect();
+        let k = moments.len();
+        if k < 3 {
+            return None;
+        }
+        let mean = moments.iter().sum::<f64>() / k as f64;
+        let var = (k - 1) as f64 / k as f64 * moments.iter().map(|m| (m - mean).powi(2)).sum::<f64>();
+        Some(student_t975(k - 1) * var.sqrt())
+    }
+
     /// The family's sentence: what its members share, and which the inertia prefers.
     fn family_note(&self, link: &str, equivalent: &[Placement]) -> Option<String> {
         let own = self.pivots.get(link)?.family.as_ref()?;
@@ -188,6 +215,20 @@ impl<'a> EffectReporter<'a> {
                 if crank.is_some() {
                     pr.mass = [pr.mass[0].min(s.ci[0][0]), pr.mass[1].max(s.ci[0][1])];
                 }
+                // The first moment's spread over the recording's parts holds what the
+                // likelihood's interval does not: a model error the weight's signature shares.
+                if let Some(half) = self.first_moment_spread(c, pv, crank) {
+                    match crank {
+                        Some(r) => {
+                            let m = s.x[0];
+                            pr.mass = [pr.mass[0].min(m - half / r), pr.mass[1].max(m + half / r)];
+                        }
+                        None => {
+                            let moment = s.x[0] * (nalgebra::Vector3::from(place) - nalgebra::Vector3::from(*pv)).norm();
+                            pr.first_moment = [pr.first_moment[0].min(moment - half), pr.first_moment[1].max(moment + half)];
+                        }
+                    }
+                }
                 // A mass at the vocabulary's bound: the lightest placement within the interval
                 // stands for it, in the report and the model file.
                 let upper = EffectKind::PayloadMass.range("mass").map_or(20.0, |r| r[1]);
@@ -224,4 +265,10 @@ impl<'a> EffectReporter<'a> {
         };
         Ok((spec, report))
     }
+}
+
+/// Student's t 97.5% point at `dof` degrees of freedom (2 to 9; the normal's 1.96 beyond).
+fn student_t975(dof: usize) -> f64 {
+    const T: [f64; 8] = [4.303, 3.182, 2.776, 2.571, 2.447, 2.365, 2.306, 2.262];
+    dof.checked_sub(2).and_then(|i| T.get(i)).copied().unwrap_or(1.96)
 }

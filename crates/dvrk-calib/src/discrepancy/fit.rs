@@ -223,4 +223,22 @@ impl Fitter<'_> {
         };
         Ok(per_joint_ratio(&all, &e0, &e1))
     }
+
+    /// `columns`' fit (bounded by `bounds`) to residual `r` on all of the recording but each of
+    /// [`FOLDS`] contiguous parts in turn, the nuisance refitted each time; `None` for a part
+    /// without which the columns are not determined.
+    pub fn fold_fits<S: Series>(&self, r: &Table, columns: &[S], bounds: &[Bounds]) -> Result<Vec<Option<DVector<f64>>>> {
+        let all = Rows { prep: self.prep, range: 0..self.prep.t.len() };
+        let (y, c) = (all.vector(r), all.matrix(columns));
+        match self.nuisance {
+            Some(n) => n.fold_fits(&y, &c, bounds),
+            None => (0..FOLDS)
+                .map(|f| {
+                    let part = fold_rows(f, self.prep.t.len(), self.prep.active.len());
+                    let keep: Vec<usize> = (0..y.len()).filter(|i| !part.contains(i)).collect();
+                    bounded_least_squares(&c.select_rows(&keep), &y.select_rows(&keep), bounds).map(Some)
+                })
+                .collect(),
+        }
+    }
 }

@@ -27,6 +27,7 @@ mod effect_report;
 pub mod excitation;
 mod explain;
 pub mod fit;
+pub mod friction_terms;
 pub mod generate;
 pub mod kinematic;
 pub mod kinematic_only;

@@ -261,34 +261,78 @@ impl Nuisance {
     /// (bounded by `bounds`; `e1`) fitted on the other parts. `y`, `c`: every row (scaled).
     pub fn cross_validated(&self, y: &DVector<f64>, c: &DMatrix<f64>, bounds: &[super::stats::Bounds]) -> Result<(DVector<f64>, DVector<f64>)> {
         let rows = self.n.nrows();
-        // Totals once; each fold's training sums are the totals less the fold's own.
-        let (nc, ny, cc, cy) = (tr_mul(&self.n, c), tr_mul(&self.n, y), tr_mul(c, c), tr_mul(c, y));
+        let totals = Totals::new(&self.n, c, y);
         let (mut e0, mut e1) = (DVector::zeros(rows), DVector::zeros(rows));
-        for (f, gf) in self.fold_grams.iter().enumerate() {
-            let r = fold_rows(f, rows / self.na.max(1), self.na);
+        for f in 0..FOLDS {
+            let fold = self.fold_fit(f, &totals, c, y, bounds)?;
+            let r = fold.rows.clone();
             let (nf, cf, yf) = (self.n.rows(r.start, r.len()), c.rows(r.start, r.len()), y.rows(r.start, r.len()));
-            let mut g = &self.gram - gf;
-            for d in 0..g.nrows() {
-                g[(d, d)] += self.lambda;
-            }
-            let ch = g.cholesky().ok_or_else(|| CalibError::data("inertia nuisance", "a fold's prior normal matrix is not positive definite"))?;
-            let (ntc, nty) = (&nc - tr_mul(&nf, &cf), &ny - tr_mul(&nf, &yf));
-            e0.rows_mut(r.start, r.len()).copy_from(&(yf - mul(&nf, &ch.solve(&nty))));
-            // The candidate's normal equations in the metric the nuisance leaves (as
-            // [`Nuisance::normal_equations`]).
-            let l = ch.l();
-            let (zc, zy) = (l.solve_lower_triangular(&ntc).unwrap_or_else(|| ntc.clone()), l.solve_lower_triangular(&nty).unwrap_or_else(|| nty.clone()));
-            let gc = &cc - tr_mul(&cf, &cf) - zc.tr_mul(&zc);
-            let bc = &cy - tr_mul(&cf, &yf) - zc.tr_mul(&zy);
-            let Some(x) = super::stats::solve_normal_equations(gc, bc, bounds) else {
+            e0.rows_mut(r.start, r.len()).copy_from(&(yf - mul(&nf, &fold.ch.solve(&fold.nty))));
+            match &fold.x {
                 // Columns the other parts do not determine: the fold gets the null's prediction.
-                e1.rows_mut(r.start, r.len()).copy_from(&e0.rows(r.start, r.len()));
-                continue;
-            };
-            let x = x?;
-            let t1 = ch.solve(&(&nty - &ntc * &x));
-            e1.rows_mut(r.start, r.len()).copy_from(&(yf - mul(&cf, &x) - mul(&nf, &t1)));
+                None => {
+                    let null = e0.rows(r.start, r.len()).into_owned();
+                    e1.rows_mut(r.start, r.len()).copy_from(&null);
+                }
+                Some(x) => {
+                    let t1 = fold.ch.solve(&(&fold.nty - &fold.ntc * x));
+                    e1.rows_mut(r.start, r.len()).copy_from(&(yf - mul(&cf, x) - mul(&nf, &t1)));
+                }
+            }
         }
         Ok((e0, e1))
     }
+
+    /// The columns' fit `x` (bounded by `bounds`) on all parts but each of the [`FOLDS`]
+    /// contiguous ones in turn, the nuisance refitted each time (`None` where the other parts do
+    /// not determine them): the spread of a fitted value over the recording's parts.
+    pub fn fold_fits(&self, y: &DVector<f64>, c: &DMatrix<f64>, bounds: &[super::stats::Bounds]) -> Result<Vec<Option<DVector<f64>>>> {
+        let totals = Totals::new(&self.n, c, y);
+        (0..FOLDS).map(|f| Ok(self.fold_fit(f, &totals, c, y, bounds)?.x)).collect()
+    }
+
+    /// Fold `f`'s fit from the other parts: its rows, the nuisance's factor and right-hand sides
+    /// without them, and the columns' fit in the metric the nuisance leaves.
+    fn fold_fit(&self, f: usize, t: &Totals, c: &DMatrix<f64>, y: &DVector<f64>, bounds: &[super::stats::Bounds]) -> Result<FoldFit> {
+        let r = fold_rows(f, self.n.nrows() / self.na.max(1), self.na);
+        let (nf, cf, yf) = (self.n.rows(r.start, r.len()), c.rows(r.start, r.len()), y.rows(r.start, r.len()));
+        // Each fold's training sums are the totals less the fold's own.
+        let mut g = &self.gram - &self.fold_grams[f];
+        for d in 0..g.nrows() {
+            g[(d, d)] += self.lambda;
+        }
+        let ch = g.cholesky().ok_or_else(|| CalibError::data("inertia nuisance", "a fold's prior normal matrix is not positive definite"))?;
+        let (ntc, nty) = (&t.nc - tr_mul(&nf, &cf), &t.ny - tr_mul(&nf, &yf));
+        // The candidate's normal equations in the metric the nuisance leaves (as
+        // [`Nuisance::normal_equations`]).
+        let l = ch.l();
+        let (zc, zy) = (l.solve_lower_triangular(&ntc).unwrap_or_else(|| ntc.clone()), l.solve_lower_triangular(&nty).unwrap_or_else(|| nty.clone()));
+        let gc = &t.cc - tr_mul(&cf, &cf) - zc.tr_mul(&zc);
+        let bc = &t.cy - tr_mul(&cf, &yf) - zc.tr_mul(&zy);
+        let x = super::stats::solve_normal_equations(gc, bc, bounds).transpose()?;
+        Ok(FoldFit { rows: r, ch, ntc, nty, x })
+    }
+}
+
+/// Sums over every row, once for all folds: `N^T C`, `N^T y`, `C^T C`, `C^T y`.
+struct Totals {
+    nc: DMatrix<f64>,
+    ny: DVector<f64>,
+    cc: DMatrix<f64>,
+    cy: DVector<f64>,
+}
+
+impl Totals {
+    fn new(n: &DMatrix<f64>, c: &DMatrix<f64>, y: &DVector<f64>) -> Totals {
+        Totals { nc: tr_mul(n, c), ny: tr_mul(n, y), cc: tr_mul(c, c), cy: tr_mul(c, y) }
+    }
+}
+
+/// One fold's fit from the other parts ([`Nuisance::fold_fit`]).
+struct FoldFit {
+    rows: std::ops::Range<usize>,
+    ch: Cholesky<f64, Dyn>,
+    ntc: DMatrix<f64>,
+    nty: DVector<f64>,
+    x: Option<DVector<f64>>,
 }

@@ -22,8 +22,8 @@ use dvrk_kin::{DynamicsData, DynamicsModel, Model};
 use nalgebra::{DMatrix, DVector, Vector3};
 
 /// Each body's regressor columns over the analysed samples (N·m or N per kg, kg m, kg m^2),
-/// computed one body at a time ([`BodyColumns::of`]): all of them at once are ten tables per
-/// body, 300 MB on a 5-minute recording.
+/// computed a few bodies at a time ([`BodyColumns::of_range`]): all of them at once are ten
+/// tables per body, 300 MB on a 5-minute recording.
 pub struct BodyColumns<'a> {
     pub model: &'a Model,
     pub dynamics: &'a DynamicsModel,
@@ -40,34 +40,52 @@ impl BodyColumns<'_> {
         self.dynamics.inertias().len()
     }
 
-    /// Body `b`'s ten columns: dvrk-kin's regressor at every analysed sample, through `shift`.
-    pub fn of(&self, b: usize) -> Result<Vec<Signature>> {
+    /// The ten columns of each body in `bodies`: dvrk-kin's regressor at every analysed sample
+    /// (one pass for them all), through `shift`.
+    pub fn of_range(&self, bodies: std::ops::Range<usize>) -> Result<Vec<Vec<Signature>>> {
         let (model, prep) = (self.model, self.prep);
         let (nq, n) = (model.nq(), prep.t.len());
         let mut data = DynamicsData::new(model);
         let mut y = DMatrix::zeros(nq, self.bodies() * PARAMETERS_PER_BODY);
-        // `[parameter][joint]`, each a series over the samples.
-        let mut series = vec![vec![vec![0.0; n]; nq]; PARAMETERS_PER_BODY];
+        // `[body][parameter][joint]`, each a series over the samples.
+        let mut series = vec![vec![vec![vec![0.0; n]; nq]; PARAMETERS_PER_BODY]; bodies.len()];
         for i in 0..n {
             dvrk_kin::regressor(model, self.dynamics, &mut data, &prep.q[i], &prep.qd[i], &prep.qdd[i], self.gravity, &mut y)?;
-            for (k, joints) in series.iter_mut().enumerate() {
-                for (j, s) in joints.iter_mut().enumerate() {
-                    s[i] = y[(j, b * PARAMETERS_PER_BODY + k)];
+            for (b, body) in bodies.clone().zip(series.iter_mut()) {
+                for (k, joints) in body.iter_mut().enumerate() {
+                    for (j, s) in joints.iter_mut().enumerate() {
+                        s[i] = y[(j, b * PARAMETERS_PER_BODY + k)];
+                    }
                 }
             }
         }
         Ok(series
             .into_iter()
-            .map(|joints| {
-                let column = Signature::from_joints(n, joints);
-                match self.shift {
-                    Some(shift) => Signature::from_table(&shift(column.to_table()), nq),
-                    None => column,
-                }
+            .map(|body| {
+                body.into_iter()
+                    .map(|joints| {
+                        let column = Signature::from_joints(n, joints);
+                        match self.shift {
+                            Some(shift) => Signature::from_table(&shift(column.to_table()), nq),
+                            None => column,
+                        }
+                    })
+                    .collect()
             })
             .collect())
     }
+
+    /// How many bodies' columns [`BodyColumns::of_range`] takes at once: as many as fit in
+    /// [`COLUMNS_BUDGET`] (the regressor's pass is shared by them).
+    pub fn chunk(&self) -> usize {
+        let per_body = self.prep.t.len() * self.model.nq() * PARAMETERS_PER_BODY * std::mem::size_of::<f64>();
+        (COLUMNS_BUDGET / per_body.max(1)).max(1)
+    }
 }
+
+/// Bytes of body columns held at once (a 30 s recording's 20 bodies fit in one pass; a
+/// 5-minute one takes several).
+const COLUMNS_BUDGET: usize = 64 << 20;
 
 /// `phi(p)`: a unit point mass at `p` as a body's linear-form parameters.
 fn phi(p: &[f64; 3]) -> [f64; PARAMETERS_PER_BODY] {
@@ -166,8 +184,14 @@ pub fn candidates(model: &Model, bodies: &BodyColumns, fit: &Fitter, r: &Table, 
     let y = train.vector(r);
     let mut out = Vec::new();
     let mut normals = std::collections::BTreeMap::new();
+    let chunk = bodies.chunk();
+    let mut taken = Vec::new();
     for b in 0..bodies.bodies() {
-        let cols = bodies.of(b)?;
+        if taken.is_empty() {
+            taken = bodies.of_range(b..(b + chunk).min(bodies.bodies()))?;
+            taken.reverse();
+        }
+        let cols = taken.pop().unwrap_or_default();
         let cols = &cols;
         let a = train.matrix(cols);
         if a.column(0).amax() < 1e-12 {
@@ -191,6 +215,7 @@ pub fn candidates(model: &Model, bodies: &BodyColumns, fit: &Fitter, r: &Table, 
             range: None,
             focus,
             profile: None,
+            fixed: vec![],
         });
     }
     Ok((out, normals))

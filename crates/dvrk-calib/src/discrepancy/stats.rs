@@ -202,20 +202,21 @@ pub fn effective_fraction(series: &[Vec<f64>]) -> f64 {
     }
 }
 
-/// `a . b` over the shorter length, in four running sums (which the compiler vectorises; one
-/// sum in order cannot be reordered).
+/// `a . b` over the shorter length, in sixteen running sums (which the compiler vectorises into
+/// independent chains: one sum in order cannot be reordered, and four wait on each other's adds).
 fn dot(a: &[f64], b: &[f64]) -> f64 {
+    const W: usize = 16;
     let n = a.len().min(b.len());
     let (a, b) = (&a[..n], &b[..n]);
-    let mut s = [0.0; 4];
-    let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));
+    let mut s = [0.0; W];
+    let (ca, cb) = (a.chunks_exact(W), b.chunks_exact(W));
     let tail: f64 = ca.remainder().iter().zip(cb.remainder()).map(|(x, y)| x * y).sum();
     for (x, y) in ca.zip(cb) {
-        for i in 0..4 {
+        for i in 0..W {
             s[i] += x[i] * y[i];
         }
     }
-    (s[0] + s[1]) + (s[2] + s[3]) + tail
+    s.iter().sum::<f64>() + tail
 }
 
 /// ln Gamma(x), x > 0 (Lanczos, g = 7).

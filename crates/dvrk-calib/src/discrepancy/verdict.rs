@@ -87,7 +87,11 @@ pub(super) fn verdict(scored: &[Scored], gates: Gates, fit: &Fitter, r: &Table, 
     // equivalent placements), nor an effect whose effort shares nothing with the best one's (a
     // jaw's friction beside a payload on the arm: both real, named in turn).
     for s in winners.iter().skip(1).map(|&i| &scored[i]) {
+        // A term of the same effect (a Coulomb friction's level and its Stribeck term on one
+        // joint, or cross springs on one actuator) is the same effect: no rival.
+        let same_effect = best.candidate.zip(s.candidate).is_some_and(|(a, b)| a.kind == b.kind && a.joint == b.joint && a.link == b.link && a.actuator == b.actuator);
         if s.label != best.label
+            && !same_effect
             && (best.score.delta_bic - s.score.delta_bic).abs() < o.ambiguity_bic.max(o.ambiguity_share * best.score.delta_bic.abs())
             && !(best.kind == EffectKind::PayloadMass && s.kind == EffectKind::PayloadMass)
             && overlap(prep, &best_own, &s.efforts(fit, r)?.1) > RIVAL_OVERLAP

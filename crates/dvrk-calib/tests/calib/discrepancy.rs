@@ -852,3 +852,61 @@ fn payload_anywhere_table() {
     }
     println!("\n{trials} trials: payload named {named}, on its body set {body_set}, mass within 20% {mass_ok}");
 }
+
+/// The identification's Stribeck term is a candidate (issue 62 item 4): an effect-free recording
+/// with a Stribeck hump added to the outer yaw's effort, computed here from the recording's own
+/// positions (`fs exp(-(v / vs)^2) sign(v)`, 0.15 N·m at vs 0.05 rad/s: 1.5 times the noise, the motor supplying it),
+/// is named a Coulomb friction's `fs` on the outer yaw with its level and velocity.
+#[test]
+fn a_stribeck_hump_is_named_as_the_coulomb_frictions_term() {
+    let h = trial(Hidden::None, 3, None, 20.0);
+    let mut log = h.log.clone();
+    let (fs, vs) = (0.15, 0.05);
+    let n = log.t.len();
+    for i in 0..n {
+        let (a, b) = (i.saturating_sub(1), (i + 1).min(n - 1));
+        let v = (log.position[b][0] - log.position[a][0]) / (log.t[b] - log.t[a]);
+        log.effort[i][0] += fs * (-(v / vs).powi(2)).exp() * (v / 1e-3).tanh();
+    }
+    let scene = dvrk_sim::Scene::load("psm").unwrap();
+    let model = dvrk_kin::load("psm", None).unwrap();
+    let r = discrepancy(&model, &scene, "PSM1", &log, &Options { tracking: false, ..Default::default() }).unwrap().report;
+    let top: Vec<_> = r.candidates.iter().take(4).map(|c| (&c.label, c.effect.delta_bic, c.effect_to_noise, c.supported, c.heldout_p_value, &c.effect.parameters)).collect();
+    assert_eq!(r.verdict, "named", "{top:?}");
+    let e = &r.effects[0];
+    assert_eq!((e.name.as_str(), e.joint.as_deref()), ("coulomb_friction", Some("outer_yaw")), "{top:?}");
+    assert_eq!(r.candidates[0].label, "coulomb_friction fs on outer_yaw", "{top:?}");
+    assert!((e.parameters["fs"] / fs - 1.0).abs() < 0.2, "{:?}", e.parameters);
+    assert!((e.parameters["vs"] / vs - 1.0).abs() < 0.6, "{:?}", e.parameters);
+}
+
+/// A spring between the tool's coupled actuators is a candidate (issue 62 item 4): an effect-free
+/// recording with a cable of actuator 7 pulled by actuator 5's position (its force `k a5` at
+/// actuator 7, 0.02 N·m/rad, reaching the joints as `C^-T` does, computed here from the model's
+/// coupling matrix) is the best candidate, `actuator_cross_spring` with `k5` within 20%, supported.
+/// The recording's jaw holds still (its joint is not analysed), and a force at actuator 6 or 7
+/// then loads the analysed joints alike: the two are `ambiguous` (measured: the same delta BIC).
+#[test]
+fn a_spring_between_the_tools_actuators_is_named_with_its_source() {
+    let h = trial(Hidden::None, 3, None, 20.0);
+    let model = dvrk_kin::load("psm", None).unwrap();
+    let c = model.coupling_matrix().unwrap();
+    let inv = c.clone().try_inverse().unwrap();
+    let k = 0.02;
+    let mut log = h.log.clone();
+    for (q, tau) in log.position.iter().zip(log.effort.iter_mut()) {
+        let a = &inv * nalgebra::DVector::from_column_slice(q);
+        // Actuator 7 (index 6) carries k a5; the joints feel C^-T of it.
+        let mut f = nalgebra::DVector::zeros(q.len());
+        f[6] = k * a[4];
+        let joint = inv.transpose() * f;
+        tau.iter_mut().zip(joint.iter()).for_each(|(t, d)| *t += d);
+    }
+    let scene = dvrk_sim::Scene::load("psm").unwrap();
+    let r = discrepancy(&model, &scene, "PSM1", &log, &Options { tracking: false, ..Default::default() }).unwrap().report;
+    let top: Vec<_> = r.candidates.iter().take(4).map(|c| (&c.label, c.effect.delta_bic, c.effect_to_noise, &c.effect.parameters)).collect();
+    assert_eq!(r.verdict, "ambiguous", "{top:?}");
+    let best = &r.candidates[0];
+    assert!(["actuator_cross_spring k5 on actuator 7", "actuator_cross_spring k5 on actuator 6"].contains(&best.label.as_str()) && best.supported, "{top:?}");
+    assert!((best.effect.parameters["k5"] / k - 1.0).abs() < 0.2, "{:?}", best.effect.parameters);
+}
