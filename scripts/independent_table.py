@@ -8,8 +8,8 @@ generate the recording, run `dvrk discrepancy --model psm --recording R --marker
 `dvrk identify` on the real recording the weight is added to), compare the report with the truth,
 print a markdown table. A payload is named correctly on its body or with its body among the
 report's `payload.equivalent` (the recording's gravity cannot tell them apart); its interval is
-the first moment's (`payload.first_moment_ci95`) against the truth's mass times the crank or the
-distance from the remote centre.
+the first moment's about the pitch's axis (`payload.axis_first_moment_ci95`) against the truth's
+mass times the crank or its distance from that axis.
 
   .venv/bin/python scripts/independent_table.py --bin /tmp/dvrk-base --seeds 20 [--cases a,b]
 """
@@ -113,9 +113,9 @@ def classify(run):
 def ci_and_ratio(hit, truth):
     """Whether the named effect's 95% interval covers the truth, and fitted / true."""
     (param, true), = [(k, v) for k, v in truth["parameters"].items()][:1]
-    if param == "first_moment":
-        fitted = (hit.get("payload") or {}).get("first_moment")
-        ci = (hit.get("payload") or {}).get("first_moment_ci95")
+    if param == "axis_first_moment":
+        fitted = (hit.get("payload") or {}).get("axis_first_moment")
+        ci = (hit.get("payload") or {}).get("axis_first_moment_ci95")
     else:
         fitted = (hit.get("parameters") or {}).get(param)
         ci = (hit.get("ci95") or {}).get(param)

@@ -9,11 +9,11 @@ efforts of a real dVRK recording without a weight (WPI's `one_no_weight_results.
 arm's motion, friction, model error and noise), which is written as MCAP in the dVRK's CRTK
 layout. Each seed draws the weight, its place and a 25 s window of the 30 s recording.
 
-Cases:
+Cases (the truth: the first moment about the pitch's axis, what the pitch's gravity load fixes):
   payload_translating  on pitch_bottom (frame 6), which translates on its crank (Table 4's 0.150 m):
-                       its first moment about the pitch is m x 0.150 wherever on the link it sits
-  payload_turning      on pitch_end (frame 8), which turns about the remote centre: its first moment
-                       is m times the weight's distance from the remote centre
+                       m x 0.150 wherever on the link it sits
+  payload_turning      on pitch_end (frame 8), which turns about the remote centre: m times the
+                       weight's distance from the pitch's axis through the remote centre
   none_efforts         the recording's window as it is
 
 The WPI files hold the tool's last three channels in actuator space (positions M^-1 q, efforts
@@ -96,6 +96,18 @@ def remote_centre_in(frame):
     return sol[:3]
 
 
+def pitch_axis_in(frame):
+    """The axis (unit, in `frame`) the frame turns about when the pitch moves: by the rotation
+    between two pitch angles."""
+    q = np.zeros((2, 4))
+    q[:, 2] = 0.1
+    q[1, 1] = 0.01
+    T = psm.fk(q, frame)
+    R = T[0, :3, :3].T @ T[1, :3, :3]
+    axis = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+    return axis / np.linalg.norm(axis)
+
+
 def generate(case, seed, base=BASE):
     """One recording: (streams for independent_psm.write_mcap, truth)."""
     if case not in CASES:
@@ -114,14 +126,21 @@ def generate(case, seed, base=BASE):
             # a few cm off its line.
             p = np.array([rng.uniform(0.05, 0.45), rng.uniform(-0.03, 0.03), rng.uniform(-0.03, 0.03)])
             first_moment = m * psm.TABLE4[6][1]  # the crank: frame 6's a
+            axis_first_moment = first_moment
         else:
             c = remote_centre_in(frame)
             # On pitch_end, 0.2-0.45 m from the remote centre along the link (frame 8's x), a few cm off.
             p = c + np.array([-rng.uniform(0.2, 0.45), rng.uniform(-0.03, 0.03), rng.uniform(-0.03, 0.03)])
             first_moment = m * float(np.linalg.norm(p - c))
+            # About the pitch's axis through the remote centre: what the pitch's gravity load fixes.
+            a = pitch_axis_in(frame)
+            axis_first_moment = m * float(np.linalg.norm((p - c) - a * a.dot(p - c)))
         tau[:, :3] += payload_effort(q, frame, p, m, 1.0 / RATE)
+        # The graded value: the first moment about the pitch's axis (the report's
+        # axis_first_moment); first_moment_rcm: about the remote centre (its first_moment).
         effect = {"name": "payload_mass", "joint": None, "link": psm.FRAME_NAMES[frame],
-                  "parameters": {"first_moment": first_moment},
+                  "parameters": {"axis_first_moment": axis_first_moment},
+                  "first_moment_rcm": first_moment,
                   "mass": m, "place": p.tolist()}
     t0 = 1.7e9 + float(rng.integers(0, 10**7))
     t = np.arange(n) / RATE

@@ -81,6 +81,8 @@ struct Pivot {
     rms: f64,
     crank: Option<f64>,
     family: Option<Vec<usize>>,
+    /// The family's last joint and the axis (unit, link frame) the body turns about with it.
+    axis: Option<(usize, [f64; 3])>,
 }
 
 impl<'a> EffectReporter<'a> {
@@ -104,7 +106,11 @@ impl<'a> EffectReporter<'a> {
                 let (point, rms) = super::payload::pivot(model, body, &prep.q)?;
                 let crank = super::payload_family::crank(model, body, &prep.q)?;
                 let family = super::payload_family::family(model, body, &home)?;
-                pivots.insert(link, Pivot { point, rms, crank, family });
+                let axis = match family.as_ref().and_then(|f| f.last()) {
+                    Some(&j) if crank.is_none() => super::payload_family::turning_axis(model, body, j, &home)?.map(|a| (j, a)),
+                    _ => None,
+                };
+                pivots.insert(link, Pivot { point, rms, crank, family, axis });
             }
         }
         Ok(EffectReporter { model, prep, base, fit, r, scored, normals, before_rms: rms.0, effort_rms: rms.1, pivots, ambiguity_bic })
@@ -148,24 +154,17 @@ impl<'a> EffectReporter<'a> {
             .collect()
     }
 
-    /// The half-width (kg m) of a 95% interval of payload candidate `c`'s first moment about
-    /// `pivot` (or its mass times `crank`) from its fits without each of the recording's
+    /// The half-width (kg m) of a 95% interval of payload candidate `c`'s first moment
+    /// `moment(m, m (p - pivot))` from its fits without each of the recording's
     /// [`super::nuisance::FOLDS`] parts (the jackknife, Student's t at their number less one);
-    /// `None` where fewer than three parts give one. The first moment is linear in the fit
-    /// (`m (at - pivot) + (m dx, m dy, m dz)`), defined for any mass.
-    fn first_moment_spread(&self, c: &Candidate, pivot: &[f64; 3], crank: Option<f64>) -> Option<f64> {
+    /// `None` where fewer than three parts give one. The first moment's vector is linear in the
+    /// fit (`m (at - pivot) + (m dx, m dy, m dz)`), defined for any mass.
+    fn first_moment_spread(&self, c: &Candidate, pivot: &[f64; 3], moment: &dyn Fn(f64, nalgebra::Vector3<f64>) -> f64) -> Option<f64> {
         if c.columns.len() != 4 {
             return None;
         }
         let fits = self.fit.fold_fits(self.r, &c.columns, &c.bounds()).ok()?;
-        let moments: Vec<f64> = fits
-            .iter()
-            .flatten()
-            .map(|x| match crank {
-                Some(r) => x[0] * r,
-                None => (0..3).map(|k| (x[0] * (c.at[k + 1] - pivot[k]) + x[k + 1]).powi(2)).sum::<f64>().sqrt(),
-            })
-            .collect();
+        let moments: Vec<f64> = fits.iter().flatten().map(|x| moment(x[0], nalgebra::Vector3::from_fn(|k, _| x[0] * (c.at[k + 1] - pivot[k]) + x[k + 1]))).collect();
         let k = moments.len();
         if k < 3 {
             return None;
@@ -217,7 +216,8 @@ impl<'a> EffectReporter<'a> {
                 }
                 // The first moment's spread over the recording's parts holds what the
                 // likelihood's interval does not: a model error the weight's signature shares.
-                if let Some(half) = self.first_moment_spread(c, pv, crank) {
+                let about_pivot = |m: f64, v: nalgebra::Vector3<f64>| crank.map_or(v.norm(), |r| m * r);
+                if let Some(half) = self.first_moment_spread(c, pv, &about_pivot) {
                     match crank {
                         Some(r) => {
                             let m = s.x[0];
@@ -243,7 +243,34 @@ impl<'a> EffectReporter<'a> {
                 } else {
                     super::payload::report(place, s.x[0], &pr, *pv, *spread, crank, equivalent, None)
                 };
-                super::payload::PayloadReport { family, ..report }
+                // About the family's last joint's axis (the pitch's through the remote centre):
+                // what that joint's gravity fixes; a translating body's is its crank's.
+                let axis_moment = match (crank, pivot.axis) {
+                    (Some(_), _) => Some((report.first_moment, report.first_moment_ci95)),
+                    (None, Some((_, a))) => {
+                        let a = nalgebra::Vector3::from(a);
+                        let about_axis = move |_: f64, v: nalgebra::Vector3<f64>| (v - a * a.dot(&v)).norm();
+                        let v = nalgebra::Vector3::from(report.position) - nalgebra::Vector3::from(*pv);
+                        let (d, d_axis) = (v.norm(), (v - a * a.dot(&v)).norm());
+                        let moment = report.mass * d_axis;
+                        // The pivot interval scaled to the axis, widened to the axis' jackknife.
+                        let scale = if d > 0.0 { d_axis / d } else { 1.0 };
+                        let mut ci = [report.first_moment_ci95[0] * scale, report.first_moment_ci95[1] * scale];
+                        if let Some(half) = self.first_moment_spread(c, pv, &about_axis) {
+                            ci = [ci[0].min(moment - half), ci[1].max(moment + half)];
+                        }
+                        Some((moment, ci))
+                    }
+                    (None, None) => None,
+                };
+                let axis_joint = pivot.axis.map(|(j, _)| self.model.joints[j].name.clone()).or_else(|| crank.and(pivot.family.as_ref()?.last().map(|&j| self.model.joints[j].name.clone())));
+                super::payload::PayloadReport {
+                    family,
+                    axis_joint: axis_moment.and(axis_joint),
+                    axis_first_moment: axis_moment.map(|m| m.0),
+                    axis_first_moment_ci95: axis_moment.map(|m| m.1),
+                    ..report
+                }
             }),
             _ => None,
         };

@@ -340,6 +340,17 @@ pub struct PayloadReport {
     pub crank: Option<f64>,
     /// What the family's members share and which one the inertia prefers, in words.
     pub family: Option<String>,
+    /// The joint of the family whose axis `axis_first_moment` is about (the PSM's
+    /// `outer_pitch`): the family's last, `None` outside a family.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub axis_joint: Option<String>,
+    /// The mass times its distance from that joint's axis through the pivot (kg m; a
+    /// translating body's: the mass times its crank), with its 95% interval: what that joint's
+    /// gravity load fixes, wherever along the axis the weight sits.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub axis_first_moment: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub axis_first_moment_ci95: Option<[f64; 2]>,
 }
 
 /// A payload's equivalent placement on another body.
@@ -420,6 +431,9 @@ pub fn report(place: [f64; 3], mass: f64, pr: &Profile, pivot: [f64; 3], pivot_r
         equivalent,
         crank,
         family: None,
+        axis_joint: None,
+        axis_first_moment: None,
+        axis_first_moment_ci95: None,
     }
 }
 

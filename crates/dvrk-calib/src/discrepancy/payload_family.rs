@@ -37,6 +37,18 @@ pub fn family(model: &Model, body: usize, q: &[f64]) -> Result<Option<Vec<usize>
     Ok((!moved.is_empty()).then_some(moved))
 }
 
+/// The axis (unit, in the body's first frame) the body turns about when joint `joint` moves at
+/// `q`, `None` where that joint does not turn it: a family's last joint's axis (the PSM's pitch)
+/// through its pivot is the line a load's gravity on that joint acts about.
+pub fn turning_axis(model: &Model, body: usize, joint: usize, q: &[f64]) -> Result<Option<[f64; 3]>> {
+    let frame = model.bodies[body].frames[0];
+    let at = |q: &[f64]| -> Result<Pose> { Ok(model.fk(q).map_err(|e| crate::error::CalibError::context("payload axis", e))?[frame]) };
+    let mut moved = q.to_vec();
+    moved[joint] += 1e-3;
+    let turn = at(q)?.rotation.inverse() * at(&moved)?.rotation;
+    Ok(turn.axis().filter(|_| turn.angle() > 1e-6).map(|a| [a.x, a.y, a.z]))
+}
+
 /// The crank radius (m) of a body that only translates against the arm's first moving body
 /// (its orientation there stays within 1 urad over the recorded joints `q`, its origin moves):
 /// the radius of the circle its origin follows in that body's frame. `None` for a body that

@@ -800,6 +800,10 @@ fn a_payload_on_a_translating_link_has_the_cranks_first_moment() {
     };
     assert!((bottom / moment - 1.0).abs() < 0.05, "{bottom} against {moment}");
     assert!(!p.equivalent.is_empty() && p.family.as_deref().is_some_and(|f| f.contains("outer_yaw and outer_pitch")), "{:?}", p.family);
+    // About the pitch's axis, whichever family body is named: the crank's first moment.
+    let (axis, ci) = (p.axis_first_moment.unwrap(), p.axis_first_moment_ci95.unwrap());
+    assert_eq!(p.axis_joint.as_deref(), Some("outer_pitch"));
+    assert!((axis / moment - 1.0).abs() < 0.05 && ci[0] <= axis && axis <= ci[1], "{axis} {ci:?} against {moment}");
 }
 
 /// A payload hidden on a moving body drawn by the seed (any of the PSM's 13, the parallelogram's
