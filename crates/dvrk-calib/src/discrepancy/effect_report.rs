@@ -154,24 +154,16 @@ impl<'a> EffectReporter<'a> {
             .collect()
     }
 
-    /// The half-width (kg m) of a 95% interval of payload candidate `c`'s first moment
-    /// `moment(m, m (p - pivot))` from its fits without each of the recording's
-    /// [`super::nuisance::FOLDS`] parts (the jackknife, Student's t at their number less one);
-    /// `None` where fewer than three parts give one. The first moment's vector is linear in the
-    /// fit (`m (at - pivot) + (m dx, m dy, m dz)`), defined for any mass.
-    fn first_moment_spread(&self, c: &Candidate, pivot: &[f64; 3], moment: &dyn Fn(f64, nalgebra::Vector3<f64>) -> f64) -> Option<f64> {
+    /// Payload candidate `c`'s fit without each of the recording's [`super::nuisance::FOLDS`]
+    /// parts in turn: per part its mass (kg) and first moment's vector about `pivot` (kg m,
+    /// `m (at - pivot) + (m dx, m dy, m dz)`: linear in the fit, defined for any mass); `None`
+    /// without the candidate's columns.
+    fn fold_first_moments(&self, c: &Candidate, pivot: &[f64; 3]) -> Option<Vec<(f64, nalgebra::Vector3<f64>)>> {
         if c.columns.len() != 4 {
             return None;
         }
         let fits = self.fit.fold_fits(self.r, &c.columns, &c.bounds()).ok()?;
-        let moments: Vec<f64> = fits.iter().flatten().map(|x| moment(x[0], nalgebra::Vector3::from_fn(|k, _| x[0] * (c.at[k + 1] - pivot[k]) + x[k + 1]))).collect();
-        let k = moments.len();
-        if k < 3 {
-            return None;
-        }
-        let mean = moments.iter().sum::<f64>() / k as f64;
-        let var = (k - 1) as f64 / k as f64 * moments.iter().map(|m| (m - mean).powi(2)).sum::<f64>();
-        Some(student_t975(k - 1) * var.sqrt())
+        Some(fits.iter().flatten().map(|x| (x[0], nalgebra::Vector3::from_fn(|k, _| x[0] * (c.at[k + 1] - pivot[k]) + x[k + 1]))).collect())
     }
 
     /// The family's sentence: what its members share, and which the inertia prefers.
@@ -216,8 +208,8 @@ impl<'a> EffectReporter<'a> {
                 }
                 // The first moment's spread over the recording's parts holds what the
                 // likelihood's interval does not: a model error the weight's signature shares.
-                let about_pivot = |m: f64, v: nalgebra::Vector3<f64>| crank.map_or(v.norm(), |r| m * r);
-                if let Some(half) = self.first_moment_spread(c, pv, &about_pivot) {
+                let folds = self.fold_first_moments(c, pv).unwrap_or_default();
+                if let Some(half) = jackknife_half(&folds.iter().map(|(m, v)| crank.map_or(v.norm(), |r| m * r)).collect::<Vec<_>>()) {
                     match crank {
                         Some(r) => {
                             let m = s.x[0];
@@ -245,28 +237,29 @@ impl<'a> EffectReporter<'a> {
                 };
                 // About the family's last joint's axis (the pitch's through the remote centre):
                 // what that joint's gravity fixes; a translating body's is its crank's.
+                let joint = pivot.family.as_ref().and_then(|f| f.last()).map(|&j| self.model.joints[j].name.clone());
                 let axis_moment = match (crank, pivot.axis) {
                     (Some(_), _) => Some((report.first_moment, report.first_moment_ci95)),
                     (None, Some((_, a))) => {
                         let a = nalgebra::Vector3::from(a);
-                        let about_axis = move |_: f64, v: nalgebra::Vector3<f64>| (v - a * a.dot(&v)).norm();
+                        let off_axis = |v: &nalgebra::Vector3<f64>| (v - a * a.dot(v)).norm();
                         let v = nalgebra::Vector3::from(report.position) - nalgebra::Vector3::from(*pv);
-                        let (d, d_axis) = (v.norm(), (v - a * a.dot(&v)).norm());
+                        let (d, d_axis) = (v.norm(), off_axis(&v));
                         let moment = report.mass * d_axis;
                         // The pivot interval scaled to the axis, widened to the axis' jackknife.
                         let scale = if d > 0.0 { d_axis / d } else { 1.0 };
                         let mut ci = [report.first_moment_ci95[0] * scale, report.first_moment_ci95[1] * scale];
-                        if let Some(half) = self.first_moment_spread(c, pv, &about_axis) {
+                        if let Some(half) = jackknife_half(&folds.iter().map(|(_, v)| off_axis(v)).collect::<Vec<_>>()) {
                             ci = [ci[0].min(moment - half), ci[1].max(moment + half)];
                         }
                         Some((moment, ci))
                     }
                     (None, None) => None,
-                };
-                let axis_joint = pivot.axis.map(|(j, _)| self.model.joints[j].name.clone()).or_else(|| crank.and(pivot.family.as_ref()?.last().map(|&j| self.model.joints[j].name.clone())));
+                }
+                .filter(|_| joint.is_some());
                 super::payload::PayloadReport {
                     family,
-                    axis_joint: axis_moment.and(axis_joint),
+                    axis_joint: axis_moment.and(joint),
                     axis_first_moment: axis_moment.map(|m| m.0),
                     axis_first_moment_ci95: axis_moment.map(|m| m.1),
                     ..report
@@ -292,6 +285,19 @@ impl<'a> EffectReporter<'a> {
         };
         Ok((spec, report))
     }
+}
+
+/// The half-width of a 95% interval of a value from its estimates without each of the
+/// recording's parts (the jackknife: `(k - 1) / k` times their spread, Student's t at `k - 1`);
+/// `None` from fewer than three.
+fn jackknife_half(values: &[f64]) -> Option<f64> {
+    let k = values.len();
+    if k < 3 {
+        return None;
+    }
+    let mean = values.iter().sum::<f64>() / k as f64;
+    let var = (k - 1) as f64 / k as f64 * values.iter().map(|m| (m - mean).powi(2)).sum::<f64>();
+    Some(student_t975(k - 1) * var.sqrt())
 }
 
 /// Student's t 97.5% point at `dof` degrees of freedom (2 to 9; the normal's 1.96 beyond).
