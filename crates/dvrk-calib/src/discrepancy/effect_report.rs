@@ -73,10 +73,13 @@ pub(super) struct EffectReporter<'a> {
     /// body's crank (m); its family ([`super::payload_family::family`]).
     pivots: BTreeMap<String, Pivot>,
     ambiguity_bic: f64,
+    /// m/s^2, the base frame's.
+    gravity: nalgebra::Vector3<f64>,
 }
 
 /// How a payload's body moves (see [`EffectReporter::pivots`]).
 struct Pivot {
+    body: usize,
     point: [f64; 3],
     rms: f64,
     crank: Option<f64>,
@@ -97,10 +100,14 @@ impl<'a> EffectReporter<'a> {
         normals: &'a BTreeMap<String, Normal>,
         rms: (&'a [f64], &'a [f64]),
         ambiguity_bic: f64,
+        gravity: nalgebra::Vector3<f64>,
     ) -> Result<Self> {
         let mut pivots = BTreeMap::new();
         let home = model.home();
-        for link in scored.iter().filter(|e| e.kind == EffectKind::PayloadMass).filter_map(|e| e.candidate.and_then(|c| c.link.clone())) {
+        // Every body with a load's normal equations: a family member that is no candidate of
+        // its own (see `super::payload::candidates`) is still an equivalent placement.
+        let any = scored.iter().any(|e| e.kind == EffectKind::PayloadMass);
+        for link in normals.keys().filter(|_| any).cloned() {
             if let Some(f) = model.frames.iter().position(|f| f.name == link) {
                 let body = model.frames[f].body;
                 let (point, rms) = super::payload::pivot(model, body, &prep.q)?;
@@ -110,10 +117,10 @@ impl<'a> EffectReporter<'a> {
                     Some(&j) if crank.is_none() => super::payload_family::turning_axis(model, body, j, &home)?.map(|a| (j, a)),
                     _ => None,
                 };
-                pivots.insert(link, Pivot { point, rms, crank, family, axis });
+                pivots.insert(link, Pivot { body, point, rms, crank, family, axis });
             }
         }
-        Ok(EffectReporter { model, prep, base, fit, r, scored, normals, before_rms: rms.0, effort_rms: rms.1, pivots, ambiguity_bic })
+        Ok(EffectReporter { model, prep, base, fit, r, scored, normals, before_rms: rms.0, effort_rms: rms.1, pivots, ambiguity_bic, gravity })
     }
 
     /// Per joint, what an effect's effort `effect` (its nuisance's share included) explains.
@@ -132,26 +139,59 @@ impl<'a> EffectReporter<'a> {
             .collect()
     }
 
-    /// The payloads on other bodies that explain as much as `best`'s (within the ambiguity), and
-    /// those of its family ([`super::payload_family`]) whose own delta BIC is above the
-    /// ambiguity threshold, each with how far behind the named one it is.
-    fn equivalents(&self, best: &Scored) -> Vec<Placement> {
-        let family = |e: &Scored| e.candidate.and_then(|c| self.pivots.get(c.link.as_ref()?)).and_then(|p| p.family.clone());
-        let own = family(best);
-        self.scored
+    /// The payloads on other bodies that explain as much as `best`'s (within the ambiguity,
+    /// each at its own best placement), and on every other body of its family
+    /// ([`super::payload_family`]) the placement whose gravity loads the joints as the named
+    /// `mass` (kg) at `place` (m) does, each with how far behind the named one it is: what the
+    /// load's inertia says against it, its gravity being the same.
+    fn equivalents(&self, best: &Scored, mass: f64, place: [f64; 3]) -> Vec<Placement> {
+        let family = |link: &str| self.pivots.get(link).and_then(|p| p.family.clone());
+        let named = best.candidate.and_then(|c| c.link.clone()).unwrap_or_default();
+        let own = family(&named);
+        let mut out: Vec<Placement> = self
+            .scored
             .iter()
-            .filter(|e| e.kind == EffectKind::PayloadMass && e.label != best.label)
-            // A family member is listed with how far behind it is even where its place ran to a
-            // bound (its best placement then stands in for part of the load only).
-            .filter(|e| (!e.score.at_edge && e.score.delta_bic > best.score.delta_bic - self.ambiguity_bic) || (own.is_some() && family(e) == own && e.score.delta_bic > self.ambiguity_bic))
+            .filter(|e| e.kind == EffectKind::PayloadMass && e.label != best.label && !e.score.at_edge && e.score.delta_bic > best.score.delta_bic - self.ambiguity_bic)
             .filter_map(|e| {
                 let c = e.candidate?;
                 let link = c.link.clone()?;
                 let position = candidates::payload_at(&c.at, &e.score.x).unwrap_or([c.at[1], c.at[2], c.at[3]]);
-                let first_moment = self.pivots.get(&link).map_or(f64::NAN, |p| e.score.x[0] * p.crank.unwrap_or_else(|| (nalgebra::Vector3::from(position) - nalgebra::Vector3::from(p.point)).norm()));
-                Some(Placement { link, mass: e.score.x[0], position, delta_bic: e.score.delta_bic, first_moment, behind_bic: best.score.delta_bic - e.score.delta_bic })
+                Some(self.placement(link, e.score.x[0], position, e.score.delta_bic, best.score.delta_bic - e.score.delta_bic))
             })
-            .collect()
+            .collect();
+        let (Some(own), Some(pn), Some(normal)) = (own, self.pivots.get(&named), self.normals.get(&named)) else { return out };
+        let gained = super::payload::gain(normal, mass, &place);
+        let upper = EffectKind::PayloadMass.range("mass").map_or(20.0, |r| r[1]);
+        let reach = EffectKind::PayloadMass.range("x").map_or(1.0, |r| r[1]);
+        let listed: Vec<String> = out.iter().map(|p| p.link.clone()).collect();
+        for (link, p) in self.pivots.iter().filter(|(l, p)| **l != named && p.family.as_ref() == Some(&own) && !listed.contains(l)) {
+            let Some(normal) = self.normals.get(link) else { continue };
+            let Ok(Some(eq)) = super::payload_family::gravity_equivalent(self.model, &self.gravity, pn.body, mass, place, p.body, p.point, &self.prep.q) else { continue };
+            if eq.mismatch > GRAVITY_MISMATCH || eq.mass > upper || eq.place.iter().any(|x| x.abs() >= reach) {
+                continue;
+            }
+            let behind = (gained - super::payload::gain(normal, eq.mass, &eq.place)) / best.score.chi2_unit.max(1e-300);
+            out.push(self.placement(link.clone(), eq.mass, eq.place, best.score.delta_bic - behind, behind));
+        }
+        // A member with no such placement whose own best load the recording supports (above
+        // the ambiguity threshold): that load, with how far behind it is (even at a bound of
+        // its place: it then stands in for part of the load only).
+        for e in self.scored.iter().filter(|e| e.kind == EffectKind::PayloadMass && e.label != best.label && e.score.delta_bic > self.ambiguity_bic) {
+            let Some((c, link)) = e.candidate.and_then(|c| Some((c, c.link.clone()?))) else { continue };
+            if family(&link).as_ref() == Some(&own) && !out.iter().any(|p| p.link == link) {
+                let position = candidates::payload_at(&c.at, &e.score.x).unwrap_or([c.at[1], c.at[2], c.at[3]]);
+                out.push(self.placement(link, e.score.x[0], position, e.score.delta_bic, best.score.delta_bic - e.score.delta_bic));
+            }
+        }
+        // Ties (the same load on bodies that turn alike) in the links' order.
+        out.sort_by(|a, b| ((a.behind_bic * 1e3).round()).total_cmp(&(b.behind_bic * 1e3).round()).then_with(|| a.link.cmp(&b.link)));
+        out
+    }
+
+    /// `mass` (kg) at `position` (m) on `link` as the report's placement.
+    fn placement(&self, link: String, mass: f64, position: [f64; 3], delta_bic: f64, behind_bic: f64) -> Placement {
+        let first_moment = self.pivots.get(&link).map_or(f64::NAN, |p| mass * p.crank.unwrap_or_else(|| (nalgebra::Vector3::from(position) - nalgebra::Vector3::from(p.point)).norm()));
+        Placement { link, mass, position, delta_bic, first_moment, behind_bic }
     }
 
     /// Payload candidate `c`'s fit without each of the recording's [`super::nuisance::FOLDS`]
@@ -166,24 +206,26 @@ impl<'a> EffectReporter<'a> {
         Some(fits.iter().flatten().map(|x| (x[0], nalgebra::Vector3::from_fn(|k, _| x[0] * (c.at[k + 1] - pivot[k]) + x[k + 1]))).collect())
     }
 
-    /// The family's sentence: what its members share, and which the inertia prefers.
+    /// The family's sentence: what its members share, which of them the recording cannot tell
+    /// from the named body, and which the inertia argues against and how strongly.
     fn family_note(&self, link: &str, equivalent: &[Placement]) -> Option<String> {
         let own = self.pivots.get(link)?.family.as_ref()?;
         let members: Vec<&Placement> = equivalent.iter().filter(|p| self.pivots.get(&p.link).and_then(|q| q.family.as_ref()) == Some(own)).collect();
         let joints: Vec<&str> = own.iter().map(|&j| self.model.joints[j].name.as_str()).collect();
-        let behind: Vec<String> = members.iter().map(|p| format!("{} (first moment {:.4} kg m, delta BIC {:.1} behind)", p.link, p.first_moment, p.behind_bic)).collect();
-        Some(match behind.is_empty() {
-            true => format!("a load on any body that moves with {} alone loads them through gravity alike up to its placement; the recording supports one on {link} only", joints.join(" and ")),
-            false => format!(
-                "a load on any body that moves with {} alone loads them through gravity alike up to its placement; the recording also supports one on {}; {link} is preferred{}",
-                joints.join(" and "),
-                behind.join(", "),
-                match members.iter().map(|p| p.behind_bic).fold(f64::INFINITY, f64::min) {
-                    b if b < self.ambiguity_bic => " but not decisively: the recording cannot tell them apart".to_string(),
-                    b => format!(" by delta BIC {b:.1} at least (what the load's inertia and the place its gravity acts at say)"),
-                }
-            ),
-        })
+        let (tied, behind): (Vec<&Placement>, Vec<&Placement>) = members.iter().partition(|p| p.behind_bic < self.ambiguity_bic);
+        let mut note = format!("a load on any body that moves with {} alone loads them through gravity alike up to its placement", joints.join(" and "));
+        if members.is_empty() {
+            note += &format!("; no other body of them carries one that explains the recording: {link} only");
+        }
+        if !tied.is_empty() {
+            let names: Vec<&str> = tied.iter().map(|p| p.link.as_str()).collect();
+            note += &format!("; one on {} explains it as well (the recording cannot tell them from {link})", names.join(", "));
+        }
+        if !behind.is_empty() {
+            let names: Vec<String> = behind.iter().map(|p| format!("{} (first moment {:.4} kg m, delta BIC {:.1} behind)", p.link, p.first_moment, p.behind_bic)).collect();
+            note += &format!("; {link} is preferred to {}: what the load's inertia and the place its gravity acts at say", names.join(", "));
+        }
+        Some(note)
     }
 
     /// A scored candidate as a model-file effect and as the report's entry; `effect`: its fitted
@@ -197,8 +239,6 @@ impl<'a> EffectReporter<'a> {
         let payload = match e.candidate {
             Some(c) if c.kind == EffectKind::PayloadMass => c.link.as_ref().and_then(|l| Some((l, self.pivots.get(l)?, self.normals.get(l)?))).map(|(link, pivot, normal)| {
                 let (pv, spread, crank) = (&pivot.point, &pivot.rms, pivot.crank);
-                let equivalent = self.equivalents(e);
-                let family = self.family_note(link, &equivalent);
                 let place = candidates::payload_at(&c.at, &s.x).unwrap_or([c.at[1], c.at[2], c.at[3]]);
                 let mut pr = super::payload::profile(normal, place, s.x[0].max(1e-6), *pv, s.chi2_unit);
                 // A translating body's place does not move its gravity: the mass's own interval
@@ -224,7 +264,13 @@ impl<'a> EffectReporter<'a> {
                 // A mass at the vocabulary's bound: the lightest placement within the interval
                 // stands for it, in the report and the model file.
                 let upper = EffectKind::PayloadMass.range("mass").map_or(20.0, |r| r[1]);
-                let report = if s.x[0] >= upper * (1.0 - 1e-9) && pr.mass[0] < s.x[0] {
+                let bounded = s.x[0] >= upper * (1.0 - 1e-9) && pr.mass[0] < s.x[0];
+                let equivalent = match bounded {
+                    true => self.equivalents(e, pr.mass[0], pr.lightest_place),
+                    false => self.equivalents(e, s.x[0], place),
+                };
+                let family = self.family_note(link, &equivalent);
+                let report = if bounded {
                     let (mass, at) = (pr.mass[0], pr.lightest_place);
                     spec.parameters.insert("mass".into(), mass);
                     for (k, axis) in ["x", "y", "z"].iter().enumerate() {
@@ -286,6 +332,13 @@ impl<'a> EffectReporter<'a> {
         Ok((spec, report))
     }
 }
+
+/// How much of the named load's gravity (relative RMS of its potential over the recording) a
+/// family member's closest placement may leave unmatched and still be listed (with how far
+/// behind it is): a load on a body that only translates has its first moment along its crank,
+/// one on a body the insertion moves follows the insertion too; beyond this the body carries
+/// no equivalent load.
+const GRAVITY_MISMATCH: f64 = 0.2;
 
 /// The half-width of a 95% interval of a value from its estimates without each of the
 /// recording's parts (the jackknife: `(k - 1) / k` times their spread, Student's t at `k - 1`);

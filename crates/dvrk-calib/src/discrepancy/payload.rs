@@ -194,16 +194,20 @@ pub fn candidates(model: &Model, bodies: &BodyColumns, fit: &Fitter, r: &Table, 
         let cols = taken.pop().unwrap_or_default();
         let cols = &cols;
         let a = train.matrix(cols);
+        let link = model.frames[model.bodies[b].frames[0]].name.clone();
+        let (g, bv) = fit.normal_equations(&a, &y);
+        normals.insert(link.clone(), (g.clone(), bv.clone()));
+        // A body whose frame's origin lies on the axes that move it (the PSM's parallelogram's
+        // back and front links, on the pitch's and the yaw's) is no candidate of its own: it
+        // turns as `pitch_end` does about a point of the same axes, so a load on it is one on
+        // `pitch_end` exactly (the report lists it as that load's equivalent).
         if a.column(0).amax() < 1e-12 {
             continue;
         }
-        let (g, bv) = fit.normal_equations(&a, &y);
         let at = best_place(&g, &bv).map_or([0.0; 3], |(p, _)| p);
         let mut columns = vec![combine(cols, &phi(&at), model.nq())];
         columns.extend((0..3).map(|k| combine(cols, &dphi(&at, k), model.nq())));
         let focus = focus_of(prep, &columns[0]);
-        let link = model.frames[model.bodies[b].frames[0]].name.clone();
-        normals.insert(link.clone(), (g, bv));
         out.push(Candidate {
             kind: EffectKind::PayloadMass,
             joint: None,
@@ -238,14 +242,17 @@ pub struct Profile {
     pub distance: [f64; 2],
 }
 
+/// The residual's drop (the fit's squared units) of a point mass `mass` (kg) at `place` (m) on
+/// a body with normal equations `normal`, the inertias refitted within their prior.
+pub fn gain(normal: &Normal, mass: f64, place: &[f64; 3]) -> f64 {
+    let (g, b) = normal;
+    let f = DVector::from_column_slice(&phi(place));
+    2.0 * mass * b.dot(&f) - mass * mass * (g * &f).dot(&f)
+}
+
 /// [`Profile`] of a payload best at `place`, `mass` on a body with normal equations `normal`.
 pub fn profile(normal: &Normal, place: [f64; 3], mass: f64, pivot: [f64; 3], chi2_unit: f64) -> Profile {
-    let (g, b) = normal;
-    // The residual's drop (rss units) of mass m at p.
-    let gain = |m: f64, p: &[f64; 3]| {
-        let f = DVector::from_column_slice(&phi(p));
-        2.0 * m * b.dot(&f) - m * m * (g * &f).dot(&f)
-    };
+    let gain = |m: f64, p: &[f64; 3]| gain(normal, m, p);
     let best = gain(mass, &place);
     let c = Vector3::from(pivot);
     let mut out = Profile { mass: [mass; 2], lightest_place: place, position: std::array::from_fn(|k| [place[k]; 2]), first_moment: [0.0; 2], distance: [0.0; 2] };

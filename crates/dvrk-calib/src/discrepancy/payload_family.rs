@@ -95,6 +95,77 @@ pub fn crank(model: &Model, body: usize, q: &[Vec<f64>]) -> Result<Option<f64>> 
     Ok((r2 > 0.0).then(|| r2.sqrt()))
 }
 
+/// A gravity-equivalent placement ([`gravity_equivalent`]): mass (kg), place (m, the body's
+/// first frame), and how much of the named load's gravity it leaves unmatched (relative RMS).
+#[derive(Debug, Clone, Copy)]
+pub struct Equivalent {
+    pub mass: f64,
+    pub place: [f64; 3],
+    pub mismatch: f64,
+}
+
+/// Where on `body` a load loads the joints through gravity as `mass` (kg) at `place` (m, in
+/// `named`'s first frame) does over the recorded configurations `q` (`gravity`: m/s^2, base
+/// frame): the load's potential energy `m g.t(q) + g.R(q) h` matched up to a constant by least
+/// squares in the mass and the first moment `k` about `near` (m, `body`'s frame; its pivot).
+/// What gravity leaves free keeps the named load's values: the same mass, where the body turns
+/// about `near`, and no first moment about it, where it only translates. `None` without a
+/// positive mass.
+#[allow(clippy::too_many_arguments)]
+pub fn gravity_equivalent(model: &Model, gravity: &Vector3<f64>, named: usize, mass: f64, place: [f64; 3], body: usize, near: [f64; 3], q: &[Vec<f64>]) -> Result<Option<Equivalent>> {
+    let (fa, fb) = (model.bodies[named].frames[0], model.bodies[body].frames[0]);
+    let (p, c) = (Vector3::from(place), Vector3::from(near));
+    let stride = (q.len() / 400).max(1);
+    let (mut rows, mut y) = (Vec::new(), Vec::new());
+    for qi in q.iter().step_by(stride) {
+        let f = model.fk(qi).map_err(|e| crate::error::CalibError::context("payload equivalent", e))?;
+        let (a, b) = (&f[fa], &f[fb]);
+        y.push(mass * gravity.dot(&(a * nalgebra::Point3::from(p)).coords));
+        // Unknowns (m, k): the point mass m at near + k / m, its potential g.(t + R (m near + k)).
+        let gr = b.rotation.inverse() * gravity;
+        rows.push([gravity.dot(&(b * nalgebra::Point3::from(c)).coords), gr.x, gr.y, gr.z]);
+    }
+    let n = y.len();
+    if n < 3 {
+        return Ok(None);
+    }
+    // The constant dropped by centring; the named load's own values subtracted, so that the
+    // least-squares minimum norm keeps them where gravity does not decide.
+    let u0 = [mass, 0.0, 0.0, 0.0];
+    let mean = |v: &dyn Fn(usize) -> f64| (0..n).map(v).sum::<f64>() / n as f64;
+    let ym = mean(&|i| y[i] - (0..4).map(|k| rows[i][k] * u0[k]).sum::<f64>());
+    let cm: [f64; 4] = std::array::from_fn(|k| mean(&|i| rows[i][k]));
+    let mut a = nalgebra::DMatrix::zeros(n, 4);
+    let mut r = nalgebra::DVector::zeros(n);
+    for i in 0..n {
+        for k in 0..4 {
+            a[(i, k)] = rows[i][k] - cm[k];
+        }
+        r[i] = y[i] - (0..4).map(|k| rows[i][k] * u0[k]).sum::<f64>() - ym;
+    }
+    let target = nalgebra::DVector::from_fn(n, |i, _| y[i]);
+    let spread = (target.add_scalar(-target.mean())).norm();
+    if spread <= 0.0 {
+        return Ok(None);
+    }
+    // Unit columns; one gravity does not see at all (the mass of a body turning about `near`:
+    // its potential is constant) is dropped, not scaled up from round-off.
+    let norms: Vec<f64> = (0..4).map(|k| a.column(k).norm()).collect();
+    let largest = norms.iter().copied().fold(0.0, f64::max);
+    let scale: Vec<f64> = norms.iter().map(|&v| if v > 1e-9 * largest { 1.0 / v } else { 0.0 }).collect();
+    for k in 0..4 {
+        a.column_mut(k).scale_mut(scale[k]);
+    }
+    let Ok(d) = a.clone().svd(true, true).solve(&r, 1e-6) else { return Ok(None) };
+    let mismatch = (&a * &d - &r).norm() / spread;
+    let u: [f64; 4] = std::array::from_fn(|k| u0[k] + d[k] * scale[k]);
+    if u[0] <= 0.0 {
+        return Ok(None);
+    }
+    let at = c + Vector3::new(u[1], u[2], u[3]) / u[0];
+    Ok(Some(Equivalent { mass: u[0], place: [at.x, at.y, at.z], mismatch }))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -117,5 +188,32 @@ mod tests {
         let r = crank(&model, body("pitch_bottom"), &q).unwrap().unwrap();
         assert!((r - 0.150).abs() < 1e-9, "{r}");
         assert_eq!(crank(&model, body("pitch_end"), &q).unwrap(), None);
+    }
+
+    /// A load on the bottom link (which translates on its 0.150 m crank; at its frame's origin,
+    /// on the yaw's axis: elsewhere its yaw load differs) has a gravity-equivalent
+    /// placement on `pitch_end` (which turns about the remote centre) with the same mass and
+    /// the crank's first moment about that centre, and back: the bottom link's placement for
+    /// that load is the same mass again. The back link turns as `pitch_end` does: the same
+    /// mass at the same first moment. The yaw link carries none (mismatch near 1).
+    #[test]
+    fn a_load_on_the_pitch_linkage_has_a_gravity_equivalent_on_each_of_its_bodies() {
+        let model = dvrk_kin::load("psm", None).unwrap();
+        let home = model.home();
+        let body = |frame: &str| model.frames[model.frames.iter().position(|f| f.name == frame).unwrap()].body;
+        let q: Vec<Vec<f64>> = (0..200).map(|i| { let mut q = home.clone(); q[0] = 0.4 * (0.1 * i as f64).sin(); q[1] = 0.5 * (0.13 * i as f64).cos(); q[2] = 0.1 + 0.05 * (0.07 * i as f64).sin(); q }).collect();
+        let g = Vector3::new(0.0, 0.0, -9.81);
+        let rcm = crate::discrepancy::payload::pivot(&model, body("pitch_end"), &q).unwrap().0;
+        let on_end = gravity_equivalent(&model, &g, body("pitch_bottom"), 0.2, [0.0; 3], body("pitch_end"), rcm, &q).unwrap().unwrap();
+        let moment = on_end.mass * (Vector3::from(on_end.place) - Vector3::from(rcm)).norm();
+        assert!(on_end.mismatch < 1e-6 && (on_end.mass - 0.2).abs() < 1e-9 && (moment - 0.2 * 0.150).abs() < 1e-6, "{on_end:?} {moment}");
+        let back = gravity_equivalent(&model, &g, body("pitch_end"), 0.2, on_end.place, body("pitch_bottom"), [0.0; 3], &q).unwrap().unwrap();
+        assert!(back.mismatch < 1e-6 && (back.mass - 0.2).abs() < 1e-6, "{back:?}");
+        let pivot = crate::discrepancy::payload::pivot(&model, body("pitch_back"), &q).unwrap().0;
+        let on_back = gravity_equivalent(&model, &g, body("pitch_end"), 0.2, on_end.place, body("pitch_back"), pivot, &q).unwrap().unwrap();
+        let back_moment = on_back.mass * (Vector3::from(on_back.place) - Vector3::from(pivot)).norm();
+        assert!(on_back.mismatch < 1e-6 && (back_moment - moment).abs() < 1e-9, "{on_back:?}");
+        let yaw = gravity_equivalent(&model, &g, body("pitch_end"), 0.2, on_end.place, body("yaw"), [0.0; 3], &q).unwrap();
+        assert!(yaw.is_none_or(|e| e.mismatch > 0.5), "{yaw:?}");
     }
 }

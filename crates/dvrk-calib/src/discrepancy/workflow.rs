@@ -218,7 +218,7 @@ fn analyse(model: &Model, scene: &Scene, arm_name: &str, log: &JointLog, prep: &
     let tr = 0..prep.split;
     let effort_rms: Vec<f64> = (0..nq).map(|k| rms(&prep.effort, k, tr.clone())).collect();
     let before_rms: Vec<f64> = (0..nq).map(|k| rms(&f0, k, tr.clone())).collect();
-    let reporter = EffectReporter::new(&arm.model, prep, &b.base, &fit, r, &scored, &payload_normals, (&before_rms, &effort_rms), o.ambiguity_bic)?;
+    let reporter = EffectReporter::new(&arm.model, prep, &b.base, &fit, r, &scored, &payload_normals, (&before_rms, &effort_rms), o.ambiguity_bic, b.gravity_vector)?;
     // 6. The verdict; after: the model with the named effect, the inertias refitted with it.
     let v = verdict(&scored, gates, &fit, r, prep, o)?;
     let mut effects = Vec::new();
