@@ -59,7 +59,6 @@ pub use crate::spec::EffectSpec;
 pub use crate::vocabulary::{coupling_entry_name, coupling_error_range, cross_spring_source, Effect, EffectKind, ParameterInfo, Target, COUPLING_ERROR_FRACTION, CROSS_SPRING_RANGE};
 pub(crate) use crate::vocabulary::coupling_entry;
 pub use crate::play::motion_play;
-pub use crate::presliding::{dahl_state, dahl_step, PreslidingState};
 
 
 /// Check the model's `[[effects]]` against the vocabulary, the model's joints and frames and the
@@ -236,7 +235,7 @@ pub fn coulomb_level(e: &Effect, a: f64, v: f64) -> f64 {
 /// `-(level sign(qd) + fd sign(qd) + offset) - fv qd - k (q - rest)` per joint, the force the
 /// effect exerts on the joint, with the Coulomb level `fc + fq q^2 + fs exp(-(qd / vs)^2)`
 /// (winding and Stribeck terms; never below 0: friction does not push) and the presliding level
-/// `fd` at its sliding limit (no history here: [`effort_with_presliding`] carries it); an
+/// `fd` at its sliding limit (no history here: [`crate::presliding::effort_with_presliding`] carries it); an
 /// actuator's the same law in its position `a = w . q` and velocity, reaching joint `j` as `w_j
 /// f` ([`Effect::transmission`]), and an `actuator_cross_spring`'s force `-u . q`
 /// ([`Effect::cross`]) the same way. The sign is smoothed, `tanh(qd / v)`, with `v` the larger of
@@ -245,13 +244,9 @@ pub fn effort(effects: &[Effect], q: &[f64], qd: &[f64], velocity_scale: f64, ou
     effort_impl(effects, q, qd, None, velocity_scale, out)
 }
 
-/// [`effort`] with each Coulomb friction's presliding force `fd z` from its Dahl state `z`
-/// (`states.z[k]` for `effects[k]`, [`PreslidingState`]) in place of its sliding limit.
-pub fn effort_with_presliding(effects: &[Effect], q: &[f64], qd: &[f64], states: &PreslidingState, velocity_scale: f64, out: &mut [f64]) {
-    effort_impl(effects, q, qd, Some(&states.z), velocity_scale, out)
-}
-
-fn effort_impl(effects: &[Effect], q: &[f64], qd: &[f64], z: Option<&[f64]>, velocity_scale: f64, out: &mut [f64]) {
+/// [`effort`], with each Coulomb friction's presliding force `fd z[k]` from its Dahl state
+/// (`z[k]` for `effects[k]`; `None`: at its sliding limit): [`crate::presliding`] carries them.
+pub(crate) fn effort_impl(effects: &[Effect], q: &[f64], qd: &[f64], z: Option<&[f64]>, velocity_scale: f64, out: &mut [f64]) {
     let dot = |w: &[(usize, f64)], x: &[f64]| w.iter().map(|(j, c)| c * x[*j]).sum::<f64>();
     let sign = |e: &Effect, v: f64| {
         let scale = velocity_scale.max(e.get("smoothing"));

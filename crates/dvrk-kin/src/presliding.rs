@@ -5,7 +5,7 @@
 //! parameters of a Coulomb friction effect), dvrk-sim steps it with the joints, the discrepancy
 //! workflow's baseline computes it along a recording. All three use [`dahl_step`].
 
-use crate::effects::{Effect, EffectKind};
+use crate::effects::{effort_impl, Effect, EffectKind};
 
 /// The Dahl state after a step `dq` (rad, m) from `z`, for presliding displacement `sigma` (rad,
 /// m): the exact solution of `dz/dq = (1 - z sgn(dq)) / sigma` over the step, `z <- s + (z - s)
@@ -49,7 +49,7 @@ pub fn has_presliding(e: &Effect) -> bool {
 }
 
 /// The Dahl states of a list of effects, one per effect (0 for those without presliding), stepped
-/// with the joints: the workspace of [`crate::effects::effort_with_presliding`]. Allocates only
+/// with the joints: the workspace of [`effort_with_presliding`]. Allocates only
 /// when built.
 #[derive(Debug, Clone)]
 pub struct PreslidingState {
@@ -76,6 +76,13 @@ impl PreslidingState {
             self.last[k] = a;
         }
     }
+}
+
+/// [`crate::effects::effort`] with each Coulomb friction's presliding force `fd z` from its Dahl
+/// state `z` (`states.z[k]` for `effects[k]`) in place of its sliding limit (N·m, N, added to
+/// `out`).
+pub fn effort_with_presliding(effects: &[Effect], q: &[f64], qd: &[f64], states: &PreslidingState, velocity_scale: f64, out: &mut [f64]) {
+    effort_impl(effects, q, qd, Some(&states.z), velocity_scale, out)
 }
 
 #[cfg(test)]

@@ -20,7 +20,8 @@
 //! Allocation happens at build time only.
 
 use crate::error::{Result, SimError};
-use dvrk_kin::effects::{Effect, EffectKind, PreslidingState};
+use dvrk_kin::effects::{Effect, EffectKind};
+use dvrk_kin::presliding::PreslidingState;
 use dvrk_kin::Model;
 use nalgebra::{DMatrix, DVector, DVectorView};
 
@@ -310,7 +311,7 @@ impl ArmEffects {
         match self.presliding.as_mut() {
             Some(states) => {
                 states.advance(&self.forces, q);
-                dvrk_kin::effects::effort_with_presliding(&self.forces, q, qd, states, self.velocity_scale, &mut self.force);
+                dvrk_kin::presliding::effort_with_presliding(&self.forces, q, qd, states, self.velocity_scale, &mut self.force);
             }
             None => dvrk_kin::effects::effort(&self.forces, q, qd, self.velocity_scale, &mut self.force),
         }

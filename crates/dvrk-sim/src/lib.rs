@@ -36,6 +36,7 @@ pub mod ros2;
 pub mod run;
 mod run_tally;
 pub mod scene;
+mod command_mode;
 pub mod serve;
 pub mod serve_cp;
 pub mod serve_teleop;

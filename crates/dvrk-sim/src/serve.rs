@@ -34,6 +34,7 @@
 //! with no blocking time.
 
 use crate::control::Mode;
+use crate::command_mode::leave_effort;
 use crate::error::{Result, SimError};
 use crate::live::Live;
 use crate::recording::ros_msgs::JointState;
@@ -359,15 +360,6 @@ struct Moves {
     active: Vec<Option<crate::joint_move::JointMove>>,
     v_max: Vec<f64>,
     a_max: Vec<f64>,
-}
-
-/// A position command (servo or move) takes joint `i` back from effort mode (`servo_jf`, a
-/// disabled arm) to the mode it started in, `modes[i]`.
-pub(crate) fn leave_effort(sim: &mut Sim, i: usize, modes: &[Mode]) -> Result<()> {
-    if sim.actuator(i)?.mode == Mode::Effort {
-        sim.set_mode(i, modes[i])?;
-    }
-    Ok(())
 }
 
 impl Moves {

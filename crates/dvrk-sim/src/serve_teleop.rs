@@ -138,7 +138,7 @@ impl LiveTeleop {
         let followed = self.follower.step(sim.time, &sample, self.gripper_value.is_some(), &mut self.q)?;
         if followed {
             for (k, &i) in self.joints.iter().enumerate() {
-                crate::serve::leave_effort(sim, i, modes)?;
+                crate::command_mode::leave_effort(sim, i, modes)?;
                 sim.set_target(i, self.q[k], 0.0)?;
             }
         }

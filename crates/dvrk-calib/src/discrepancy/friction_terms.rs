@@ -9,7 +9,7 @@
 //! an effect of its own, a negative one would be clipped by the Coulomb level's floor at 0
 //! ([`dvrk_kin::effects::coulomb_level`]). Presliding and cross springs take either sign.
 
-use super::candidates::{local, names, spread, Candidate};
+use super::candidate::{focus_of, local, names, spread, Candidate};
 use super::signals::{Prepared, COULOMB_SMOOTHING_DEFAULT};
 use super::signature::Signature;
 use dvrk_kin::effects::{actuator_transmission, EffectKind, CROSS_SPRING_RANGE};
@@ -55,7 +55,7 @@ impl Slider<'_> {
 
     fn candidate(&self, prep: &Prepared, kind: EffectKind, name: &str, grid: Vec<(f64, Signature)>, profile: Option<&'static str>, range: Option<[f64; 2]>, fixed: Vec<(&'static str, f64)>) -> Candidate {
         let middle = grid[grid.len() / 2].1.clone();
-        let focus = super::candidates::focus_of(prep, &middle);
+        let focus = focus_of(prep, &middle);
         Candidate {
             kind,
             joint: self.joint,
@@ -139,7 +139,7 @@ pub fn candidates(model: &dvrk_kin::Model, prep: &Prepared) -> Vec<Candidate> {
         // the motor supplies it), reaching the joints through a's cables.
         for (n, wn) in coupled.iter().filter(|(n, _)| n != a) {
             let column = spread(nq, w, &position(wn));
-            let focus = super::candidates::focus_of(prep, &column);
+            let focus = focus_of(prep, &column);
             out.push(Candidate {
                 kind: EffectKind::ActuatorCrossSpring,
                 joint: None,

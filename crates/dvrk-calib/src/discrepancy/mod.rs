@@ -20,6 +20,7 @@
 //! without efforts ([`kinematic_only`]).
 
 mod baseline;
+pub mod candidate;
 pub mod candidates;
 pub mod consistency;
 pub mod drive;

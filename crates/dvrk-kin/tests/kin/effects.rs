@@ -376,7 +376,7 @@ fn winding_stribeck_and_cross_springs_in_closed_form() {
 /// exact Dahl law from where the effect last was.
 #[test]
 fn presliding_is_the_sliding_limit_without_a_state_and_fd_z_with_one() {
-    use dvrk_kin::effects::{dahl_step, effort_with_presliding, PreslidingState};
+    use dvrk_kin::presliding::{dahl_step, effort_with_presliding, PreslidingState};
     let m = psm_with(
         "[[effects]]\nname = \"coulomb_friction\"\njoint = \"outer_pitch\"\nparameters = { fc = 0.05, fd = 0.1, sigma = 0.02 }\n\
          [[effects]]\nname = \"actuator_coulomb_friction\"\nactuator = 6\nparameters = { fc = 0.0, fd = 0.01, sigma = 0.05 }\n",

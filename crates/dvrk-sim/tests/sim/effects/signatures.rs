@@ -137,7 +137,7 @@ fn a_presliding_friction_turns_over_along_the_dahl_state_at_each_reversal() {
     let base = yaw_sine(&load("psm"), 0.3, 0.2, 10.0);
     let with = yaw_sine(&psm_with(&format!("[[effects]]\nname = \"coulomb_friction\"\njoint = \"outer_yaw\"\nparameters = {{ fc = 0.0, fd = {fd}, sigma = {sigma} }}\n")), 0.3, 0.2, 10.0);
     let path: Vec<f64> = with.iter().map(|w| w.1).collect();
-    let z = dvrk_sim::dvrk_kin::effects::dahl_state(&path, sigma);
+    let z = dvrk_sim::dvrk_kin::presliding::dahl_state(&path, sigma);
     let (mut worst, mut turning) = (0.0f64, 0);
     for ((w, b), z) in with.iter().zip(&base).zip(&z).skip(1000) {
         worst = worst.max((w.3 - b.3 - fd * z).abs());
