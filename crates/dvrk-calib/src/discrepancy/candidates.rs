@@ -298,6 +298,7 @@ fn coupling(predictor: &Predictor, arm: &dvrk_sim::scene::Arm, gravity: [f64; 3]
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::discrepancy::stats::Bounds;
 
     #[test]
     fn a_payload_fit_is_a_point_mass_only_with_a_mass_at_a_place_in_range() {
