@@ -75,6 +75,9 @@ pub(super) struct EffectReporter<'a> {
     ambiguity_bic: f64,
     /// m/s^2, the base frame's.
     gravity: nalgebra::Vector3<f64>,
+    /// Every frame's pose at the sampled recorded configurations, taken at the first payload's
+    /// report ([`super::payload_family::sampled_frames`]).
+    frames: std::sync::OnceLock<Option<Vec<Vec<dvrk_kin::Pose>>>>,
 }
 
 /// How a payload's body moves (see [`EffectReporter::pivots`]).
@@ -120,7 +123,7 @@ impl<'a> EffectReporter<'a> {
                 pivots.insert(link, Pivot { body, point, rms, crank, family, axis });
             }
         }
-        Ok(EffectReporter { model, prep, base, fit, r, scored, normals, before_rms: rms.0, effort_rms: rms.1, pivots, ambiguity_bic, gravity })
+        Ok(EffectReporter { model, prep, base, fit, r, scored, normals, before_rms: rms.0, effort_rms: rms.1, pivots, ambiguity_bic, gravity, frames: std::sync::OnceLock::new() })
     }
 
     /// Per joint, what an effect's effort `effect` (its nuisance's share included) explains.
@@ -160,13 +163,14 @@ impl<'a> EffectReporter<'a> {
             })
             .collect();
         let (Some(own), Some(pn), Some(normal)) = (own, self.pivots.get(&named), self.normals.get(&named)) else { return out };
+        let Some(frames) = self.frames.get_or_init(|| super::payload_family::sampled_frames(self.model, &self.prep.q).ok()).as_deref() else { return out };
         let gained = super::payload::gain(normal, mass, &place);
         let upper = EffectKind::PayloadMass.range("mass").map_or(20.0, |r| r[1]);
         let reach = EffectKind::PayloadMass.range("x").map_or(1.0, |r| r[1]);
         let listed: Vec<String> = out.iter().map(|p| p.link.clone()).collect();
         for (link, p) in self.pivots.iter().filter(|(l, p)| **l != named && p.family.as_ref() == Some(&own) && !listed.contains(l)) {
             let Some(normal) = self.normals.get(link) else { continue };
-            let Ok(Some(eq)) = super::payload_family::gravity_equivalent(self.model, &self.gravity, pn.body, mass, place, p.body, p.point, &self.prep.q) else { continue };
+            let Some(eq) = super::payload_family::gravity_equivalent(self.model, &self.gravity, pn.body, mass, place, p.body, p.point, frames) else { continue };
             if eq.mismatch > GRAVITY_MISMATCH || eq.mass > upper || eq.place.iter().any(|x| x.abs() >= reach) {
                 continue;
             }

@@ -104,21 +104,26 @@ pub struct Equivalent {
     pub mismatch: f64,
 }
 
+/// The poses of every frame at up to 400 of the recorded configurations `q` (evenly strided):
+/// what [`gravity_equivalent`] matches over, taken once for all of a family's bodies.
+pub fn sampled_frames(model: &Model, q: &[Vec<f64>]) -> Result<Vec<Vec<Pose>>> {
+    let stride = (q.len() / 400).max(1);
+    q.iter().step_by(stride).map(|qi| model.fk(qi).map_err(|e| crate::error::CalibError::context("payload equivalent", e))).collect()
+}
+
 /// Where on `body` a load loads the joints through gravity as `mass` (kg) at `place` (m, in
-/// `named`'s first frame) does over the recorded configurations `q` (`gravity`: m/s^2, base
-/// frame): the load's potential energy `m g.t(q) + g.R(q) h` matched up to a constant by least
-/// squares in the mass and the first moment `k` about `near` (m, `body`'s frame; its pivot).
-/// What gravity leaves free keeps the named load's values: the same mass, where the body turns
-/// about `near`, and no first moment about it, where it only translates. `None` without a
-/// positive mass.
+/// `named`'s first frame) does over the configurations whose frame poses are `frames`
+/// ([`sampled_frames`]; `gravity`: m/s^2, base frame): the load's potential energy
+/// `m g.t(q) + g.R(q) h` matched up to a constant by least squares in the mass and the first
+/// moment `k` about `near` (m, `body`'s frame; its pivot). What gravity leaves free keeps the
+/// named load's values: the same mass, where the body turns about `near`, and no first moment
+/// about it, where it only translates. `None` without a positive mass.
 #[allow(clippy::too_many_arguments)]
-pub fn gravity_equivalent(model: &Model, gravity: &Vector3<f64>, named: usize, mass: f64, place: [f64; 3], body: usize, near: [f64; 3], q: &[Vec<f64>]) -> Result<Option<Equivalent>> {
+pub fn gravity_equivalent(model: &Model, gravity: &Vector3<f64>, named: usize, mass: f64, place: [f64; 3], body: usize, near: [f64; 3], frames: &[Vec<Pose>]) -> Option<Equivalent> {
     let (fa, fb) = (model.bodies[named].frames[0], model.bodies[body].frames[0]);
     let (p, c) = (Vector3::from(place), Vector3::from(near));
-    let stride = (q.len() / 400).max(1);
-    let (mut rows, mut y) = (Vec::new(), Vec::new());
-    for qi in q.iter().step_by(stride) {
-        let f = model.fk(qi).map_err(|e| crate::error::CalibError::context("payload equivalent", e))?;
+    let (mut rows, mut y) = (Vec::with_capacity(frames.len()), Vec::with_capacity(frames.len()));
+    for f in frames {
         let (a, b) = (&f[fa], &f[fb]);
         y.push(mass * gravity.dot(&(a * nalgebra::Point3::from(p)).coords));
         // Unknowns (m, k): the point mass m at near + k / m, its potential g.(t + R (m near + k)).
@@ -127,7 +132,7 @@ pub fn gravity_equivalent(model: &Model, gravity: &Vector3<f64>, named: usize, m
     }
     let n = y.len();
     if n < 3 {
-        return Ok(None);
+        return None;
     }
     // The constant dropped by centring; the named load's own values subtracted, so that the
     // least-squares minimum norm keeps them where gravity does not decide.
@@ -146,7 +151,7 @@ pub fn gravity_equivalent(model: &Model, gravity: &Vector3<f64>, named: usize, m
     let target = nalgebra::DVector::from_fn(n, |i, _| y[i]);
     let spread = (target.add_scalar(-target.mean())).norm();
     if spread <= 0.0 {
-        return Ok(None);
+        return None;
     }
     // Unit columns; one gravity does not see at all (the mass of a body turning about `near`:
     // its potential is constant) is dropped, not scaled up from round-off.
@@ -156,14 +161,14 @@ pub fn gravity_equivalent(model: &Model, gravity: &Vector3<f64>, named: usize, m
     for k in 0..4 {
         a.column_mut(k).scale_mut(scale[k]);
     }
-    let Ok(d) = a.clone().svd(true, true).solve(&r, 1e-6) else { return Ok(None) };
+    let d = a.clone().svd(true, true).solve(&r, 1e-6).ok()?;
     let mismatch = (&a * &d - &r).norm() / spread;
     let u: [f64; 4] = std::array::from_fn(|k| u0[k] + d[k] * scale[k]);
     if u[0] <= 0.0 {
-        return Ok(None);
+        return None;
     }
     let at = c + Vector3::new(u[1], u[2], u[3]) / u[0];
-    Ok(Some(Equivalent { mass: u[0], place: [at.x, at.y, at.z], mismatch }))
+    Some(Equivalent { mass: u[0], place: [at.x, at.y, at.z], mismatch })
 }
 
 #[cfg(test)]
@@ -203,17 +208,18 @@ mod tests {
         let body = |frame: &str| model.frames[model.frames.iter().position(|f| f.name == frame).unwrap()].body;
         let q: Vec<Vec<f64>> = (0..200).map(|i| { let mut q = home.clone(); q[0] = 0.4 * (0.1 * i as f64).sin(); q[1] = 0.5 * (0.13 * i as f64).cos(); q[2] = 0.1 + 0.05 * (0.07 * i as f64).sin(); q }).collect();
         let g = Vector3::new(0.0, 0.0, -9.81);
+        let frames = sampled_frames(&model, &q).unwrap();
         let rcm = crate::discrepancy::payload::pivot(&model, body("pitch_end"), &q).unwrap().0;
-        let on_end = gravity_equivalent(&model, &g, body("pitch_bottom"), 0.2, [0.0; 3], body("pitch_end"), rcm, &q).unwrap().unwrap();
+        let on_end = gravity_equivalent(&model, &g, body("pitch_bottom"), 0.2, [0.0; 3], body("pitch_end"), rcm, &frames).unwrap();
         let moment = on_end.mass * (Vector3::from(on_end.place) - Vector3::from(rcm)).norm();
         assert!(on_end.mismatch < 1e-6 && (on_end.mass - 0.2).abs() < 1e-9 && (moment - 0.2 * 0.150).abs() < 1e-6, "{on_end:?} {moment}");
-        let back = gravity_equivalent(&model, &g, body("pitch_end"), 0.2, on_end.place, body("pitch_bottom"), [0.0; 3], &q).unwrap().unwrap();
+        let back = gravity_equivalent(&model, &g, body("pitch_end"), 0.2, on_end.place, body("pitch_bottom"), [0.0; 3], &frames).unwrap();
         assert!(back.mismatch < 1e-6 && (back.mass - 0.2).abs() < 1e-6, "{back:?}");
         let pivot = crate::discrepancy::payload::pivot(&model, body("pitch_back"), &q).unwrap().0;
-        let on_back = gravity_equivalent(&model, &g, body("pitch_end"), 0.2, on_end.place, body("pitch_back"), pivot, &q).unwrap().unwrap();
+        let on_back = gravity_equivalent(&model, &g, body("pitch_end"), 0.2, on_end.place, body("pitch_back"), pivot, &frames).unwrap();
         let back_moment = on_back.mass * (Vector3::from(on_back.place) - Vector3::from(pivot)).norm();
         assert!(on_back.mismatch < 1e-6 && (back_moment - moment).abs() < 1e-9, "{on_back:?}");
-        let yaw = gravity_equivalent(&model, &g, body("pitch_end"), 0.2, on_end.place, body("yaw"), [0.0; 3], &q).unwrap();
+        let yaw = gravity_equivalent(&model, &g, body("pitch_end"), 0.2, on_end.place, body("yaw"), [0.0; 3], &frames);
         assert!(yaw.is_none_or(|e| e.mismatch > 0.5), "{yaw:?}");
     }
 }
