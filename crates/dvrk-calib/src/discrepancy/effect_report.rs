@@ -75,9 +75,10 @@ pub(super) struct EffectReporter<'a> {
     ambiguity_bic: f64,
     /// m/s^2, the base frame's.
     gravity: nalgebra::Vector3<f64>,
-    /// Every frame's pose at the sampled recorded configurations, taken at the first payload's
-    /// report ([`super::payload_family::sampled_frames`]).
-    frames: std::sync::OnceLock<Option<Vec<Vec<dvrk_kin::Pose>>>>,
+    /// Every frame's pose at the sampled recorded configurations
+    /// ([`super::payload_family::sampled_frames`]; none without a payload candidate): what the
+    /// pivots, the cranks and the family's gravity-equivalent placements are found over.
+    frames: Vec<Vec<dvrk_kin::Pose>>,
 }
 
 /// How a payload's body moves (see [`EffectReporter::pivots`]).
@@ -110,11 +111,12 @@ impl<'a> EffectReporter<'a> {
         // Every body with a load's normal equations: a family member that is no candidate of
         // its own (see `super::payload::candidates`) is still an equivalent placement.
         let any = scored.iter().any(|e| e.kind == EffectKind::PayloadMass);
+        let frames = if any { super::payload_family::sampled_frames(model, &prep.q)? } else { Vec::new() };
         for link in normals.keys().filter(|_| any).cloned() {
             if let Some(f) = model.frames.iter().position(|f| f.name == link) {
                 let body = model.frames[f].body;
-                let (point, rms) = super::payload::pivot(model, body, &prep.q)?;
-                let crank = super::payload_family::crank(model, body, &prep.q)?;
+                let (point, rms) = super::payload::pivot(model, body, &frames);
+                let crank = super::payload_family::crank(model, body, &frames);
                 let family = super::payload_family::family(model, body, &home)?;
                 let axis = match family.as_ref().and_then(|f| f.last()) {
                     Some(&j) if crank.is_none() => super::payload_family::turning_axis(model, body, j, &home)?.map(|a| (j, a)),
@@ -123,7 +125,7 @@ impl<'a> EffectReporter<'a> {
                 pivots.insert(link, Pivot { body, point, rms, crank, family, axis });
             }
         }
-        Ok(EffectReporter { model, prep, base, fit, r, scored, normals, before_rms: rms.0, effort_rms: rms.1, pivots, ambiguity_bic, gravity, frames: std::sync::OnceLock::new() })
+        Ok(EffectReporter { model, prep, base, fit, r, scored, normals, before_rms: rms.0, effort_rms: rms.1, pivots, ambiguity_bic, gravity, frames })
     }
 
     /// Per joint, what an effect's effort `effect` (its nuisance's share included) explains.
@@ -148,29 +150,19 @@ impl<'a> EffectReporter<'a> {
     /// `mass` (kg) at `place` (m) does, each with how far behind the named one it is: what the
     /// load's inertia says against it, its gravity being the same.
     fn equivalents(&self, best: &Scored, mass: f64, place: [f64; 3]) -> Vec<Placement> {
-        let family = |link: &str| self.pivots.get(link).and_then(|p| p.family.clone());
+        let family = |link: &str| self.pivots.get(link).and_then(|p| p.family.as_ref());
         let named = best.candidate.and_then(|c| c.link.clone()).unwrap_or_default();
         let own = family(&named);
-        let mut out: Vec<Placement> = self
-            .scored
-            .iter()
-            .filter(|e| e.kind == EffectKind::PayloadMass && e.label != best.label && !e.score.at_edge && e.score.delta_bic > best.score.delta_bic - self.ambiguity_bic)
-            .filter_map(|e| {
-                let c = e.candidate?;
-                let link = c.link.clone()?;
-                let position = candidates::payload_at(&c.at, &e.score.x).unwrap_or([c.at[1], c.at[2], c.at[3]]);
-                Some(self.placement(link, e.score.x[0], position, e.score.delta_bic, best.score.delta_bic - e.score.delta_bic))
-            })
-            .collect();
+        let others = || self.scored.iter().filter(|e| e.kind == EffectKind::PayloadMass && e.label != best.label);
+        let mut out: Vec<Placement> = others().filter(|e| !e.score.at_edge && e.score.delta_bic > best.score.delta_bic - self.ambiguity_bic).filter_map(|e| self.own_fit(e, best)).collect();
         let (Some(own), Some(pn), Some(normal)) = (own, self.pivots.get(&named), self.normals.get(&named)) else { return out };
-        let Some(frames) = self.frames.get_or_init(|| super::payload_family::sampled_frames(self.model, &self.prep.q).ok()).as_deref() else { return out };
         let gained = super::payload::gain(normal, mass, &place);
         let upper = EffectKind::PayloadMass.range("mass").map_or(20.0, |r| r[1]);
         let reach = EffectKind::PayloadMass.range("x").map_or(1.0, |r| r[1]);
         let listed: Vec<String> = out.iter().map(|p| p.link.clone()).collect();
-        for (link, p) in self.pivots.iter().filter(|(l, p)| **l != named && p.family.as_ref() == Some(&own) && !listed.contains(l)) {
+        for (link, p) in self.pivots.iter().filter(|(l, p)| **l != named && p.family.as_ref() == Some(own) && !listed.contains(l)) {
             let Some(normal) = self.normals.get(link) else { continue };
-            let Some(eq) = super::payload_family::gravity_equivalent(self.model, &self.gravity, pn.body, mass, place, p.body, p.point, frames) else { continue };
+            let Some(eq) = super::payload_family::gravity_equivalent(self.model, &self.gravity, pn.body, mass, place, p.body, p.point, &self.frames) else { continue };
             if eq.mismatch > GRAVITY_MISMATCH || eq.mass > upper || eq.place.iter().any(|x| x.abs() >= reach) {
                 continue;
             }
@@ -180,16 +172,20 @@ impl<'a> EffectReporter<'a> {
         // A member with no such placement whose own best load the recording supports (above
         // the ambiguity threshold): that load, with how far behind it is (even at a bound of
         // its place: it then stands in for part of the load only).
-        for e in self.scored.iter().filter(|e| e.kind == EffectKind::PayloadMass && e.label != best.label && e.score.delta_bic > self.ambiguity_bic) {
-            let Some((c, link)) = e.candidate.and_then(|c| Some((c, c.link.clone()?))) else { continue };
-            if family(&link).as_ref() == Some(&own) && !out.iter().any(|p| p.link == link) {
-                let position = candidates::payload_at(&c.at, &e.score.x).unwrap_or([c.at[1], c.at[2], c.at[3]]);
-                out.push(self.placement(link, e.score.x[0], position, e.score.delta_bic, best.score.delta_bic - e.score.delta_bic));
+        for e in others().filter(|e| e.score.delta_bic > self.ambiguity_bic) {
+            if let Some(p) = self.own_fit(e, best).filter(|p| family(&p.link) == Some(own) && !out.iter().any(|q| q.link == p.link)) {
+                out.push(p);
             }
         }
         // Ties (the same load on bodies that turn alike) in the links' order.
         out.sort_by(|a, b| ((a.behind_bic * 1e3).round()).total_cmp(&(b.behind_bic * 1e3).round()).then_with(|| a.link.cmp(&b.link)));
         out
+    }
+
+    /// Scored payload `e` at its own best placement, with how far behind `best` it is.
+    fn own_fit(&self, e: &Scored, best: &Scored) -> Option<Placement> {
+        let c = e.candidate?;
+        Some(self.placement(c.link.clone()?, e.score.x[0], payload_place(c, &e.score.x), e.score.delta_bic, best.score.delta_bic - e.score.delta_bic))
     }
 
     /// `mass` (kg) at `position` (m) on `link` as the report's placement.
@@ -243,7 +239,7 @@ impl<'a> EffectReporter<'a> {
         let payload = match e.candidate {
             Some(c) if c.kind == EffectKind::PayloadMass => c.link.as_ref().and_then(|l| Some((l, self.pivots.get(l)?, self.normals.get(l)?))).map(|(link, pivot, normal)| {
                 let (pv, spread, crank) = (&pivot.point, &pivot.rms, pivot.crank);
-                let place = candidates::payload_at(&c.at, &s.x).unwrap_or([c.at[1], c.at[2], c.at[3]]);
+                let place = payload_place(c, &s.x);
                 let mut pr = super::payload::profile(normal, place, s.x[0].max(1e-6), *pv, s.chi2_unit);
                 // A translating body's place does not move its gravity: the mass's own interval
                 // (the fit's) is its first moment's, over the crank.
@@ -335,6 +331,12 @@ impl<'a> EffectReporter<'a> {
         };
         Ok((spec, report))
     }
+}
+
+/// The place (m, link frame) of payload candidate `c`'s fit `x`: where it is a point mass
+/// ([`candidates::payload_at`]), else the place it was linearised at.
+fn payload_place(c: &Candidate, x: &[f64]) -> [f64; 3] {
+    candidates::payload_at(&c.at, x).unwrap_or([c.at[1], c.at[2], c.at[3]])
 }
 
 /// How much of the named load's gravity (relative RMS of its potential over the recording) a

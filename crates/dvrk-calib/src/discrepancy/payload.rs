@@ -196,15 +196,16 @@ pub fn candidates(model: &Model, bodies: &BodyColumns, fit: &Fitter, r: &Table, 
         let a = train.matrix(cols);
         let link = model.frames[model.bodies[b].frames[0]].name.clone();
         let (g, bv) = fit.normal_equations(&a, &y);
-        normals.insert(link.clone(), (g.clone(), bv.clone()));
         // A body whose frame's origin lies on the axes that move it (the PSM's parallelogram's
         // back and front links, on the pitch's and the yaw's) is no candidate of its own: it
         // turns as `pitch_end` does about a point of the same axes, so a load on it is one on
         // `pitch_end` exactly (the report lists it as that load's equivalent).
-        if a.column(0).amax() < 1e-12 {
+        let candidate = a.column(0).amax() >= 1e-12;
+        let at = if candidate { best_place(&g, &bv).map_or([0.0; 3], |(p, _)| p) } else { [0.0; 3] };
+        normals.insert(link.clone(), (g, bv));
+        if !candidate {
             continue;
         }
-        let at = best_place(&g, &bv).map_or([0.0; 3], |(p, _)| p);
         let mut columns = vec![combine(cols, &phi(&at), model.nq())];
         columns.extend((0..3).map(|k| combine(cols, &dphi(&at, k), model.nq())));
         let focus = focus_of(prep, &columns[0]);
@@ -295,14 +296,14 @@ const PROFILE_STEPS: usize = 40;
 const PROFILE_SPAN: f64 = 30.0;
 
 /// The point of a body that moves least over the recorded motion (m, in the body's first
-/// frame; dvrk-sim's pivot fit of its poses), and the RMS of its motion (m): for a body that
-/// turns about a fixed point (the parallelogram's links about the remote centre) that point,
-/// still to round-off.
-pub fn pivot(model: &Model, body: usize, q: &[Vec<f64>]) -> Result<([f64; 3], f64)> {
+/// frame; dvrk-sim's pivot fit of its poses in `frames`, every frame's pose at the sampled
+/// configurations, [`super::payload_family::sampled_frames`]), and the RMS of its motion (m):
+/// for a body that turns about a fixed point (the parallelogram's links about the remote
+/// centre) that point, still to round-off.
+pub fn pivot(model: &Model, body: usize, frames: &[Vec<dvrk_kin::Pose>]) -> ([f64; 3], f64) {
     let frame = model.bodies[body].frames[0];
-    let stride = (q.len() / 400).max(1);
-    let poses: Vec<_> = q.iter().step_by(stride).map(|qi| model.fk(qi).map(|f| f[frame])).collect::<std::result::Result<_, _>>()?;
-    Ok(match dvrk_sim::pivot::pivot_fit(&poses) {
+    let poses: Vec<_> = frames.iter().map(|f| f[frame]).collect();
+    match dvrk_sim::pivot::pivot_fit(&poses) {
         Some(f) => ([f.tip.x, f.tip.y, f.tip.z], f.rms),
         // Orientations that fix no point (a body turning about one axis only): the frame's
         // origin, and how much it moves about its mean.
@@ -310,7 +311,7 @@ pub fn pivot(model: &Model, body: usize, q: &[Vec<f64>]) -> Result<([f64; 3], f6
             let mean = poses.iter().map(|p| p.translation.vector).sum::<Vector3<f64>>() / poses.len().max(1) as f64;
             ([0.0; 3], (poses.iter().map(|p| (p.translation.vector - mean).norm_squared()).sum::<f64>() / poses.len().max(1) as f64).sqrt())
         }
-    })
+    }
 }
 
 /// A payload's place and what the recording fixes of it (intervals: the ranges of

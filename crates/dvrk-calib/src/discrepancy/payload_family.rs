@@ -50,25 +50,20 @@ pub fn turning_axis(model: &Model, body: usize, joint: usize, q: &[f64]) -> Resu
 }
 
 /// The crank radius (m) of a body that only translates against the arm's first moving body
-/// (its orientation there stays within 1 urad over the recorded joints `q`, its origin moves):
-/// the radius of the circle its origin follows in that body's frame. `None` for a body that
-/// turns, or that does not move against it.
-pub fn crank(model: &Model, body: usize, q: &[Vec<f64>]) -> Result<Option<f64>> {
-    let Some(first) = model.frames.iter().position(|f| f.is_moving()) else { return Ok(None) };
+/// (its orientation there stays within 1 urad over the sampled configurations whose frame poses
+/// are `frames`, [`sampled_frames`]; its origin moves): the radius of the circle its origin
+/// follows in that body's frame. `None` for a body that turns, or that does not move against it.
+pub fn crank(model: &Model, body: usize, frames: &[Vec<Pose>]) -> Option<f64> {
+    let first = model.frames.iter().position(|f| f.is_moving())?;
     let reference = model.frames[first].body;
-    if reference == body || q.is_empty() {
-        return Ok(None);
+    if reference == body || frames.is_empty() {
+        return None;
     }
     let (fr, fb) = (model.bodies[reference].frames[0], model.bodies[body].frames[0]);
-    let stride = (q.len() / 400).max(1);
-    let mut rel = Vec::new();
-    for qi in q.iter().step_by(stride) {
-        let f = model.fk(qi).map_err(|e| crate::error::CalibError::context("payload crank", e))?;
-        rel.push(f[fr].inverse() * f[fb]);
-    }
+    let rel: Vec<Pose> = frames.iter().map(|f| f[fr].inverse() * f[fb]).collect();
     let r0 = rel[0].rotation;
     if rel.iter().any(|p| (r0.inverse() * p.rotation).angle() > 1e-6) {
-        return Ok(None);
+        return None;
     }
     let pts: Vec<Vector3<f64>> = rel.iter().map(|p| p.translation.vector).collect();
     let mean = pts.iter().sum::<Vector3<f64>>() / pts.len() as f64;
@@ -77,7 +72,7 @@ pub fn crank(model: &Model, body: usize, q: &[Vec<f64>]) -> Result<Option<f64>> 
     let mut order = [0usize, 1, 2];
     order.sort_by(|a, b| eig.eigenvalues[*b].total_cmp(&eig.eigenvalues[*a]));
     if eig.eigenvalues[order[0]].sqrt() < 1e-4 {
-        return Ok(None);
+        return None;
     }
     // The circle in the plane of the motion (Kasa's algebraic fit: |x|^2 = 2 c.x + k).
     let (u, v) = (eig.eigenvectors.column(order[0]).into_owned(), eig.eigenvectors.column(order[1]).into_owned());
@@ -90,9 +85,9 @@ pub fn crank(model: &Model, body: usize, q: &[Vec<f64>]) -> Result<Option<f64>> 
         a[(i, 2)] = 1.0;
         b[i] = x * x + y * y;
     }
-    let Ok(s) = a.svd(true, true).solve(&b, 1e-12) else { return Ok(None) };
+    let s = a.svd(true, true).solve(&b, 1e-12).ok()?;
     let r2 = s[2] + s[0] * s[0] + s[1] * s[1];
-    Ok((r2 > 0.0).then(|| r2.sqrt()))
+    (r2 > 0.0).then(|| r2.sqrt())
 }
 
 /// A gravity-equivalent placement ([`gravity_equivalent`]): mass (kg), place (m, the body's
@@ -190,9 +185,10 @@ mod tests {
         assert_eq!(fam("yaw"), Some(vec![0]));
         assert_eq!(fam("tool_roll"), None);
         let q: Vec<Vec<f64>> = (0..50).map(|i| { let mut q = home.clone(); q[0] = 0.3 * (0.1 * i as f64).sin(); q[1] = 0.5 * (0.13 * i as f64).cos(); q[2] = 0.1 + 0.05 * (0.07 * i as f64).sin(); q }).collect();
-        let r = crank(&model, body("pitch_bottom"), &q).unwrap().unwrap();
+        let frames = sampled_frames(&model, &q).unwrap();
+        let r = crank(&model, body("pitch_bottom"), &frames).unwrap();
         assert!((r - 0.150).abs() < 1e-9, "{r}");
-        assert_eq!(crank(&model, body("pitch_end"), &q).unwrap(), None);
+        assert_eq!(crank(&model, body("pitch_end"), &frames), None);
     }
 
     /// A load on the bottom link (which translates on its 0.150 m crank; at its frame's origin,
@@ -209,13 +205,13 @@ mod tests {
         let q: Vec<Vec<f64>> = (0..200).map(|i| { let mut q = home.clone(); q[0] = 0.4 * (0.1 * i as f64).sin(); q[1] = 0.5 * (0.13 * i as f64).cos(); q[2] = 0.1 + 0.05 * (0.07 * i as f64).sin(); q }).collect();
         let g = Vector3::new(0.0, 0.0, -9.81);
         let frames = sampled_frames(&model, &q).unwrap();
-        let rcm = crate::discrepancy::payload::pivot(&model, body("pitch_end"), &q).unwrap().0;
+        let rcm = crate::discrepancy::payload::pivot(&model, body("pitch_end"), &frames).0;
         let on_end = gravity_equivalent(&model, &g, body("pitch_bottom"), 0.2, [0.0; 3], body("pitch_end"), rcm, &frames).unwrap();
         let moment = on_end.mass * (Vector3::from(on_end.place) - Vector3::from(rcm)).norm();
         assert!(on_end.mismatch < 1e-6 && (on_end.mass - 0.2).abs() < 1e-9 && (moment - 0.2 * 0.150).abs() < 1e-6, "{on_end:?} {moment}");
         let back = gravity_equivalent(&model, &g, body("pitch_end"), 0.2, on_end.place, body("pitch_bottom"), [0.0; 3], &frames).unwrap();
         assert!(back.mismatch < 1e-6 && (back.mass - 0.2).abs() < 1e-6, "{back:?}");
-        let pivot = crate::discrepancy::payload::pivot(&model, body("pitch_back"), &q).unwrap().0;
+        let pivot = crate::discrepancy::payload::pivot(&model, body("pitch_back"), &frames).0;
         let on_back = gravity_equivalent(&model, &g, body("pitch_end"), 0.2, on_end.place, body("pitch_back"), pivot, &frames).unwrap();
         let back_moment = on_back.mass * (Vector3::from(on_back.place) - Vector3::from(pivot)).norm();
         assert!(on_back.mismatch < 1e-6 && (back_moment - moment).abs() < 1e-9, "{on_back:?}");
