@@ -178,7 +178,7 @@ fn joint_csv() {
     let model = dvrk_kin::load("psm", None).unwrap();
     let scratch = Scratch::new("log.csv");
     fuzz(&[joint_csv_seed()], |b| {
-        let _ = dvrk_calib::recordings::read_joint_log_csv(scratch.with(b), &model);
+        let _ = dvrk_sim::recording::read_joint_log_csv(scratch.with(b), &model);
     });
 }
 
@@ -194,7 +194,7 @@ fn wpi_csv() {
     fuzz(&seeds, |b| {
         let path = scratch.with(b);
         let _ = dvrk_calib::discrepancy::read_log(path, "wpi-csv", &model, "PSM1");
-        let _ = dvrk_calib::recordings::read_wpi_csv(path, &model);
+        let _ = dvrk_sim::recording::read_wpi_csv(path, &model);
     });
 }
 
@@ -204,8 +204,8 @@ fn pose_csv() {
     let scratch = Scratch::new("poses.csv");
     fuzz(&[seed], |b| {
         let path = scratch.with(b);
-        let _ = dvrk_calib::recordings::read_plain_csv(path);
-        let _ = dvrk_calib::recordings::read_motive_csv(path);
+        let _ = dvrk_sim::recording::read_plain_csv(path);
+        let _ = dvrk_sim::recording::read_motive_csv(path);
     });
 }
 
@@ -238,12 +238,12 @@ fn mcap_mtm_motion() {
     let options = dvrk_sim::RunOptions { duration: 0.05, trajectory: dvrk_sim::run::TrajectoryKind::Hold, sim: Default::default() };
     dvrk_sim::run_recorded(&scene, &options, Some(&dvrk_sim::RecordOptions { path: rec.clone(), rate: 200.0 }), |_| {}).unwrap();
     let seed = std::fs::read(&rec).unwrap();
-    assert!(dvrk_calib::recordings::read_mtm(&rec, None).is_ok_and(|l| l.arm == "MTMR" && l.len() == 10), "the seed reads");
+    assert!(dvrk_sim::recording::read_mtm(&rec, None).is_ok_and(|l| l.arm == "MTMR" && l.len() == 10), "the seed reads");
     let scratch = Scratch::new("mtm.mcap");
     fuzz(&[seed], |b| {
         let path = scratch.with(b);
-        let _ = dvrk_calib::recordings::read_mtm(path, None);
-        let _ = dvrk_calib::recordings::read_mtm(path, Some("MTML"));
+        let _ = dvrk_sim::recording::read_mtm(path, None);
+        let _ = dvrk_sim::recording::read_mtm(path, Some("MTML"));
     });
 }
 
@@ -273,6 +273,6 @@ fn ros1_bags() {
         let path = scratch.with(b);
         let _ = dvrk_calib::identify::read_log(path, "bag", &model, "PSM1");
         let _ = dvrk_calib::read_recording(path, &Default::default());
-        let _ = dvrk_calib::recordings::read_mtm(path, None);
+        let _ = dvrk_sim::recording::read_mtm(path, None);
     });
 }

@@ -92,7 +92,7 @@ pub fn run(args: &GcArgs) -> Result<()> {
     };
     let check = match &args.recording {
         Some(path) => {
-            let (rec, notes) = dvrk_calib::recordings::read_joint_log_parts(path, &args.format, &model, &args.arm, dvrk_calib::recordings::Parts::Measured)
+            let (rec, notes) = dvrk_sim::recording::read_joint_log_parts(path, &args.format, &model, &args.arm, dvrk_sim::recording::Parts::Measured)
                 .with_context(|| format!("--recording {}", path.display()))?;
             for n in notes.iter().filter(|_| !args.json) {
                 eprintln!("note: {n}");

@@ -69,7 +69,7 @@ pub fn run(args: &IdentifyArgs) -> Result<()> {
     crate::io::check_plot(args.plot.as_deref())?;
     let gravity = crate::io::parse_gravity(&args.gravity)?;
     // The recording's format (read from its first bytes when `auto`) before any model is loaded.
-    let format = dvrk_calib::recordings::resolve_format(&args.recording, &args.format).with_context(|| format!("--recording {}", args.recording.display()))?;
+    let format = dvrk_sim::recording::resolve_format(&args.recording, &args.format).with_context(|| format!("--recording {}", args.recording.display()))?;
     let model = dvrk_kin::load(&args.model, None).with_context(|| format!("--model {}", args.model))?;
     let prior = match &args.inertials {
         Some(p) => {

@@ -5,7 +5,7 @@
 use crate::outln;
 use anyhow::{anyhow, bail, Result};
 use clap::{Args, Subcommand};
-use dvrk_calib::recordings::McapLayout;
+use dvrk_sim::recording::McapLayout;
 use dvrk_calib::mocap::synth::{Scenario, SynthMotion, SynthOptions};
 use serde_json::json;
 use std::path::PathBuf;
@@ -126,7 +126,7 @@ pub fn run(c: &SynthCommand) -> Result<()> {
 
 fn hidden_effect(a: &HiddenEffectArgs) -> Result<()> {
     use dvrk_calib::discrepancy::{hidden_effect, Hidden, HiddenOptions};
-    use dvrk_calib::recordings;
+    use dvrk_sim::recording;
     let hidden: Hidden = a.effect.parse().map_err(|e| anyhow!("--effect: {e}"))?;
     let effort_noise = a.noise.as_deref().map(|t| crate::io::parse_list("--noise", t)).transpose()?;
     let ext = a.output.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
@@ -140,8 +140,8 @@ fn hidden_effect(a: &HiddenEffectArgs) -> Result<()> {
     let h = hidden_effect(&a.model, &o)?;
     spinner.finish();
     let bytes = match ext.as_str() {
-        "csv" => dvrk_calib::recordings::write_joint_log_csv(&h.log).into_bytes(),
-        _ => recordings::write_joint_log_mcap(&h.log, &dvrk_sim::Scene::load(&a.model)?.arms[0].name)?,
+        "csv" => dvrk_sim::recording::write_joint_log_csv(&h.log).into_bytes(),
+        _ => recording::write_joint_log_mcap(&h.log, &dvrk_sim::Scene::load(&a.model)?.arms[0].name)?,
     };
     let staged = vec![crate::io::stage(&a.output, &bytes)?, crate::io::stage(&a.answer, format!("{}\n", serde_json::to_string_pretty(&h.answer)?).as_bytes())?];
     dvrk_kin::atomic::commit_all(staged)?;
@@ -194,8 +194,8 @@ fn mocap(a: &MocapArgs) -> Result<()> {
     let rec = scenario.record(a.seed);
     spinner.finish();
     let bytes = match ext.as_str() {
-        "mcap" => dvrk_calib::recordings::write_mcap_poses(&rec, layout, &a.joint_topic)?,
-        _ => dvrk_calib::recordings::write_plain_csv(&rec).into_bytes(),
+        "mcap" => dvrk_sim::recording::write_mcap_poses(&rec, layout, &a.joint_topic)?,
+        _ => dvrk_sim::recording::write_plain_csv(&rec).into_bytes(),
     };
     let mut staged = vec![crate::io::stage(&a.output, &bytes)?];
     if let Some(c) = &a.config_out {

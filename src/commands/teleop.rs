@@ -85,7 +85,7 @@ pub fn run(args: &TeleopArgs) -> Result<()> {
         Some(name) => Some(scene.arm_index(name).with_context(|| format!("--ecm {name}"))?),
         None => super::first_arm_of(&scene, "ecm"),
     };
-    let log = dvrk_calib::recordings::read_mtm(&args.mtm, args.arm.as_deref()).map_err(|e| anyhow::anyhow!("--mtm: {e}"))?;
+    let log = dvrk_sim::recording::read_mtm(&args.mtm, args.arm.as_deref()).map_err(|e| anyhow::anyhow!("--mtm: {e}"))?;
     let notes: Vec<String> = log.notes.iter().map(|n| format!("{}: {n}", args.mtm.display())).collect();
     if !args.json {
         for n in &notes {

@@ -16,3 +16,27 @@ def test_the_only_import_loop_is_the_documented_one():
     assert "crates/dvrk-kin/src/compose.rs -> crates/dvrk-kin/src/load.rs" in out, out
     with open(os.path.join(ROOT, "ARCHITECTURE.md"), encoding="utf-8") as f:
         assert "`load.rs` with `compose.rs`" in f.read()
+
+
+def test_recorded_formats_are_decoded_in_the_recording_home_alone():
+    """ROS messages (ROS 1 and CDR), bags and MCAP are parsed in `crates/dvrk-sim/src/recording/`
+    only; everything else calls its readers (issue #60: one home for every format)."""
+    import re
+    home = os.path.join(ROOT, "crates", "dvrk-sim", "src", "recording")
+    pattern = re.compile(r"\bfn decode(_ros1)?\b|\brosbag::|\bmcap::|\bCdrReader\b|\bfn read_cdr")
+    found = []
+    roots = [os.path.join(ROOT, "src")] + [os.path.join(ROOT, "crates", c, "src") for c in os.listdir(os.path.join(ROOT, "crates"))]
+    for top in roots:
+        for d, _, files in os.walk(top):
+            if os.path.commonpath([d, home]) == home:
+                continue
+            for f in files:
+                if f.endswith(".rs"):
+                    with open(os.path.join(d, f), encoding="utf-8") as fh:
+                        for n, line in enumerate(fh, 1):
+                            if pattern.search(line):
+                                found.append(f"{os.path.relpath(os.path.join(d, f), ROOT)}:{n}: {line.strip()}")
+    assert not found, "\n".join(found)
+    # The readers live there, and nowhere else.
+    assert os.path.isfile(os.path.join(home, "joint_states.rs"))
+    assert not os.path.exists(os.path.join(ROOT, "crates", "dvrk-calib", "src", "recordings"))

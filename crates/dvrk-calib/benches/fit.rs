@@ -3,8 +3,8 @@
 //! recording is synthesised (0.1 mm marker noise, 1 % occlusion) outside the timed loops.
 
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
-use dvrk_calib::recordings::{McapLayout, McapOptions};
-use dvrk_calib::recordings::common_samples;
+use dvrk_sim::recording::{McapLayout, McapOptions};
+use dvrk_sim::recording::common_samples;
 use dvrk_calib::mocap::synth::{Scenario, SynthMotion, SynthOptions};
 use dvrk_calib::{fit_axis, pivot_calibration, AxisMethod, AxisOptions, PivotMethod, PivotOptions};
 use dvrk_kin::Pose;
@@ -33,10 +33,10 @@ fn fits(c: &mut Criterion) {
     let mut only_end = pivot_rec.clone();
     only_end.bodies.retain(|b| b.name == "end");
     only_end.joints = None;
-    let bytes = dvrk_calib::recordings::write_mcap_poses(&only_end, McapLayout::PoseStamped, "/js").expect("mcap");
+    let bytes = dvrk_sim::recording::write_mcap_poses(&only_end, McapLayout::PoseStamped, "/js").expect("mcap");
     g.bench_function("read_mcap_and_pivot", |b| {
         b.iter(|| {
-            let rec = dvrk_calib::recordings::parse_mcap_poses(black_box(&bytes), Path::new("bench.mcap"), &McapOptions::default()).expect("read");
+            let rec = dvrk_sim::recording::parse_mcap_poses(black_box(&bytes), Path::new("bench.mcap"), &McapOptions::default()).expect("read");
             pivot_calibration(&rec.bodies[0].poses, &PivotOptions::default()).expect("fit")
         })
     });

@@ -83,5 +83,21 @@ impl CalibError {
     }
 }
 
+/// A recording's error, the same message in the same variant.
+impl From<dvrk_sim::recording::RecordingError> for CalibError {
+    fn from(e: dvrk_sim::recording::RecordingError) -> Self {
+        use dvrk_sim::recording::RecordingError as R;
+        match e {
+            R::File { path, message } => CalibError::File { path, message },
+            R::Field { field, message } => CalibError::Field { field, message },
+            R::Data { what, message } => CalibError::Data { what, message },
+            R::Kin(e) => CalibError::Kin(e),
+            R::Sim(e) => CalibError::Sim(e),
+            // `RecordingError` is non-exhaustive: a variant added later keeps its message.
+            e => CalibError::context("recording", e),
+        }
+    }
+}
+
 /// Result alias of this crate.
 pub type Result<T, E = CalibError> = std::result::Result<T, E>;

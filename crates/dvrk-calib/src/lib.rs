@@ -11,9 +11,10 @@
 //! - [`discrepancy`]: which physical effect a model is missing, named from a recording;
 //! - [`gravity`]: gravity compensation from a model (`dvrk gc`), checked on a recording.
 //!
-//! The products read through [`recordings`] (MCAP or ROS 1 bags with ROS 2 CDR, ROS 1 or Foxglove
-//! messages, OptiTrack Motive CSV, the WPI CSV layout and plain CSV) and filter through
-//! [`filter`]; none of them imports another.
+//! The products read through dvrk-sim's [`dvrk_sim::recording`], the home of every format the
+//! project reads or writes (MCAP or ROS 1 bags with ROS 2 CDR, ROS 1 or Foxglove messages,
+//! OptiTrack Motive CSV, the WPI CSV layout and plain CSV), and filter through [`filter`]; none
+//! of them imports another.
 //!
 //! ```
 //! use dvrk_calib::{pivot_calibration, PivotOptions, mocap::synth};
@@ -34,12 +35,7 @@ pub mod gravity;
 pub mod identify;
 pub mod linalg;
 pub mod mocap;
-pub mod recordings;
 pub mod replay;
-
-// The CDR codec and the ROS 2 messages live in dvrk-sim (which records them); re-exported here so
-// `dvrk_calib::cdr` and `dvrk_calib::ros_msgs` keep working.
-pub use dvrk_sim::recording::{cdr, ros_msgs};
 
 /// Plots (PNG / SVG): the figure renderer lives in dvrk-sim (`dvrk_sim::plot`, which also draws
 /// the tracking figure of a run) and is re-exported here, with the calibration-specific figures.
@@ -76,6 +72,8 @@ pub use mocap::axis_distances::{calibrate_axes, AxesOptions, AxesReport};
 pub use mocap::axes_config::AxesConfig;
 pub use mocap::axis_fit::{fit_axis, AxisFit, AxisMethod, AxisOptions};
 pub use error::{CalibError, Result};
-pub use recordings::{read_recording, BodyTrack, JointTrack, MarkerTrack, McapOptions, Recording};
+// The recording types this crate's public functions take (their home is `dvrk_sim::recording`).
+pub use dvrk_sim::recording::{read_recording, BodyTrack, JointTrack, MarkerTrack, McapOptions, Recording};
 pub use mocap::pivot::{pivot_calibration, PivotFit, PivotMethod, PivotOptions};
 pub use dvrk_kin;
+pub use dvrk_sim;

@@ -2,15 +2,15 @@
 //! a recording:
 //! - MCAP or ROS 1 bag: for each arm of the scene, `/<ARM>/setpoint_js` (what the arm was
 //!   told), else `/<ARM>/measured_js` (what it did), with the jaw's own topic merged
-//!   (`/<ARM>/jaw/setpoint_js`: [`crate::recordings::read_arms`]); arms with neither hold home. Joints
+//!   (`/<ARM>/jaw/setpoint_js`: [`dvrk_sim::recording::read_arms`]); arms with neither hold home. Joints
 //!   are matched by name; joints the topics lack hold home.
-//! - CSV (the plain format of [`crate::recordings::read_plain_csv`]): `time` and `q1..qN` for the one arm of
+//! - CSV (the plain format of [`dvrk_sim::recording::read_plain_csv`]): `time` and `q1..qN` for the one arm of
 //!   the scene that runs the tracking test.
 
 use crate::error::{CalibError, Result};
-use crate::recordings::mcap_io::McapOptions;
-use crate::recordings::read::read_recording;
-use crate::recordings::tracks::JointTrack;
+use dvrk_sim::recording::McapOptions;
+use dvrk_sim::recording::read_recording;
+use dvrk_sim::recording::JointTrack;
 use dvrk_sim::run::Replay;
 use dvrk_sim::scene::Tracking;
 use dvrk_sim::trajectory::Trajectory;
@@ -20,10 +20,10 @@ use std::path::Path;
 /// Read the trajectories in `path` for the arms of `scene`.
 pub fn read_replay(path: &Path, scene: &Scene) -> Result<Replay> {
     let mut arms = Vec::new();
-    if crate::recordings::message_file::container(path)?.is_some() {
+    if dvrk_sim::recording::container(path)?.is_some() {
         // One pass over the file for every arm's topics.
         let names: Vec<&str> = scene.arms.iter().map(|a| a.name.as_str()).collect();
-        let mut found = crate::recordings::joint_states::read_arms(path, &names, &["setpoint_js", "measured_js"])?;
+        let mut found = dvrk_sim::recording::read_arms(path, &names, &["setpoint_js", "measured_js"])?;
         let mut missing = Vec::new();
         for arm in &scene.arms {
             let mut states = found.remove(&arm.name).unwrap_or_default();

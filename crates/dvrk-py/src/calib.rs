@@ -144,7 +144,7 @@ pub fn identify<'py>(py: Python<'py>, recording: PathBuf, model: &str, format: &
     let m = dvrk_calib::dvrk_kin::load(model, None)?;
     let summary = py.detach(|| -> Result<serde_json::Value> {
         let prior = dvrk_sim::scene::builtin_inertials(&m.name, &m)?.body_inertias(&m)?;
-        let resolved = dvrk_calib::recordings::resolve_format(&recording, format)?;
+        let resolved = dvrk_sim::recording::resolve_format(&recording, format)?;
         let (rec, notes) = read_log(&recording, format, &m, arm)?;
         let held_out = validate.as_ref().map(|v| read_log(v, resolved, &m, arm).map(|r| r.0)).transpose()?;
         let options = IdentifyOptions::for_recording(&m, resolved);
@@ -215,7 +215,7 @@ pub fn discrepancy<'py>(
 pub fn synth_hidden_effect<'py>(py: Python<'py>, path: PathBuf, effect: &str, seed: u64, scene: &str, duration: f64, marker_link: Option<String>, engine: &str) -> Result<Bound<'py, PyAny>> {
     use dvrk_calib::discrepancy::generate::MarkerOptions;
     use dvrk_calib::discrepancy::{hidden_effect, Hidden, HiddenOptions};
-    use dvrk_calib::recordings;
+    use dvrk_sim::recording;
     let hidden: Hidden = effect.parse().map_err(|e: String| Error::Input(format!("effect: {e}")))?;
     let marker = marker_link.map(|link| MarkerOptions { link, ..Default::default() });
     let engine = dvrk_sim::Engine::from_name(engine).ok_or_else(|| Error::Input(format!("engine: {engine:?}: rapier or reduced")))?;
@@ -223,8 +223,8 @@ pub fn synth_hidden_effect<'py>(py: Python<'py>, path: PathBuf, effect: &str, se
     let answer = py.detach(|| -> Result<serde_json::Value> {
         let h = hidden_effect(scene, &HiddenOptions { hidden, seed, duration, marker, engine, ..Default::default() })?;
         let bytes = match path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
-            Some("csv") => dvrk_calib::recordings::write_joint_log_csv(&h.log).into_bytes(),
-            _ => recordings::write_joint_log_mcap(&h.log, &dvrk_sim::Scene::load(scene)?.arms[0].name)?,
+            Some("csv") => dvrk_sim::recording::write_joint_log_csv(&h.log).into_bytes(),
+            _ => recording::write_joint_log_mcap(&h.log, &dvrk_sim::Scene::load(scene)?.arms[0].name)?,
         };
         dvrk_calib::dvrk_kin::atomic::write_atomic(&path, &bytes)?;
         serde_json::to_value(&h.answer).map_err(|e| Error::Input(e.to_string()))

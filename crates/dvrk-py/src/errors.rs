@@ -123,6 +123,14 @@ impl From<dvrk_calib::CalibError> for Error {
     }
 }
 
+/// A recording's error raises what the same error of a calibration does (its variants are
+/// taken into `CalibError`'s one for one).
+impl From<dvrk_sim::recording::RecordingError> for Error {
+    fn from(e: dvrk_sim::recording::RecordingError) -> Self {
+        Error::from(dvrk_calib::CalibError::from(e))
+    }
+}
+
 impl From<PyErr> for Error {
     fn from(e: PyErr) -> Self {
         Error::Py(e)

@@ -2,7 +2,7 @@
 //! ([`read_log`]), take the arm's built-in scene, run the repeated workflow.
 
 use super::repeat::{discrepancy_repeated_prepared, discrepancy_repeated_with, prepare_rounds, Repeated};
-use crate::recordings::joint_log::JointLog;
+use dvrk_sim::recording::JointLog;
 use super::options::Options;
 use crate::error::{CalibError, Result};
 use dvrk_kin::Model;
@@ -20,14 +20,14 @@ pub struct MarkerSource {
 pub const MIN_SAMPLES: usize = 100;
 
 /// Read arm `arm`'s recording `path` in `format` (`auto`: told from the file, see
-/// [`crate::recordings::resolve_format`]) for `model` ([`crate::recordings::read_joint_log`]), as
+/// [`dvrk_sim::recording::resolve_format`]) for `model` ([`dvrk_sim::recording::read_joint_log`]), as
 /// the workflow analyses it: in the model's joints (the WPI recordings' actuator channels taken
 /// there), from the first setpoint on, the encoders standing in for the setpoints when the
 /// recording has none; efforts as measured, or none at all (a recording of encoders alone, for the
 /// kinematic channel); velocities not kept (the workflow differentiates the positions itself).
 /// With what the reader did (notes for the report).
 pub fn read_log(path: &Path, format: &str, model: &Model, arm: &str) -> Result<(JointLog, Vec<String>)> {
-    let (mut log, mut notes) = crate::recordings::read_joint_log(path, format, model, arm)?;
+    let (mut log, mut notes) = dvrk_sim::recording::read_joint_log(path, format, model, arm)?;
     log.velocity = Vec::new();
     let mut log = log.into_joint_space(model)?;
     notes.extend(log.setpoints_or_encoders(path));
@@ -54,10 +54,10 @@ pub fn run_with(path: &Path, format: &str, model: &Model, arm: &str, marker: Opt
     progress("reading the recording");
     let (mut log, notes) = read_log(path, format, model, arm)?;
     if let Some(m) = marker {
-        let frame = crate::recordings::marker_log::marker_frame(model, &m.link)?;
-        log.markers = Some(match crate::recordings::format::resolve(path, format)? {
-            "mcap" | "bag" => crate::recordings::marker_log::read_mcap(path, &m.topic, frame)?,
-            "csv" => crate::recordings::joint_log_csv::read_markers(path, &m.topic, frame)?,
+        let frame = dvrk_sim::recording::marker_frame(model, &m.link)?;
+        log.markers = Some(match dvrk_sim::recording::resolve_format(path, format)? {
+            "mcap" | "bag" => dvrk_sim::recording::read_marker_mcap(path, &m.topic, frame)?,
+            "csv" => dvrk_sim::recording::read_marker_csv(path, &m.topic, frame)?,
             other => return Err(CalibError::field("--marker-topic", format!("tracked poses are read from MCAP, bag or CSV recordings; a {other} recording has none"))),
         });
     }

@@ -7,7 +7,7 @@
 //! the recorded positions and efforts.
 
 use super::excitation::MultiSine;
-use crate::recordings::joint_log::JointLog;
+use dvrk_sim::recording::JointLog;
 use crate::error::{CalibError, Result};
 use dvrk_kin::effects::EffectKind;
 use dvrk_kin::spec::FrameRef;
@@ -399,20 +399,20 @@ fn draw(kind: EffectKind, model: &Model, inertials: &dvrk_sim::inertials::Inerti
 /// the links' joint positions `link`, sampled at `t`), at the tracker's rate, placed by a drawn
 /// tracker-to-base and link-to-marker transform, with noise; the tracker's own effects of
 /// `specs` applied: its clock's offset to its stamps, a motion play to the link it sees.
-fn track_marker(truth: &Model, specs: &[EffectSpec], t: &[f64], link: &[Vec<f64>], mo: &MarkerOptions, rng: &mut ChaCha8Rng) -> Result<crate::recordings::marker_log::MarkerLog> {
+fn track_marker(truth: &Model, specs: &[EffectSpec], t: &[f64], link: &[Vec<f64>], mo: &MarkerOptions, rng: &mut ChaCha8Rng) -> Result<dvrk_sim::recording::MarkerLog> {
     use super::registration::pose_exp;
     use nalgebra::Vector6;
     if !(mo.rate.is_finite() && mo.rate > 0.0 && mo.position_noise.is_finite() && mo.position_noise >= 0.0 && mo.rotation_noise.is_finite() && mo.rotation_noise >= 0.0) {
         return Err(CalibError::field("marker", format!("rate {} Hz, noise {} m, {} rad: rate > 0 and noise >= 0", mo.rate, mo.position_noise, mo.rotation_noise)));
     }
-    let frame = crate::recordings::marker_log::marker_frame(truth, &mo.link)?;
+    let frame = dvrk_sim::recording::marker_frame(truth, &mo.link)?;
     let mut u = |lo: f64, hi: f64| rng.random_range(lo..hi);
     // A tracker 1-2 m away, any orientation; the marker body a few cm off the link's frame.
     let x = pose_exp(&Vector6::new(u(-1.0, 1.0), u(-1.0, 1.0), u(1.0, 2.0), u(-3.0, 3.0), u(-3.0, 3.0), u(-3.0, 3.0)));
     let y = pose_exp(&Vector6::new(u(-0.05, 0.05), u(-0.05, 0.05), u(-0.05, 0.05), u(-3.0, 3.0), u(-3.0, 3.0), u(-3.0, 3.0)));
     let unit = Normal::new(0.0, 1.0).expect("unit normal");
     let mut data = dvrk_kin::Data::new(truth);
-    let mut out = crate::recordings::marker_log::MarkerLog { topic: crate::recordings::marker_log::synthetic_topic(&truth.frames[frame].name), frame, t: Vec::new(), poses: Vec::new() };
+    let mut out = dvrk_sim::recording::MarkerLog { topic: dvrk_sim::recording::synthetic_topic(&truth.frames[frame].name), frame, t: Vec::new(), poses: Vec::new() };
     let mut late = 0.0;
     let mut link = link.to_vec();
     for e in specs.iter().filter(|e| applied_by_tracker(e)) {
@@ -571,7 +571,7 @@ pub fn hidden_effect(scene_name: &str, o: &HiddenOptions) -> Result<HiddenRecord
         }
     };
     let mut kinds = pick(&mut rng);
-    let marker_frame = o.marker.as_ref().map(|m| crate::recordings::marker_log::marker_frame(&nominal, &m.link)).transpose()?;
+    let marker_frame = o.marker.as_ref().map(|m| dvrk_sim::recording::marker_frame(&nominal, &m.link)).transpose()?;
     let mut excitation = MultiSine::new(&nominal, o.seed);
     let limits: Vec<f64> = nominal.joints.iter().map(|j| j.effort_limit).collect();
     let mut predictor = super::signals::Predictor::new(&scene.arms[0].model, &scene.arms[0], scene.gravity)?;

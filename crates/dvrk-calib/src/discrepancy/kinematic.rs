@@ -10,8 +10,8 @@
 //! Scored as the torque channel is: likelihood ratio on an effective sample size, change in BIC,
 //! held-out check.
 
-use crate::recordings::joint_log::JointLog;
-use crate::recordings::marker_log::MarkerLog;
+use dvrk_sim::recording::JointLog;
+use dvrk_sim::recording::MarkerLog;
 use super::registration::{pose_difference, whiten, Registration};
 use super::report::{CandidateReport, EffectReport, KinematicReport};
 use super::signals::Prepared;

@@ -8,7 +8,7 @@
 //! only efforts give (the raw effort residual, per-joint effort RMS, where along the motion the
 //! effort residual is large) are empty or `null`.
 
-use crate::recordings::joint_log::JointLog;
+use dvrk_sim::recording::JointLog;
 use super::kinematic::{analyse, Inputs};
 use super::plot::Residuals;
 use super::report::Report;

@@ -4,7 +4,7 @@
 //! - [`generate`]: recordings with a hidden effect and their answers (`dvrk synth hidden-effect`),
 //!   on an exciting multi-sine ([`excitation`]);
 //! - [`read_log`]: setpoints, encoder positions and efforts read from a recording
-//!   ([`crate::recordings::JointLog`], [`crate::recordings::read_joint_log`]);
+//!   ([`dvrk_sim::recording::JointLog`], [`dvrk_sim::recording::read_joint_log`]);
 //! - [`signals`]: filtering, the noise floor and the nominal model's effort;
 //! - [`candidates`]: each candidate effect's signature from the model itself;
 //! - [`stats`]: bounded fits, effective sample size, chi-square tails;
@@ -54,7 +54,7 @@ pub mod workflow;
 
 pub use from_file::read_log;
 pub use generate::{hidden_effect, Answer, Hidden, HiddenOptions, HiddenRecording};
-pub use crate::recordings::JointLog;
+pub use dvrk_sim::recording::JointLog;
 pub use nuisance::InertiaPrior;
 pub use plot::Residuals;
 pub use repeat::{discrepancy_repeated, discrepancy_repeated_with, Repeated};

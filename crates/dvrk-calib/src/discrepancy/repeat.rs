@@ -9,7 +9,7 @@
 //! coordinate sweep, [`Options::only`]), and one no longer supported given the others is dropped
 //! (backward elimination: a play that stood in for a Coulomb friction named later).
 
-use crate::recordings::joint_log::JointLog;
+use dvrk_sim::recording::JointLog;
 use super::plot::Residuals;
 use super::report::{Report, StepReport};
 use super::options::Options;

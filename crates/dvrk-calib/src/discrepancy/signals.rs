@@ -4,7 +4,7 @@
 //! carried through the same filter to the noise floor of the residual, with what the encoder
 //! noise, differentiated twice, makes of the predicted effort.
 
-use crate::recordings::joint_log::JointLog;
+use dvrk_sim::recording::JointLog;
 use crate::error::{CalibError, Result};
 use crate::filter::{derivative, Butterworth2};
 use dvrk_kin::{DynamicsData, DynamicsModel, Model};

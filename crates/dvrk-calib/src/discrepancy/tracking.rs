@@ -2,7 +2,7 @@
 //! PID, the simulated encoder positions against the recorded ones; with the nominal model, then
 //! with the named effects added (the gap should shrink).
 
-use crate::recordings::joint_log::JointLog;
+use dvrk_sim::recording::JointLog;
 use super::report::TrackingReport;
 use crate::error::{CalibError, Result};
 use dvrk_sim::trajectory::Trajectory;

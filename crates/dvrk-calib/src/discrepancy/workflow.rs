@@ -19,7 +19,7 @@ use super::signature::Signature;
 use super::stats::chi2_sf;
 use super::verdict::{verdict, Gates};
 use crate::error::{CalibError, Result};
-use crate::recordings::joint_log::JointLog;
+use dvrk_sim::recording::JointLog;
 use dvrk_kin::effects::{EffectKind, EffectSpec};
 use dvrk_kin::Model;
 use dvrk_sim::Scene;

@@ -9,7 +9,7 @@
 pub mod console_file;
 
 use crate::error::{CalibError, Result};
-use crate::recordings::JointLog;
+use dvrk_sim::recording::JointLog;
 use dvrk_kin::dynamics::{holding_torque, DynamicsData, DynamicsModel};
 use dvrk_kin::{BodyInertia, Model};
 use nalgebra::Vector3;

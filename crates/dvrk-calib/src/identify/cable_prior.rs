@@ -61,7 +61,7 @@ pub struct CableTest {
 /// standard deviations are a quarter of each coefficient's magnitude plus its standard error: the
 /// test was made on another day than the recordings it serves (the cable's tension drifts).
 pub fn from_joint_test(path: &Path, joint: usize) -> Result<CableTest> {
-    let text = crate::recordings::read_csv_text(path)?;
+    let text = dvrk_sim::recording::read_csv_text(path)?;
     let mut rows: Vec<(f64, f64)> = Vec::new();
     for (line, row) in text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty()) {
         let cells: Vec<&str> = row.split(',').map(str::trim).collect();

@@ -2,7 +2,7 @@
 //! channels ([`read_log`]).
 
 use crate::error::{CalibError, Result};
-use crate::recordings::{JointLog, Parts};
+use dvrk_sim::recording::{JointLog, Parts};
 use dvrk_kin::Model;
 use std::path::Path;
 
@@ -10,12 +10,12 @@ use std::path::Path;
 pub const MIN_SAMPLES: usize = 100;
 
 /// Read the recording `path` in `format` (`auto`: told from the file, see
-/// [`crate::recordings::resolve_format`]; `wpi-csv`, `mcap` or `bag`) for `model`, the arm `arm`
-/// for MCAP and bags ([`crate::recordings::read_joint_log`]), as identification fits it: every
+/// [`dvrk_sim::recording::resolve_format`]; `wpi-csv`, `mcap` or `bag`) for `model`, the arm `arm`
+/// for MCAP and bags ([`dvrk_sim::recording::read_joint_log`]), as identification fits it: every
 /// measured sample, with efforts, and velocities from the messages where they carry them, else by
 /// central differences of the positions. With what the reader did (notes for the report).
 pub fn read_log(path: &Path, format: &str, model: &Model, arm: &str) -> Result<(JointLog, Vec<String>)> {
-    match crate::recordings::resolve_format(path, format)? {
+    match dvrk_sim::recording::resolve_format(path, format)? {
         "wpi-csv" | "mcap" | "bag" => {}
         other => {
             return Err(CalibError::file(
@@ -24,7 +24,7 @@ pub fn read_log(path: &Path, format: &str, model: &Model, arm: &str) -> Result<(
             ))
         }
     }
-    let (mut log, mut notes) = crate::recordings::read_joint_log_parts(path, format, model, arm, Parts::Measured)?;
+    let (mut log, mut notes) = dvrk_sim::recording::read_joint_log_parts(path, format, model, arm, Parts::Measured)?;
     if !log.has_efforts() {
         return Err(CalibError::file(path, format!("/{arm}/measured_js carries no efforts: identification needs measured efforts")));
     }

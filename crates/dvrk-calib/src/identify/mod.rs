@@ -27,7 +27,7 @@ use dvrk_kin::dynamics::PARAMETERS_PER_BODY;
 use dvrk_kin::{BodyInertia, Model};
 use nalgebra::{DMatrix, DVector, SymmetricEigen};
 use problem::{EffectTerm, Layout, Param, Processing, Regression, Terms};
-pub use crate::recordings::{read_wpi_csv, JointLog};
+pub use dvrk_sim::recording::{read_wpi_csv, JointLog};
 pub use input::{read_log, MIN_SAMPLES};
 use serde::Serialize;
 
@@ -228,7 +228,7 @@ impl IdentifyOptions {
     }
 
     /// The options for `model` and a recording in `format` (resolved, see
-    /// [`crate::recordings::resolve_format`]): the WPI channels (tool actuators) take
+    /// [`dvrk_sim::recording::resolve_format`]): the WPI channels (tool actuators) take
     /// [`IdentifyOptions::for_model`]; a joint-space recording (MCAP, bag) takes every effect term
     /// on every joint, springs on the tool's.
     pub fn for_recording(model: &Model, format: &str) -> IdentifyOptions {

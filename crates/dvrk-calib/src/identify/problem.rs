@@ -3,7 +3,7 @@
 //! recording, built from dvrk-kin's closed-loop regressor mapped to the recorded channels.
 
 use crate::filter::{derivative, Butterworth2};
-use crate::recordings::JointLog;
+use dvrk_sim::recording::JointLog;
 use crate::error::{CalibError, Result};
 use dvrk_kin::dynamics::{PARAMETERS_PER_BODY, PARAMETER_NAMES};
 use dvrk_kin::{DynamicsData, DynamicsModel, Model};

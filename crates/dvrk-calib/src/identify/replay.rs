@@ -20,7 +20,7 @@
 //! identified one for 30% of `two` (yaw RMS 0.126 rad against 0.007 rad unlocked).
 
 use super::output::IdentifiedModel;
-use crate::recordings::JointLog;
+use dvrk_sim::recording::JointLog;
 use crate::error::{CalibError, Result};
 use dvrk_kin::Model;
 use dvrk_sim::{Gains, Scene, Sim, SimOptions};

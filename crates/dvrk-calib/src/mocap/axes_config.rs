@@ -114,7 +114,7 @@ impl AxesConfig {
                 return Err(CalibError::field(format!("bodies[{i}].name"), "`tracker` stands for the tracker frame; give the body another name"));
             }
             if let Some(m) = &b.markers {
-                if m.len() < crate::recordings::markers_to_pose::MIN_MARKERS {
+                if m.len() < dvrk_sim::recording::MIN_MARKERS {
                     return Err(CalibError::field(format!("bodies[{i}].markers"), format!("{} marker(s); a pose needs 3 or more", m.len())));
                 }
                 if m.iter().flatten().any(|x| !x.is_finite()) {

@@ -10,7 +10,7 @@
 use crate::mocap::axes_config::{AxesConfig, TRACKER};
 use crate::mocap::axis_fit::{fit_axis, AxisFit, AxisMethod, AxisOptions};
 use crate::error::{CalibError, Result};
-use crate::recordings::tracks::{common_samples, BodyTrack, Recording};
+use dvrk_sim::recording::{common_samples, BodyTrack, Recording};
 use dvrk_kin::Pose;
 use nalgebra::{Matrix3, Vector3};
 
@@ -137,8 +137,8 @@ pub fn calibrate_axes(rec: &Recording, cfg: &AxesConfig, options: &AxesOptions) 
     for name in &names {
         let l = layout(name);
         let track = rec.poses(cfg.recording_name(name), l.as_deref(), options.from_markers).map_err(|e| match e {
-            CalibError::Data { what, message } => CalibError::data(format!("body `{name}` ({what})"), message),
-            e => e,
+            dvrk_sim::recording::RecordingError::Data { what, message } => CalibError::data(format!("body `{name}` ({what})"), message),
+            e => e.into(),
         })?;
         if track.occluded > 0 || track.outliers > 0 {
             warnings.push(format!(

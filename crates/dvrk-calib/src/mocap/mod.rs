@@ -10,7 +10,7 @@
 //! - [`report_json`]: the JSON contracts of `dvrk calib pivot --json` and `dvrk calib axes --json`.
 //! - [`synth`]: a synthetic tracker that writes what a real one would record.
 //!
-//! Reads through [`crate::recordings`]; imports neither identification nor discrepancy.
+//! Reads through [`dvrk_sim::recording`]; imports neither identification nor discrepancy.
 
 pub mod apply;
 pub mod axes_config;

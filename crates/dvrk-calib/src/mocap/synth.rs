@@ -8,8 +8,8 @@
 //! Monte Carlo trials cost one marker fit per body and sample.
 
 use crate::error::{CalibError, Result};
-use crate::recordings::tracks::{BodyTrack, JointTrack, MarkerTrack, Recording};
-use crate::recordings::markers_to_pose::{drop_outliers, fit_pose};
+use dvrk_sim::recording::{BodyTrack, JointTrack, MarkerTrack, Recording};
+use dvrk_sim::recording::{drop_outliers, fit_pose};
 use dvrk_kin::{compute_frame_placements, Data, FrameRef, Model, Pose};
 use nalgebra::{Point3, Rotation3, Translation3, Vector3};
 use rand::{Rng, SeedableRng};

@@ -3,7 +3,7 @@
 //! numbers: never a panic, never a silent result.
 
 use crate::util::{config, psm, scenario};
-use dvrk_calib::recordings::{McapLayout, McapOptions};
+use dvrk_sim::recording::{McapLayout, McapOptions};
 use dvrk_calib::mocap::synth::{Scenario, SynthMotion, SynthOptions};
 use dvrk_calib::{calibrate_axes, pivot_calibration, read_recording, AxesOptions, PivotOptions};
 use std::path::Path;
@@ -73,12 +73,12 @@ fn nan_rows_are_dropped_with_a_count() {
             }
         }
     });
-    let csv = dvrk_calib::recordings::write_plain_csv(&rec);
-    let back = dvrk_calib::recordings::parse_plain_csv(&csv, Path::new("nan.csv")).unwrap();
+    let csv = dvrk_sim::recording::write_plain_csv(&rec);
+    let back = dvrk_sim::recording::parse_plain_csv(&csv, Path::new("nan.csv")).unwrap();
     assert!(back.warnings.iter().any(|w| w == "nan.csv: rigid body `end`: 25 row(s) hold NaN; treated as occluded"), "{:?}", back.warnings);
     assert_eq!(back.body("end").unwrap().len(), 1200 - 25);
-    let mcap = dvrk_calib::recordings::write_mcap_poses(&rec, McapLayout::PoseStamped, "/js").unwrap();
-    let back = dvrk_calib::recordings::parse_mcap_poses(&mcap, Path::new("nan.mcap"), &McapOptions::default()).unwrap();
+    let mcap = dvrk_sim::recording::write_mcap_poses(&rec, McapLayout::PoseStamped, "/js").unwrap();
+    let back = dvrk_sim::recording::parse_mcap_poses(&mcap, Path::new("nan.mcap"), &McapOptions::default()).unwrap();
     assert!(back.warnings.iter().any(|w| w == "nan.mcap: /mocap/end/pose: 25 message(s) hold NaN; treated as occluded"), "{:?}", back.warnings);
     // The fit itself refuses a NaN pose rather than returning NaN.
     let e = pivot_calibration(&rec.body("end").unwrap().poses, &PivotOptions::default()).unwrap_err().to_string();
@@ -88,14 +88,14 @@ fn nan_rows_are_dropped_with_a_count() {
 #[test]
 fn a_missing_topic_names_the_ones_there_are() {
     let s = scenario(&psm(), SynthMotion::Q1Q2Sweep, 1e-4, 1.0, 0.0);
-    let mcap = dvrk_calib::recordings::write_mcap_poses(&s.record(1), McapLayout::PoseStamped, "/PSM1/measured_js").unwrap();
-    let e = dvrk_calib::recordings::parse_mcap_poses(&mcap, Path::new("r.mcap"), &McapOptions { topics: vec!["/vrpn/PSM/pose".into()], joint_topic: None })
+    let mcap = dvrk_sim::recording::write_mcap_poses(&s.record(1), McapLayout::PoseStamped, "/PSM1/measured_js").unwrap();
+    let e = dvrk_sim::recording::parse_mcap_poses(&mcap, Path::new("r.mcap"), &McapOptions { topics: vec!["/vrpn/PSM/pose".into()], joint_topic: None })
         .unwrap_err()
         .to_string();
     assert!(e.starts_with("r.mcap: no topic or TF child frame `/vrpn/PSM/pose`; topics: /PSM1/measured_js (sensor_msgs/msg/JointState, cdr), /mocap/back/pose"), "{e}");
-    let e = dvrk_calib::recordings::parse_mcap_poses(&mcap, Path::new("r.mcap"), &McapOptions { topics: vec![], joint_topic: Some("/PSM2/measured_js".into()) }).unwrap_err().to_string();
+    let e = dvrk_sim::recording::parse_mcap_poses(&mcap, Path::new("r.mcap"), &McapOptions { topics: vec![], joint_topic: Some("/PSM2/measured_js".into()) }).unwrap_err().to_string();
     assert!(e.starts_with("r.mcap: no JointState topic `/PSM2/measured_js`"), "{e}");
-    let rec = dvrk_calib::recordings::parse_mcap_poses(&mcap, Path::new("r.mcap"), &McapOptions::default()).unwrap();
+    let rec = dvrk_sim::recording::parse_mcap_poses(&mcap, Path::new("r.mcap"), &McapOptions::default()).unwrap();
     let e = rec.body("tool").unwrap_err().to_string();
     assert_eq!(e, "rigid body or topic `tool`: not in the recording; available: /mocap/back/pose, /mocap/bottom/pose, /mocap/end/pose, /mocap/front/pose, /mocap/top/pose, /mocap/yaw/pose");
     let mut cfg = config(&s);
@@ -114,8 +114,8 @@ fn a_wrong_marker_count_is_an_error() {
     let n = end.t.len();
     end.xyz = (0..n).flat_map(|i| end.xyz[i * 9..i * 9 + 6].to_vec()).collect();
     end.names.truncate(2);
-    let csv = dvrk_calib::recordings::write_plain_csv(&rec);
-    let back = dvrk_calib::recordings::parse_plain_csv(&csv, Path::new("m.csv")).unwrap();
+    let csv = dvrk_sim::recording::write_plain_csv(&rec);
+    let back = dvrk_sim::recording::parse_plain_csv(&csv, Path::new("m.csv")).unwrap();
     let e = back.poses("end", None, true).unwrap_err().to_string();
     assert_eq!(e, "rigid body `end`: has 2 marker(s); a pose needs 3 or more");
     // A layout of four markers for a three-marker cluster.
@@ -127,7 +127,7 @@ fn a_wrong_marker_count_is_an_error() {
 #[test]
 fn a_truncated_mcap_is_an_error_with_the_message_count() {
     let s = scenario(&psm(), SynthMotion::Q1Q2Sweep, 1e-4, 5.0, 0.0);
-    let mcap = dvrk_calib::recordings::write_mcap_poses(&s.record(6), McapLayout::PoseStamped, "/PSM1/measured_js").unwrap();
+    let mcap = dvrk_sim::recording::write_mcap_poses(&s.record(6), McapLayout::PoseStamped, "/PSM1/measured_js").unwrap();
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("cut.mcap");
     std::fs::write(&path, &mcap[..mcap.len() * 2 / 3]).unwrap();

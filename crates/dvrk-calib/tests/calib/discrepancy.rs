@@ -6,7 +6,7 @@
 
 use dvrk_calib::discrepancy::generate::HIDDEN_KINDS;
 use dvrk_calib::discrepancy::{discrepancy, hidden_effect, Hidden, HiddenOptions, HiddenRecording, Options};
-use dvrk_calib::recordings;
+use dvrk_sim::recording;
 use dvrk_kin::effects::EffectKind;
 
 /// The generator's settings for these regression nets: the truth on the reduced engine (dvrk-kin's
@@ -208,7 +208,7 @@ fn an_mcap_in_another_joint_order_reads_in_the_models() {
     let psm = dvrk_kin::load("psm", None).unwrap();
     let order = [6, 0, 5, 1, 4, 2, 3];
     let shuffle = |v: &Vec<Vec<f64>>| -> Vec<Vec<f64>> { v.iter().map(|s| order.iter().map(|&k| s[k]).collect()).collect() };
-    let shuffled = dvrk_calib::recordings::JointLog {
+    let shuffled = dvrk_sim::recording::JointLog {
         names: order.iter().map(|&k| h.log.names[k].clone()).collect(),
         setpoint: shuffle(&h.log.setpoint),
         position: shuffle(&h.log.position),
@@ -216,8 +216,8 @@ fn an_mcap_in_another_joint_order_reads_in_the_models() {
         ..h.log.clone()
     };
     let (a, b) = (dir.path().join("a.mcap"), dir.path().join("b.mcap"));
-    std::fs::write(&a, recordings::write_joint_log_mcap(&h.log, "PSM1").unwrap()).unwrap();
-    std::fs::write(&b, recordings::write_joint_log_mcap(&shuffled, "PSM1").unwrap()).unwrap();
+    std::fs::write(&a, recording::write_joint_log_mcap(&h.log, "PSM1").unwrap()).unwrap();
+    std::fs::write(&b, recording::write_joint_log_mcap(&shuffled, "PSM1").unwrap()).unwrap();
     let read = |p: &std::path::Path| dvrk_calib::discrepancy::read_log(p, "mcap", &psm, "PSM1").unwrap().0;
     let (in_order, reordered) = (read(&a), read(&b));
     assert_eq!(reordered.names, psm.joints.iter().map(|j| j.name.clone()).collect::<Vec<_>>());
@@ -233,7 +233,7 @@ fn joint_logs_round_trip_and_bad_recordings_are_refused() {
     let h = trial(Hidden::None, 5, None, 8.0);
     let psm = dvrk_kin::load("psm", None).unwrap();
     let path = dir.path().join("rec.mcap");
-    std::fs::write(&path, recordings::write_joint_log_mcap(&h.log, "PSM1").unwrap()).unwrap();
+    std::fs::write(&path, recording::write_joint_log_mcap(&h.log, "PSM1").unwrap()).unwrap();
     let back = dvrk_calib::discrepancy::read_log(&path, "mcap", &psm, "PSM1").unwrap().0;
     assert_eq!(back.names, h.log.names);
     assert_eq!(back.len(), h.log.len());
@@ -271,7 +271,7 @@ fn joint_logs_round_trip_and_bad_recordings_are_refused() {
 /// topic and time; messages without velocities still read.
 #[test]
 fn malformed_velocities_are_refused_as_efforts_are() {
-    use dvrk_calib::ros_msgs::{joint_state_schema, Header, JointState};
+    use dvrk_sim::recording::ros_msgs::{joint_state_schema, Header, JointState};
     use dvrk_sim::recording::mcap_out::{ros2_schema, McapOut};
     let psm = dvrk_kin::load("psm", None).unwrap();
     let names: Vec<String> = psm.joints.iter().map(|j| j.name.clone()).collect();
@@ -754,7 +754,7 @@ fn a_recording_without_efforts_runs_the_kinematic_channel_alone() {
     // without the marker is a one-line error naming the file and topic.
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("no-efforts.mcap");
-    std::fs::write(&path, dvrk_calib::recordings::write_joint_log_mcap(&h.log, "PSM1").unwrap()).unwrap();
+    std::fs::write(&path, dvrk_sim::recording::write_joint_log_mcap(&h.log, "PSM1").unwrap()).unwrap();
     let model = dvrk_kin::load("psm", None).unwrap();
     let (log, notes) = dvrk_calib::discrepancy::read_log(&path, "auto", &model, "PSM1").unwrap();
     assert!(!log.has_efforts() && notes.iter().any(|n| n.contains("/PSM1/measured_js carries no efforts")), "{notes:?}");
@@ -835,7 +835,7 @@ fn payload_anywhere_table() {
         } else {
             let free = hidden_effect("psm", &HiddenOptions { hidden: Hidden::None, seed, duration: 30.0, ..Default::default() }).unwrap();
             let path = dir.path().join(format!("free{seed}.mcap"));
-            std::fs::write(&path, recordings::write_joint_log_mcap(&free.log, "PSM1").unwrap()).unwrap();
+            std::fs::write(&path, recording::write_joint_log_mcap(&free.log, "PSM1").unwrap()).unwrap();
             let rec = dvrk_calib::identify::read_log(&path, "mcap", &psm, "PSM1").unwrap().0;
             let prior = dvrk_sim::scene::builtin_inertials("psm", &psm).unwrap().body_inertias(&psm).unwrap();
             let options = IdentifyOptions::full(Vec::new());

@@ -10,7 +10,7 @@
 use dvrk_calib::discrepancy::{discrepancy, scene_for_arm, Options};
 use dvrk_calib::identify::{summary, IdentifyOptions};
 use dvrk_calib::identify;
-use dvrk_calib::recordings::McapOptions;
+use dvrk_sim::recording::McapOptions;
 use dvrk_calib::{pivot_calibration, read_recording, PivotOptions};
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -61,7 +61,7 @@ fn one_topic_crtk_layout_and_bags_read_the_same() {
     for name in ["dvrk.mcap", "dvrk_bz2.bag"] {
         let (log, _) = dvrk_calib::discrepancy::read_log(&file(dir, name), "auto", &psm, "PSM1").unwrap();
         // The same log but for where it was read from.
-        assert_eq!(dvrk_calib::recordings::JointLog { source: one.source.clone(), ..log }, one, "{name}");
+        assert_eq!(dvrk_sim::recording::JointLog { source: one.source.clone(), ..log }, one, "{name}");
     }
 }
 

@@ -2,7 +2,7 @@
 //! tracker's poses and joint states unchanged, and raw markers give back the tracker's poses.
 
 use crate::util::{psm, scenario};
-use dvrk_calib::recordings::{McapLayout, McapOptions};
+use dvrk_sim::recording::{McapLayout, McapOptions};
 use dvrk_calib::mocap::synth::SynthMotion;
 use std::path::Path;
 
@@ -16,8 +16,8 @@ fn every_mcap_layout_round_trips() {
     let s = scenario(&psm(), SynthMotion::Q1Q2Sweep, 1e-4, 2.0, 0.05);
     let rec = s.record(9);
     for layout in [McapLayout::PoseStamped, McapLayout::Tf, McapLayout::FoxgloveJson, McapLayout::Foxglove] {
-        let bytes = dvrk_calib::recordings::write_mcap_poses(&rec, layout, "/PSM1/measured_js").unwrap();
-        let back = dvrk_calib::recordings::parse_mcap_poses(&bytes, Path::new("r.mcap"), &McapOptions::default()).unwrap();
+        let bytes = dvrk_sim::recording::write_mcap_poses(&rec, layout, "/PSM1/measured_js").unwrap();
+        let back = dvrk_sim::recording::parse_mcap_poses(&bytes, Path::new("r.mcap"), &McapOptions::default()).unwrap();
         assert!(back.warnings.is_empty(), "{layout:?}: {:?}", back.warnings);
         for b in &rec.bodies {
             let got = back.body(&b.name).unwrap();
@@ -32,8 +32,8 @@ fn every_mcap_layout_round_trips() {
         assert_eq!(j.q, rec.joints.as_ref().unwrap().q);
     }
     // A topic filter keeps the named body only.
-    let bytes = dvrk_calib::recordings::write_mcap_poses(&rec, McapLayout::PoseStamped, "/js").unwrap();
-    let one = dvrk_calib::recordings::parse_mcap_poses(&bytes, Path::new("r.mcap"), &McapOptions { topics: vec!["/mocap/end/pose".into()], joint_topic: None }).unwrap();
+    let bytes = dvrk_sim::recording::write_mcap_poses(&rec, McapLayout::PoseStamped, "/js").unwrap();
+    let one = dvrk_sim::recording::parse_mcap_poses(&bytes, Path::new("r.mcap"), &McapOptions { topics: vec!["/mocap/end/pose".into()], joint_topic: None }).unwrap();
     assert_eq!(one.body_names(), vec!["/mocap/end/pose".to_string()]);
 }
 
@@ -46,8 +46,8 @@ fn raw_markers_give_the_trackers_poses_and_drop_ghost_frames() {
     )
     .unwrap();
     let rec = s.record(21);
-    let csv = dvrk_calib::recordings::write_plain_csv(&rec);
-    let back = dvrk_calib::recordings::parse_plain_csv(&csv, Path::new("m.csv")).unwrap();
+    let csv = dvrk_sim::recording::write_plain_csv(&rec);
+    let back = dvrk_sim::recording::parse_plain_csv(&csv, Path::new("m.csv")).unwrap();
     // The layout estimated from the markers (first complete frame, refined) is the cluster's up
     // to a rotation: the pose track it gives moves exactly as the tracker's.
     let fitted = back.poses("end", None, true).unwrap();

@@ -166,15 +166,15 @@ fn a_small_part_prior_on_an_unknown_body_or_of_no_size_is_refused() {
 fn bad_wpi_files_name_the_line_and_column() {
     let model = psm();
     let row = vec!["0.1"; 21].join(",");
-    let e = dvrk_calib::recordings::parse_wpi_csv(&format!("{row}\n0.1,0.2\n"), Path::new("r.csv"), &model).unwrap_err().to_string();
+    let e = dvrk_sim::recording::parse_wpi_csv(&format!("{row}\n0.1,0.2\n"), Path::new("r.csv"), &model).unwrap_err().to_string();
     assert_eq!(e, "r.csv: line 2: 2 columns; wpi-csv has 21 (q, qd, tau of 7 joints)");
     let bad = row.replacen("0.1", "nan", 1);
-    let e = dvrk_calib::recordings::parse_wpi_csv(&format!("{row}\n{bad}\n"), Path::new("r.csv"), &model).unwrap_err().to_string();
+    let e = dvrk_sim::recording::parse_wpi_csv(&format!("{row}\n{bad}\n"), Path::new("r.csv"), &model).unwrap_err().to_string();
     assert_eq!(e, "r.csv: line 2, column 1: NaN is not finite");
-    let e = dvrk_calib::recordings::parse_wpi_csv(&format!("{row}\n"), Path::new("r.csv"), &model).unwrap_err().to_string();
+    let e = dvrk_sim::recording::parse_wpi_csv(&format!("{row}\n"), Path::new("r.csv"), &model).unwrap_err().to_string();
     assert_eq!(e, "r.csv: 1 samples; identification needs at least 100");
     let ecm = dvrk_kin::load("ecm", None).unwrap();
-    let e = dvrk_calib::recordings::parse_wpi_csv(&row, Path::new("r.csv"), &ecm).unwrap_err().to_string();
+    let e = dvrk_sim::recording::parse_wpi_csv(&row, Path::new("r.csv"), &ecm).unwrap_err().to_string();
     assert_eq!(e, "r.csv: wpi-csv holds a PSM's or an MTM's 7 joints; model `ecm` has 4");
 }
 

@@ -36,7 +36,7 @@ fn wpi_mtm_columns_are_the_arms_actuators() {
     assert_eq!(r1.names[1..4], ["shoulder_pitch actuator", "elbow_pitch actuator", "wrist_platform actuator"]);
     assert_eq!((r1.names[0].as_str(), r1.names[4].as_str()), ("outer_yaw", "wrist_pitch"));
     assert_eq!(r1.to_joint.as_ref(), model.coupling.as_ref());
-    let (_, notes) = dvrk_calib::recordings::read_joint_log_parts(&one, "wpi-csv", &model, "MTMR", dvrk_calib::recordings::Parts::Measured).unwrap();
+    let (_, notes) = dvrk_sim::recording::read_joint_log_parts(&one, "wpi-csv", &model, "MTMR", dvrk_sim::recording::Parts::Measured).unwrap();
     assert!(notes.iter().any(|n| n.starts_with("795 of 5999 rows (13.3%) repeat the row before")), "{notes:?}");
     let mut options = IdentifyOptions::full(Vec::new());
     options.processing.cutoff = 4.0;

@@ -8,7 +8,7 @@
 use crate::util::psm;
 use dvrk_calib::filter::Butterworth2;
 use dvrk_calib::identify::problem::{regression, EffectTerm, Layout, Param};
-use dvrk_calib::recordings::parse_wpi_csv;
+use dvrk_sim::recording::parse_wpi_csv;
 use dvrk_calib::identify::{identify_regression, IdentifyOptions, JointLog};
 use dvrk_kin::dynamics::PARAMETERS_PER_BODY;
 use nalgebra::DVector;

@@ -2,7 +2,7 @@
 //! to 1e-6 m, through the file formats other tools read (MCAP and plain CSV).
 
 use crate::util::{config, distance_to_line, model_table6, psm, scenario, true_axis};
-use dvrk_calib::recordings::{McapLayout, McapOptions};
+use dvrk_sim::recording::{McapLayout, McapOptions};
 use dvrk_calib::mocap::psm_dh::psm_dh;
 use dvrk_calib::mocap::synth::SynthMotion;
 use dvrk_calib::{calibrate_axes, pivot_calibration, AxesOptions, AxisMethod, PivotMethod, PivotOptions};
@@ -14,8 +14,8 @@ fn noise_free_axes_give_the_models_table_6_distances() {
     let model = psm();
     let s = scenario(&model, SynthMotion::Q2Sweep, 0.0, 20.0, 0.01);
     // Through an MCAP file, as a tracker would write it.
-    let bytes = dvrk_calib::recordings::write_mcap_poses(&s.record(7), McapLayout::PoseStamped, "/PSM1/measured_js").unwrap();
-    let rec = dvrk_calib::recordings::parse_mcap_poses(&bytes, Path::new("q2.mcap"), &McapOptions::default()).unwrap();
+    let bytes = dvrk_sim::recording::write_mcap_poses(&s.record(7), McapLayout::PoseStamped, "/PSM1/measured_js").unwrap();
+    let rec = dvrk_sim::recording::parse_mcap_poses(&bytes, Path::new("q2.mcap"), &McapOptions::default()).unwrap();
     let cfg = config(&s);
     let truth = model_table6(&model);
     for method in [AxisMethod::Sara, AxisMethod::GamageLasenby] {
@@ -54,8 +54,8 @@ fn noise_free_pivot_gives_the_models_rcm() {
     let s = scenario(&model, SynthMotion::Q1Q2Sweep, 0.0, 20.0, 0.01);
     let rcm = s.rcm.unwrap();
     // Through a plain CSV file.
-    let text = dvrk_calib::recordings::write_plain_csv(&s.record(3));
-    let rec = dvrk_calib::recordings::parse_plain_csv(&text, Path::new("q1q2.csv")).unwrap();
+    let text = dvrk_sim::recording::write_plain_csv(&s.record(3));
+    let rec = dvrk_sim::recording::parse_plain_csv(&text, Path::new("q1q2.csv")).unwrap();
     let poses = &rec.body("end").unwrap().poses;
     for method in [PivotMethod::OneStep, PivotMethod::TwoStep, PivotMethod::Sphere] {
         let f = pivot_calibration(poses, &PivotOptions { method, ..Default::default() }).unwrap();

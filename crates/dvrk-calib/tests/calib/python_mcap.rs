@@ -6,7 +6,7 @@
 //!
 //! Skipped, with a message, where Python lacks those packages (`scripts/test.sh` installs them).
 
-use dvrk_calib::recordings::{McapLayout, McapOptions};
+use dvrk_sim::recording::{McapLayout, McapOptions};
 use dvrk_calib::{pivot_calibration, read_recording, PivotOptions};
 use nalgebra::Vector3;
 use std::path::Path;
@@ -190,7 +190,7 @@ fn python_reads_the_synthetic_trackers_mcap() {
     let rec = s.record(4);
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("synth.mcap");
-    std::fs::write(&path, dvrk_calib::recordings::write_mcap_poses(&rec, McapLayout::PoseStamped, "/PSM1/measured_js").unwrap()).unwrap();
+    std::fs::write(&path, dvrk_sim::recording::write_mcap_poses(&rec, McapLayout::PoseStamped, "/PSM1/measured_js").unwrap()).unwrap();
     let out = run_python(READER, &[&path]);
     let lines: Vec<&str> = out.lines().collect();
     let end = rec.body("end").unwrap();
@@ -230,6 +230,6 @@ with open(sys.argv[1], "wb") as f:
 "#,
         &[&path],
     );
-    let e = dvrk_calib::recordings::read_arm(&path, "PSM1", &["measured_js"]).unwrap_err().to_string();
+    let e = dvrk_sim::recording::read_arm(&path, "PSM1", &["measured_js"]).unwrap_err().to_string();
     assert!(e.contains("json-joints.mcap") && e.contains("carries sensor_msgs/msg/JointState (json); expected sensor_msgs/msg/JointState (cdr or ros1)"), "{e}");
 }

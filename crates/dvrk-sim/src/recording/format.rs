@@ -1,8 +1,8 @@
 //! Which format a joint recording is in, told from the file itself: `--format auto` (the
 //! default of `dvrk identify` and `dvrk discrepancy`) resolves here.
 
-use crate::error::{CalibError, Result};
-use crate::recordings::message_file::{self, Container};
+use crate::recording::error::{RecordingError, Result};
+use crate::recording::message_file::{self, Container};
 use std::path::Path;
 
 /// What `--format` may say.
@@ -17,10 +17,10 @@ pub fn resolve(path: &Path, format: &str) -> Result<&'static str> {
         return Ok(f);
     }
     if format != "auto" {
-        return Err(CalibError::field("--format", format!("`{format}` is not a format; valid: {}", FORMATS.join(", "))));
+        return Err(RecordingError::field("--format", format!("`{format}` is not a format; valid: {}", FORMATS.join(", "))));
     }
     if !path.exists() {
-        return Err(CalibError::file(path, "no such file"));
+        return Err(RecordingError::file(path, "no such file"));
     }
     match message_file::container(path)? {
         Some(Container::Mcap) => return Ok("mcap"),
@@ -31,7 +31,7 @@ pub fn resolve(path: &Path, format: &str) -> Result<&'static str> {
     use std::io::Read;
     let max = dvrk_kin::text_file::MAX_LINE_BYTES;
     let mut head = Vec::new();
-    dvrk_kin::text_file::open_input(path)?.take(max as u64 + 1).read_to_end(&mut head).map_err(|e| CalibError::file(path, format!("cannot read: {e}")))?;
+    dvrk_kin::text_file::open_input(path)?.take(max as u64 + 1).read_to_end(&mut head).map_err(|e| RecordingError::file(path, format!("cannot read: {e}")))?;
     let full = head.len() > max;
     let mut lines = head.split(|&b| b == b'\n').enumerate().peekable();
     while let Some((i, line)) = lines.next() {
@@ -39,13 +39,13 @@ pub fn resolve(path: &Path, format: &str) -> Result<&'static str> {
             break;
         }
         if full && lines.peek().is_none() {
-            return Err(CalibError::file(path, format!("line {} is longer than {max} bytes: not a CSV recording (neither MCAP nor a ROS 1 bag); give --format", i + 1)));
+            return Err(RecordingError::file(path, format!("line {} is longer than {max} bytes: not a CSV recording (neither MCAP nor a ROS 1 bag); give --format", i + 1)));
         }
         let Ok(line) = std::str::from_utf8(line) else {
-            return Err(CalibError::file(path, "neither MCAP, a ROS 1 bag nor text (CSV); give --format"));
+            return Err(RecordingError::file(path, "neither MCAP, a ROS 1 bag nor text (CSV); give --format"));
         };
         if line.contains('\0') {
-            return Err(CalibError::file(path, "neither MCAP, a ROS 1 bag nor text (CSV: it holds NUL bytes); give --format"));
+            return Err(RecordingError::file(path, "neither MCAP, a ROS 1 bag nor text (CSV: it holds NUL bytes); give --format"));
         }
         let line = line.trim();
         if line.is_empty() || line.starts_with('#') {
@@ -55,7 +55,7 @@ pub fn resolve(path: &Path, format: &str) -> Result<&'static str> {
         let numbers = cells.iter().all(|c| c.trim().parse::<f64>().is_ok());
         return Ok(if numbers { "wpi-csv" } else { "csv" });
     }
-    Err(CalibError::file(path, "holds no data row to tell its format from; give --format"))
+    Err(RecordingError::file(path, "holds no data row to tell its format from; give --format"))
 }
 
 /// The note a reader adds when `format` was `auto`: what the file was read as.

@@ -1,5 +1,5 @@
 //! The plain CSV joint log of `dvrk discrepancy --format csv` (the conventions of
-//! [`crate::recordings::plain_csv`]: a header row naming every column, `#` comment lines):
+//! [`crate::recording::plain_csv`]: a header row naming every column, `#` comment lines):
 //!
 //! ```text
 //! # lines starting with '#' are comments
@@ -19,7 +19,7 @@
 //! `NAME.qx,NAME.qy,NAME.qz,NAME.qw` (unit quaternion), empty on rows without a tracker sample.
 
 use super::joint_log::JointLog;
-use crate::error::{CalibError, Result};
+use crate::recording::error::{RecordingError, Result};
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -34,23 +34,23 @@ pub struct CsvLog {
 
 /// Read the CSV joint log at `path` for `model`'s joints.
 pub fn read(path: &Path, model: &dvrk_kin::Model) -> Result<CsvLog> {
-    let text = crate::recordings::read_csv_text(path)?;
+    let text = crate::recording::read_csv_text(path)?;
     parse(&text, path, model)
 }
 
 /// Parse CSV joint-log text for `model`'s joints; `path` names it in errors.
 pub fn parse(text: &str, path: &Path, model: &dvrk_kin::Model) -> Result<CsvLog> {
     let n = model.nq();
-    let err = |line: u64, msg: String| CalibError::file(path, format!("line {line}: {msg}"));
+    let err = |line: u64, msg: String| RecordingError::file(path, format!("line {line}: {msg}"));
     let mut reader = csv::ReaderBuilder::new().comment(Some(b'#')).flexible(false).trim(csv::Trim::All).from_reader(text.as_bytes());
-    let header: Vec<String> = reader.headers().map_err(|e| CalibError::file(path, format!("cannot read the header: {e}")))?.iter().map(String::from).collect();
+    let header: Vec<String> = reader.headers().map_err(|e| RecordingError::file(path, format!("cannot read the header: {e}")))?.iter().map(String::from).collect();
     let col = |name: &str| header.iter().position(|h| h == name);
     let names = |prefix: &'static str| (1..=n).map(move |k| format!("{prefix}{k}"));
     // Columns beyond the model's joints: a recording of another arm.
     let beyond: Vec<&String> = header.iter().filter(|h| ["q", "tau", "setpoint"].iter().any(|p| h.strip_prefix(p).and_then(|k| k.parse::<usize>().ok()).is_some_and(|k| k == 0 || k > n))).collect();
     if !beyond.is_empty() {
         let list: Vec<&str> = beyond.iter().map(|s| s.as_str()).collect();
-        return Err(CalibError::file(path, format!("column(s) {} beyond the model's {n} joints (q1..q{n}, tau1..tau{n}, setpoint1..setpoint{n})", list.join(", "))));
+        return Err(RecordingError::file(path, format!("column(s) {} beyond the model's {n} joints (q1..q{n}, tau1..tau{n}, setpoint1..setpoint{n})", list.join(", "))));
     }
     let required: Vec<String> = std::iter::once("time".to_string()).chain(names("q")).chain(names("tau")).collect();
     let setpoints: Vec<String> = names("setpoint").collect();
@@ -58,7 +58,7 @@ pub fn parse(text: &str, path: &Path, model: &dvrk_kin::Model) -> Result<CsvLog>
     let missing: Vec<&String> = required.iter().chain(if has_setpoints { &setpoints[..] } else { &[] }).filter(|c| col(c).is_none()).collect();
     if !missing.is_empty() {
         let list: Vec<&str> = missing.iter().map(|s| s.as_str()).collect();
-        return Err(CalibError::file(path, format!("no column(s) {} for the model's {n} joints; the header is: {}", list.join(", "), dvrk_kin::text_file::excerpt(&header.join(","), 80))));
+        return Err(RecordingError::file(path, format!("no column(s) {} for the model's {n} joints; the header is: {}", list.join(", "), dvrk_kin::text_file::excerpt(&header.join(","), 80))));
     }
     let index = |names: &[String]| names.iter().map(|c| col(c).unwrap_or(0)).collect::<Vec<usize>>();
     let (time, q, tau) = (col("time").unwrap_or(0), index(&required[1..=n]), index(&required[n + 1..]));
@@ -104,7 +104,7 @@ pub fn parse(text: &str, path: &Path, model: &dvrk_kin::Model) -> Result<CsvLog>
         log.effort.push(row(&tau)?);
     }
     if log.is_empty() {
-        return Err(CalibError::file(path, "the header is followed by no data row"));
+        return Err(RecordingError::file(path, "the header is followed by no data row"));
     }
     Ok(CsvLog { log, notes })
 }
@@ -169,33 +169,33 @@ pub fn write(log: &JointLog) -> String {
 /// The tracked marker body `name` of the CSV joint log at `path`, on model frame `frame`: its
 /// pose columns on the rows that have them. A row with some but not all of them is an error.
 pub fn read_markers(path: &Path, name: &str, frame: usize) -> Result<super::marker_log::MarkerLog> {
-    let text = crate::recordings::read_csv_text(path)?;
+    let text = crate::recording::read_csv_text(path)?;
     let name = marker_name(name);
     let mut reader = csv::ReaderBuilder::new().comment(Some(b'#')).flexible(false).trim(csv::Trim::All).from_reader(text.as_bytes());
-    let header: Vec<String> = reader.headers().map_err(|e| CalibError::file(path, format!("cannot read the header: {e}")))?.iter().map(String::from).collect();
+    let header: Vec<String> = reader.headers().map_err(|e| RecordingError::file(path, format!("cannot read the header: {e}")))?.iter().map(String::from).collect();
     let col = |c: &str| header.iter().position(|h| h == c);
     let cols: Vec<Option<usize>> = POSE.iter().map(|c| col(&format!("{name}.{c}"))).collect();
     let (Some(time), true) = (col("time"), cols.iter().all(Option::is_some)) else {
         let have: Vec<&str> = header.iter().filter(|h| h.contains('.')).map(|h| h.split('.').next().unwrap_or("")).collect();
-        return Err(CalibError::file(path, format!("--marker-topic {name}: no columns time, {name}.x .. {name}.qw (pose columns of: {})", if have.is_empty() { "none".to_string() } else { have.join(", ") })));
+        return Err(RecordingError::file(path, format!("--marker-topic {name}: no columns time, {name}.x .. {name}.qw (pose columns of: {})", if have.is_empty() { "none".to_string() } else { have.join(", ") })));
     };
     let cols: Vec<usize> = cols.into_iter().flatten().collect();
     let mut out = super::marker_log::MarkerLog { topic: name.clone(), frame, t: Vec::new(), poses: Vec::new() };
     for rec in reader.records() {
-        let rec = rec.map_err(|e| CalibError::file(path, format!("line {}: {e}", e.position().map_or(0, |p| p.line()))))?;
+        let rec = rec.map_err(|e| RecordingError::file(path, format!("line {}: {e}", e.position().map_or(0, |p| p.line()))))?;
         let line = rec.position().map_or(0, |p| p.line());
         let cells: Vec<&str> = cols.iter().map(|&i| rec.get(i).unwrap_or("")).collect();
         if cells.iter().all(|c| c.is_empty()) {
             continue;
         }
-        let v: Vec<f64> = cells.iter().map(|c| c.parse::<f64>().ok().filter(|x| x.is_finite())).collect::<Option<_>>().ok_or_else(|| CalibError::file(path, format!("line {line}: {name}'s pose columns hold {}: all seven finite numbers, or all empty", dvrk_kin::text_file::excerpt(&format!("{cells:?}"), 80))))?;
-        let t: f64 = rec.get(time).unwrap_or("").parse().map_err(|_| CalibError::file(path, format!("line {line}: column `time` is not a number")))?;
-        let q = crate::recordings::plain_csv::unit_quaternion(v[3], v[4], v[5], v[6]).map_err(|e| CalibError::file(path, format!("line {line}: {name}: {e}")))?;
+        let v: Vec<f64> = cells.iter().map(|c| c.parse::<f64>().ok().filter(|x| x.is_finite())).collect::<Option<_>>().ok_or_else(|| RecordingError::file(path, format!("line {line}: {name}'s pose columns hold {}: all seven finite numbers, or all empty", dvrk_kin::text_file::excerpt(&format!("{cells:?}"), 80))))?;
+        let t: f64 = rec.get(time).unwrap_or("").parse().map_err(|_| RecordingError::file(path, format!("line {line}: column `time` is not a number")))?;
+        let q = crate::recording::plain_csv::unit_quaternion(v[3], v[4], v[5], v[6]).map_err(|e| RecordingError::file(path, format!("line {line}: {name}: {e}")))?;
         out.t.push(t);
         out.poses.push(dvrk_kin::Pose::from_parts(nalgebra::Translation3::new(v[0], v[1], v[2]), q.to_rotation_matrix()));
     }
     if out.t.len() < 50 {
-        return Err(CalibError::file(path, format!("--marker-topic {name}: {} poses (need at least 50)", out.t.len())));
+        return Err(RecordingError::file(path, format!("--marker-topic {name}: {} poses (need at least 50)", out.t.len())));
     }
     Ok(out)
 }
@@ -249,7 +249,7 @@ mod tests {
             *v = (0..n).map(|i| vec![i as f64 * 1e-4; m.nq()]).collect();
         }
         let poses: Vec<dvrk_kin::Pose> = (0..n / 2).map(|i| dvrk_kin::Pose::from_parts(Translation3::new(0.1, -0.2, i as f64 * 1e-3), Rotation3::new(Vector3::new(0.3, i as f64 * 0.01, -0.2)))).collect();
-        l.markers = Some(crate::recordings::marker_log::MarkerLog { topic: "/mocap/marker_tool_roll/pose".into(), frame: 9, t: (0..n / 2).map(|i| 2.0 * i as f64 * 1e-3).collect(), poses: poses.clone() });
+        l.markers = Some(crate::recording::marker_log::MarkerLog { topic: "/mocap/marker_tool_roll/pose".into(), frame: 9, t: (0..n / 2).map(|i| 2.0 * i as f64 * 1e-3).collect(), poses: poses.clone() });
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("m.csv");
         let text = write(&l);

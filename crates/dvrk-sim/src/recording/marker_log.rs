@@ -2,8 +2,8 @@
 //! (`--marker-topic T --marker-link FRAME`), read from the recording next to the joints, and
 //! written by `dvrk synth hidden-effect --marker-link`.
 
-use crate::error::{CalibError, Result};
-use crate::recordings::mcap_io::{self, McapOptions};
+use crate::recording::error::{RecordingError, Result};
+use crate::recording::mcap_io::{self, McapOptions};
 use dvrk_kin::{FrameRef, Model, Pose};
 use std::path::Path;
 
@@ -26,18 +26,18 @@ pub fn marker_frame(model: &Model, link: &str) -> Result<usize> {
         Ok(i) => FrameRef::Index(i),
         Err(_) => FrameRef::Name(link.trim().to_string()),
     };
-    model.frame_id(&r).map_err(|e| CalibError::field("--marker-link", format!("`{link}`: {e}")))
+    model.frame_id(&r).map_err(|e| RecordingError::field("--marker-link", format!("`{link}`: {e}")))
 }
 
 /// Read the pose track `topic` of an MCAP recording as the marker on `frame`.
 pub fn read_mcap(path: &Path, topic: &str, frame: usize) -> Result<MarkerLog> {
     let options = McapOptions { topics: vec![topic.to_string()], joint_topic: None };
     let rec = mcap_io::read(path, &options)?;
-    let body = rec.body(topic).map_err(|e| CalibError::file(path, format!("--marker-topic {topic}: {e}")))?;
+    let body = rec.body(topic).map_err(|e| RecordingError::file(path, format!("--marker-topic {topic}: {e}")))?;
     let mut body = body.clone();
     body.sort_by_time();
     if body.len() < 50 {
-        return Err(CalibError::file(path, format!("--marker-topic {topic}: {} poses (need at least 50)", body.len())));
+        return Err(RecordingError::file(path, format!("--marker-topic {topic}: {} poses (need at least 50)", body.len())));
     }
     Ok(MarkerLog { topic: topic.to_string(), frame, t: body.t, poses: body.poses })
 }

@@ -14,9 +14,9 @@
 //! publishers need not share a clock), counted from the first pose. A missing gripper or clutch
 //! topic is not an error: the jaw holds, or the pedal is taken as never pressed, and a note says so.
 
-use crate::error::{CalibError, Result};
-use crate::recordings::message_file::{self, Encoding, Message};
-use crate::ros_msgs::{Joy, PoseStamped, TransformStamped};
+use crate::recording::error::{RecordingError, Result};
+use crate::recording::message_file::{self, Encoding, Message};
+use crate::recording::ros_msgs::{Joy, PoseStamped, TransformStamped};
 use dvrk_kin::Pose;
 use nalgebra::{Quaternion, Translation3, UnitQuaternion};
 use std::collections::BTreeMap;
@@ -83,11 +83,11 @@ struct Collected {
     seen: Vec<String>,
     /// The first message of a topic that could not be read (wrong type, damaged), as an error
     /// raised only if the topic is one the chosen arm needs: another arm's odd topic is no fault.
-    bad: BTreeMap<String, CalibError>,
+    bad: BTreeMap<String, RecordingError>,
 }
 
 fn pose_of(path: &Path, m: &Message) -> Result<(String, Pose, bool)> {
-    let bad = |e: String| CalibError::file(path, format!("message {} on {}: {e}", m.index, m.topic));
+    let bad = |e: String| RecordingError::file(path, format!("message {} on {}: {e}", m.index, m.topic));
     let ros1 = m.encoding == Encoding::Ros1;
     let (frame, p, q) = match m.schema {
         "geometry_msgs/msg/PoseStamped" => {
@@ -99,7 +99,7 @@ fn pose_of(path: &Path, m: &Message) -> Result<(String, Pose, bool)> {
             (s.header.frame_id, s.translation, s.rotation)
         }
         other => {
-            return Err(CalibError::file(path, format!("{} carries {other} ({}); an MTM's pose is a geometry_msgs PoseStamped or TransformStamped", m.topic, m.encoding.name())));
+            return Err(RecordingError::file(path, format!("{} carries {other} ({}); an MTM's pose is a geometry_msgs PoseStamped or TransformStamped", m.topic, m.encoding.name())));
         }
     };
     if !p.iter().chain(&q).all(|v| v.is_finite()) {
@@ -135,7 +135,7 @@ fn keep(path: &Path, m: &Message, c: &mut Collected) -> Result<()> {
     let t = m.log_time();
     if !matches!(m.encoding, Encoding::Cdr | Encoding::Ros1) {
         if pose_topic_arm(m.topic).is_some() || CLUTCH_TOPICS.contains(&m.topic) || is_gripper_topic(m.topic) {
-            return Err(CalibError::file(path, format!("{} is in {} encoding; a ROS message (cdr or ros1) is read", m.topic, m.encoding.name())));
+            return Err(RecordingError::file(path, format!("{} is in {} encoding; a ROS message (cdr or ros1) is read", m.topic, m.encoding.name())));
         }
         return Ok(());
     }
@@ -144,22 +144,22 @@ fn keep(path: &Path, m: &Message, c: &mut Collected) -> Result<()> {
         c.poses.entry(m.topic.to_string()).or_default().push((t, frame, pose, renormalised));
     } else if is_gripper_topic(m.topic) {
         if m.schema != "sensor_msgs/msg/JointState" {
-            return Err(CalibError::file(path, format!("{} carries {}; a gripper's state is a sensor_msgs JointState", m.topic, m.schema)));
+            return Err(RecordingError::file(path, format!("{} carries {}; a gripper's state is a sensor_msgs JointState", m.topic, m.schema)));
         }
-        let js = crate::recordings::joint_states::decode_joint_state(m).map_err(|e| CalibError::file(path, format!("message {} on {}: {e}", m.index, m.topic)))?;
+        let js = crate::recording::joint_states::decode_joint_state(m).map_err(|e| RecordingError::file(path, format!("message {} on {}: {e}", m.index, m.topic)))?;
         let Some(&g) = js.position.first() else {
-            return Err(CalibError::file(path, format!("message {} on {}: no position (the gripper's opening is position[0])", m.index, m.topic)));
+            return Err(RecordingError::file(path, format!("message {} on {}: no position (the gripper's opening is position[0])", m.index, m.topic)));
         };
         if g.is_finite() {
             c.grippers.entry(m.topic.to_string()).or_default().push((t, g));
         }
     } else if CLUTCH_TOPICS.contains(&m.topic) {
         if m.schema != "sensor_msgs/msg/Joy" {
-            return Err(CalibError::file(path, format!("{} carries {}; the dVRK's pedals are sensor_msgs Joy", m.topic, m.schema)));
+            return Err(RecordingError::file(path, format!("{} carries {}; the dVRK's pedals are sensor_msgs Joy", m.topic, m.schema)));
         }
-        let joy = if m.encoding == Encoding::Ros1 { Joy::decode_ros1(m.data) } else { Joy::decode(m.data) }.map_err(|e| CalibError::file(path, format!("message {} on {}: {e}", m.index, m.topic)))?;
+        let joy = if m.encoding == Encoding::Ros1 { Joy::decode_ros1(m.data) } else { Joy::decode(m.data) }.map_err(|e| RecordingError::file(path, format!("message {} on {}: {e}", m.index, m.topic)))?;
         let Some(&b) = joy.buttons.first() else {
-            return Err(CalibError::file(path, format!("message {} on {}: no buttons (the pedal is buttons[0])", m.index, m.topic)));
+            return Err(RecordingError::file(path, format!("message {} on {}: no buttons (the pedal is buttons[0])", m.index, m.topic)));
         };
         c.clutch.entry(m.topic.to_string()).or_default().push((t, b == 1));
     }
@@ -197,13 +197,13 @@ pub fn read_mtm(path: &Path, arm: Option<&str>) -> Result<MtmLog> {
         None => match mtm_arms.as_slice() {
             [one] => one.clone(),
             [] => {
-                return Err(CalibError::file(path, format!(
+                return Err(RecordingError::file(path, format!(
                     "no MTM's pose (/MTML/measured_cp or /MTMR/measured_cp); its pose topics: {}; all topics: {}",
                     listing(&pose_topics_seen),
                     listing(&c.seen)
                 )))
             }
-            many => return Err(CalibError::file(path, format!("it holds the poses of {}: choose one with --arm", many.join(" and ")))),
+            many => return Err(RecordingError::file(path, format!("it holds the poses of {}: choose one with --arm", many.join(" and ")))),
         },
     };
     // A needed topic that could not be read is the error, whoever else is in the file.
@@ -213,7 +213,7 @@ pub fn read_mtm(path: &Path, arm: Option<&str>) -> Result<MtmLog> {
     }
     let Some((pose_topic, samples)) = pose_topics(&arm).into_iter().find_map(|t| c.poses.remove(&t).map(|s| (t, s))) else {
         let hint = if mtm_arms.is_empty() { String::new() } else { format!(" (--arm {}?)", mtm_arms.join(" or --arm ")) };
-        return Err(CalibError::file(path, format!("no pose of {arm} (/{arm}/measured_cp); its pose topics: {}{hint}", listing(&pose_topics_seen))));
+        return Err(RecordingError::file(path, format!("no pose of {arm} (/{arm}/measured_cp); its pose topics: {}{hint}", listing(&pose_topics_seen))));
     };
     let mut notes = Vec::new();
     // Log times in file order; sorted (stable) when the recorder wrote them out of order.

@@ -42,7 +42,7 @@ fn a_damaged_string_length_allocates_nothing_like_it() {
     file.extend_from_slice(MAGIC);
     let path = std::path::Path::new("damaged.mcap");
     let region = Region::new(GLOBAL);
-    let out = dvrk_calib::recordings::for_each_mcap(&file, path, |_| Ok(()));
+    let out = dvrk_sim::recording::for_each_mcap(&file, path, |_| Ok(()));
     let requested = region.change().bytes_allocated + region.change().bytes_reallocated.max(0) as usize;
     let err = out.expect_err("a damaged channel record is an error").to_string();
     assert!(err.contains("damaged.mcap") && err.contains("damaged"), "{err}");

@@ -12,21 +12,21 @@
 //! samples that fall in a gap of the tool topic are dropped rather than bridged; each is counted
 //! in [`ArmStates::notes`].
 
-use crate::error::{CalibError, Result};
-use crate::recordings::message_file::{self, Encoding};
+use crate::recording::error::{RecordingError, Result};
+use crate::recording::message_file::{self, Encoding};
 use std::collections::BTreeMap;
 use std::path::Path;
 
 /// The sub-topics (under `/ARM/`) on which the dVRK publishes a tool's joint: the PSM's jaw, the
 /// MTM's gripper (named as the joint; `dvrk sim --out` writes them so).
-pub const TOOL_TOPICS: [&str; 2] = dvrk_sim::recording::writer::TOOL_JOINTS;
+pub const TOOL_TOPICS: [&str; 2] = crate::recording::writer::TOOL_JOINTS;
 
 /// A JointState from `m`'s bytes in its wire encoding.
-pub(crate) fn decode_joint_state(m: &message_file::Message) -> std::result::Result<crate::ros_msgs::JointState, String> {
+pub(crate) fn decode_joint_state(m: &message_file::Message) -> std::result::Result<crate::recording::ros_msgs::JointState, String> {
     if m.encoding == Encoding::Ros1 {
-        crate::ros_msgs::JointState::decode_ros1(m.data)
+        crate::recording::ros_msgs::JointState::decode_ros1(m.data)
     } else {
-        crate::ros_msgs::JointState::decode(m.data)
+        crate::recording::ros_msgs::JointState::decode(m.data)
     }
 }
 
@@ -120,15 +120,15 @@ pub fn read_topics(path: &Path, wanted: &[&str]) -> Result<(BTreeMap<String, Joi
         }
         if m.schema != "sensor_msgs/msg/JointState" || !matches!(m.encoding, Encoding::Cdr | Encoding::Ros1) {
             // (The encoding too: a JointState in JSON read "carries JointState; expected JointState".)
-            return Err(CalibError::file(path, format!("topic {topic} carries {} ({}); expected sensor_msgs/msg/JointState (cdr or ros1)", m.schema, m.encoding.name())));
+            return Err(RecordingError::file(path, format!("topic {topic} carries {} ({}); expected sensor_msgs/msg/JointState (cdr or ros1)", m.schema, m.encoding.name())));
         }
-        let js = decode_joint_state(m).map_err(|e| CalibError::file(path, format!("message {} on {topic}: {e}", m.index)))?;
+        let js = decode_joint_state(m).map_err(|e| RecordingError::file(path, format!("message {} on {topic}: {e}", m.index)))?;
         let tp = topics.entry(topic.to_string()).or_default();
         if tp.names.is_empty() {
             tp.names = js.name.clone();
         }
         if js.name != tp.names || js.position.len() != tp.names.len() {
-            return Err(CalibError::file(path, format!("message {} on {topic}: joints {:?} ({} positions), earlier messages had {:?}", m.index, js.name, js.position.len(), tp.names)));
+            return Err(RecordingError::file(path, format!("message {} on {topic}: joints {:?} ({} positions), earlier messages had {:?}", m.index, js.name, js.position.len(), tp.names)));
         }
         let stamp = js.header.time();
         if stamp > 0.0 {
@@ -194,7 +194,7 @@ fn assemble(path: &Path, topics: &mut BTreeMap<String, JointStates>, seen: &[Str
         let tools: Vec<(String, JointStates)> = subs.iter().filter_map(|s| topics.remove(s).map(|js| (s.clone(), js))).collect();
         let Some(mut states) = topics.remove(&main) else {
             if let Some((t, _)) = tools.first() {
-                return Err(CalibError::file(path, format!("topic {t} is there but its arm topic {main} is not; topics: {}", out.listing())));
+                return Err(RecordingError::file(path, format!("topic {t} is there but its arm topic {main} is not; topics: {}", out.listing())));
             }
             continue;
         };
@@ -203,7 +203,7 @@ fn assemble(path: &Path, topics: &mut BTreeMap<String, JointStates>, seen: &[Str
         for (topic, mut tool) in tools {
             note_order(&mut out.notes, &where_, &topic, &mut tool);
             if let Some(dup) = tool.names.iter().find(|n| states.names.contains(n)) {
-                return Err(CalibError::file(path, format!("joint `{dup}` is on both {main} and {topic}")));
+                return Err(RecordingError::file(path, format!("joint `{dup}` is on both {main} and {topic}")));
             }
             let dropped = merge(&mut states, &tool, path, &main, &topic)?;
             if dropped.0 + dropped.1 > 0 {
@@ -227,10 +227,10 @@ fn assemble(path: &Path, topics: &mut BTreeMap<String, JointStates>, seen: &[Str
     Ok(out)
 }
 
-/// The joint track a pose-and-joints recording offers (`mcap_io`'s [`crate::recordings::tracks::Recording`]):
+/// The joint track a pose-and-joints recording offers (`mcap_io`'s [`crate::recording::tracks::Recording`]):
 /// of the JointState topics read, an arm's `measured_js` first, then `setpoint_js`, then any
 /// other; a tool sub-topic (`/ARM/jaw/...`) is never chosen alone but merged into its arm's.
-pub fn arm_track(path: &Path, mut tracks: BTreeMap<String, crate::recordings::tracks::JointTrack>, notes: &mut Vec<String>) -> Result<Option<crate::recordings::tracks::JointTrack>> {
+pub fn arm_track(path: &Path, mut tracks: BTreeMap<String, crate::recording::tracks::JointTrack>, notes: &mut Vec<String>) -> Result<Option<crate::recording::tracks::JointTrack>> {
     let is_tool = |t: &str| TOOL_TOPICS.iter().any(|s| t.contains(&format!("/{s}/")));
     let rank = |t: &str| {
         if t.ends_with("/measured_js") {
@@ -244,7 +244,7 @@ pub fn arm_track(path: &Path, mut tracks: BTreeMap<String, crate::recordings::tr
     let Some(main) = tracks.keys().filter(|t| !is_tool(t)).min_by_key(|t| rank(t)).cloned().or_else(|| tracks.keys().next().cloned()) else {
         return Ok(None);
     };
-    let to_states = |j: crate::recordings::tracks::JointTrack| JointStates { names: j.names, velocity: vec![Vec::new(); j.t.len()], effort: vec![Vec::new(); j.t.len()], t: j.t, position: j.q, log_timed: 0 };
+    let to_states = |j: crate::recording::tracks::JointTrack| JointStates { names: j.names, velocity: vec![Vec::new(); j.t.len()], effort: vec![Vec::new(); j.t.len()], t: j.t, position: j.q, log_timed: 0 };
     let Some(track) = tracks.remove(&main) else {
         return Ok(None);
     };
@@ -263,7 +263,7 @@ pub fn arm_track(path: &Path, mut tracks: BTreeMap<String, crate::recordings::tr
             }
         }
     }
-    Ok(Some(crate::recordings::tracks::JointTrack { source: sources.join(" + "), names: states.names, t: states.t, q: states.position, ..Default::default() }))
+    Ok(Some(crate::recording::tracks::JointTrack { source: sources.join(" + "), names: states.names, t: states.t, q: states.position, ..Default::default() }))
 }
 
 /// Order `js` in time and say what that took, and where its times came from.
@@ -284,7 +284,7 @@ fn note_order(notes: &mut Vec<String>, file: &str, topic: &str, js: &mut JointSt
 /// span or in its long gaps are removed. Returns (outside, in gaps).
 fn merge(arm: &mut JointStates, tool: &JointStates, path: &Path, arm_topic: &str, tool_topic: &str) -> Result<(usize, usize)> {
     if tool.is_empty() {
-        return Err(CalibError::file(path, format!("{tool_topic} holds no message")));
+        return Err(RecordingError::file(path, format!("{tool_topic} holds no message")));
     }
     let max_gap = GAP_PERIODS * tool.median_period();
     let nt = tool.names.len();
@@ -309,7 +309,7 @@ fn merge(arm: &mut JointStates, tool: &JointStates, path: &Path, arm_topic: &str
         let w = if b > a { (t - tool.t[a]) / (tool.t[b] - tool.t[a]) } else { 0.0 };
         let lerp = |v: &Vec<Vec<f64>>| -> Option<Vec<f64>> { (v[a].len() == nt && v[b].len() == nt).then(|| (0..nt).map(|j| v[a][j] + w * (v[b][j] - v[a][j])).collect()) };
         let Some(q) = lerp(&tool.position) else {
-            return Err(CalibError::file(path, format!("{tool_topic} at t = {} s: {} positions for {nt} joints", tool.t[a], tool.position[a].len())));
+            return Err(RecordingError::file(path, format!("{tool_topic} at t = {} s: {} positions for {nt} joints", tool.t[a], tool.position[a].len())));
         };
         arm.position[i].extend(q);
         // Velocities and efforts exist only where both topics carry them.
@@ -329,7 +329,7 @@ fn merge(arm: &mut JointStates, tool: &JointStates, path: &Path, arm_topic: &str
     }
     arm.names.extend(tool.names.iter().cloned());
     if arm.is_empty() {
-        return Err(CalibError::file(path, format!("{arm_topic} and {tool_topic} do not overlap in time ({arm_topic}: {outside} message(s) outside {tool_topic}'s span)")));
+        return Err(RecordingError::file(path, format!("{arm_topic} and {tool_topic} do not overlap in time ({arm_topic}: {outside} message(s) outside {tool_topic}'s span)")));
     }
     Ok((outside, gaps))
 }

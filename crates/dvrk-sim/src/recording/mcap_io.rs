@@ -1,13 +1,13 @@
 //! MCAP recordings and ROS 1 bags: PoseStamped, TFMessage and JointState (ROS 2 `cdr` or ROS 1
 //! serialization), and Foxglove PoseInFrame / FrameTransform(s) in JSON or protobuf; read into a
-//! [`Recording`] (through [`crate::recordings::message_file`]), and written by the synthetic tracker.
+//! [`Recording`] (through [`crate::recording::message_file`]), and written by the synthetic tracker.
 
-use crate::error::{CalibError, Result};
-use crate::recordings::foxglove::{self, FoxglovePose};
-use crate::recordings::message_file::{self, Encoding, Message};
-use crate::recordings::tracks::{BodyTrack, JointTrack, Recording};
-use crate::ros_msgs::{self, Header, JointState, PoseStamped, TransformStamped};
-use dvrk_sim::recording::mcap_out::{ros2_schema, sdk_schema, McapOut};
+use crate::recording::error::{RecordingError, Result};
+use crate::recording::foxglove::{self, FoxglovePose};
+use crate::recording::message_file::{self, Encoding, Message};
+use crate::recording::tracks::{BodyTrack, JointTrack, Recording};
+use crate::recording::ros_msgs::{self, Header, JointState, PoseStamped, TransformStamped};
+use crate::recording::mcap_out::{ros2_schema, sdk_schema, McapOut};
 use dvrk_kin::Pose;
 use nalgebra::{Translation3, UnitQuaternion};
 use std::collections::BTreeMap;
@@ -53,7 +53,7 @@ fn kind(schema: &str, encoding: Encoding) -> Option<Kind> {
 }
 
 fn pose(position: [f64; 3], q: [f64; 4]) -> std::result::Result<Pose, String> {
-    let u = crate::recordings::plain_csv::unit_quaternion(q[0], q[1], q[2], q[3])?;
+    let u = crate::recording::plain_csv::unit_quaternion(q[0], q[1], q[2], q[3])?;
     if !position.iter().all(|x| x.is_finite()) {
         return Err(format!("position ({}, {}, {}) is not finite", position[0], position[1], position[2]));
     }
@@ -113,17 +113,17 @@ impl<'a> Reader<'a> {
                     tr.poses.push(p);
                 }
                 Err(e) if e.contains("not finite") || e.contains("NaN") => tr.occluded += 1,
-                Err(e) => return Err(CalibError::file(path, what(e))),
+                Err(e) => return Err(RecordingError::file(path, what(e))),
             }
             Ok(())
         };
         match k {
             Kind::JointState => {
                 // The asked-for topic, and its tool's (the dVRK's `/PSM1/jaw/measured_js`).
-                if options.joint_topic.as_ref().is_some_and(|t| t != ch_topic && !crate::recordings::joint_states::is_tool_topic_of(t, ch_topic)) {
+                if options.joint_topic.as_ref().is_some_and(|t| t != ch_topic && !crate::recording::joint_states::is_tool_topic_of(t, ch_topic)) {
                     return Ok(());
                 }
-                let js = crate::recordings::joint_states::decode_joint_state(m).map_err(|e| CalibError::file(path, what(e)))?;
+                let js = crate::recording::joint_states::decode_joint_state(m).map_err(|e| RecordingError::file(path, what(e)))?;
                 let jt = joints.entry(ch_topic.to_string()).or_insert_with(|| JointTrack { source: ch_topic.to_string(), names: js.name.clone(), ..Default::default() });
                 if js.position.len() != jt.names.len() || js.name != jt.names {
                     *bad.entry(ch_topic.to_string()).or_default() += 1;
@@ -134,23 +134,23 @@ impl<'a> Reader<'a> {
             }
             _ if !wanted(ch_topic) && !matches!(k, Kind::Tf | Kind::FoxTransforms | Kind::ProtoTransform | Kind::ProtoTransforms) => {}
             Kind::PoseStamped => {
-                let p = if ros1 { PoseStamped::decode_ros1(m.data) } else { PoseStamped::decode(m.data) }.map_err(|e| CalibError::file(path, what(e)))?;
+                let p = if ros1 { PoseStamped::decode_ros1(m.data) } else { PoseStamped::decode(m.data) }.map_err(|e| RecordingError::file(path, what(e)))?;
                 add(ch_topic, &p.header.frame_id, stamp(p.header.time()), pose(p.position, p.orientation))?;
             }
             Kind::FoxPose | Kind::ProtoPose => {
                 let p = if k == Kind::FoxPose { foxglove::decode_pose_in_frame(m.data) } else { foxglove::decode_pose_in_frame_protobuf(m.data) };
-                let p = p.map_err(|e| CalibError::file(path, what(e)))?;
+                let p = p.map_err(|e| RecordingError::file(path, what(e)))?;
                 add(ch_topic, &p.frame_id, stamp(p.time), pose(p.position, p.orientation))?;
             }
             Kind::Tf | Kind::FoxTransforms | Kind::ProtoTransform | Kind::ProtoTransforms => {
                 let list: Vec<FoxglovePose> = match k {
                     Kind::Tf => (if ros1 { ros_msgs::decode_tf_ros1(m.data) } else { ros_msgs::decode_tf(m.data) })
-                        .map_err(|e| CalibError::file(path, what(e)))?
+                        .map_err(|e| RecordingError::file(path, what(e)))?
                         .into_iter()
                         .map(|t| FoxglovePose { time: t.header.time(), frame_id: t.header.frame_id, child_frame_id: t.child_frame_id, position: t.translation, orientation: t.rotation })
                         .collect(),
-                    Kind::FoxTransforms => foxglove::decode_frame_transforms(m.data).map_err(|e| CalibError::file(path, what(e)))?,
-                    _ => foxglove::decode_frame_transforms_protobuf(m.data, k == Kind::ProtoTransforms).map_err(|e| CalibError::file(path, what(e)))?,
+                    Kind::FoxTransforms => foxglove::decode_frame_transforms(m.data).map_err(|e| RecordingError::file(path, what(e)))?,
+                    _ => foxglove::decode_frame_transforms_protobuf(m.data, k == Kind::ProtoTransforms).map_err(|e| RecordingError::file(path, what(e)))?,
                 };
                 for t in list {
                     // A TF child frame is a body; `--topic` may name it or the topic.
@@ -167,21 +167,21 @@ impl<'a> Reader<'a> {
         let Reader { path, options, bodies, topics, joints, bad } = self;
         let mut rec = Recording { source: path.display().to_string(), ..Default::default() };
         if count == 0 {
-            return Err(CalibError::file(path, "the file holds no message"));
+            return Err(RecordingError::file(path, "the file holds no message"));
         }
         let listing = || topics.iter().map(|(t, (s, e))| format!("{t} ({s}, {})", e.name())).collect::<Vec<_>>().join(", ");
         for t in &options.topics {
             if !bodies.contains_key(t) && !topics.contains_key(t) {
-                return Err(CalibError::file(path, format!("no topic or TF child frame `{t}`; topics: {}", listing())));
+                return Err(RecordingError::file(path, format!("no topic or TF child frame `{t}`; topics: {}", listing())));
             }
             if topics.get(t).is_some_and(|(s, e)| kind(s, *e).is_none()) {
                 let (s, e) = &topics[t];
-                return Err(CalibError::file(path, format!("topic `{t}` carries {s} ({}); supported: geometry_msgs/msg/PoseStamped, tf2_msgs/msg/TFMessage, sensor_msgs/msg/JointState (cdr or ros1), foxglove.PoseInFrame, foxglove.FrameTransform(s) (json or protobuf)", e.name())));
+                return Err(RecordingError::file(path, format!("topic `{t}` carries {s} ({}); supported: geometry_msgs/msg/PoseStamped, tf2_msgs/msg/TFMessage, sensor_msgs/msg/JointState (cdr or ros1), foxglove.PoseInFrame, foxglove.FrameTransform(s) (json or protobuf)", e.name())));
             }
         }
         if let Some(jt) = &options.joint_topic {
             if !joints.contains_key(jt) {
-                return Err(CalibError::file(path, format!("no JointState topic `{jt}`; topics: {}", listing())));
+                return Err(RecordingError::file(path, format!("no JointState topic `{jt}`; topics: {}", listing())));
             }
         }
         let unsupported: Vec<String> = topics.iter().filter(|(_, (s, e))| kind(s, *e).is_none()).map(|(t, (s, _))| format!("{t} ({s})")).collect();
@@ -201,7 +201,7 @@ impl<'a> Reader<'a> {
                 b
             })
             .collect();
-        rec.joints = crate::recordings::joint_states::arm_track(path, joints, &mut rec.warnings)?;
+        rec.joints = crate::recording::joint_states::arm_track(path, joints, &mut rec.warnings)?;
         Ok(rec)
     }
 }
@@ -228,7 +228,7 @@ pub fn pose_topic(body: &str) -> String {
 /// Write a recording (poses and joint states; raw markers have no message here) as MCAP.
 /// `joint_topic` names the JointState topic (`/PSM1/measured_js`).
 pub fn write(rec: &Recording, layout: McapLayout, joint_topic: &str) -> Result<Vec<u8>> {
-    let io = |e: std::io::Error| CalibError::data("MCAP writer", e.to_string());
+    let io = |e: std::io::Error| RecordingError::data("MCAP writer", e.to_string());
     let mut w = McapOut::new(Cursor::new(Vec::new())).map_err(io)?;
     // Messages are written in time order across topics, as a recorder would.
     let mut events: Vec<(f64, usize, Vec<u8>)> = Vec::new();

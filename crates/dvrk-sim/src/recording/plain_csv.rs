@@ -13,8 +13,8 @@
 //! - An empty cell is an occlusion; `nan` counts as one, with a warning. Other columns are
 //!   ignored with a warning.
 
-use crate::error::{CalibError, Result};
-use crate::recordings::tracks::{BodyTrack, JointTrack, MarkerTrack, Recording};
+use crate::recording::error::{RecordingError, Result};
+use crate::recording::tracks::{BodyTrack, JointTrack, MarkerTrack, Recording};
 use dvrk_kin::Pose;
 use nalgebra::{Quaternion, Translation3, UnitQuaternion};
 use std::collections::BTreeMap;
@@ -36,17 +36,17 @@ pub(crate) fn unit_quaternion(x: f64, y: f64, z: f64, w: f64) -> std::result::Re
 
 /// Read a plain CSV recording.
 pub fn read(path: &Path) -> Result<Recording> {
-    let text = crate::recordings::read_csv_text(path)?;
+    let text = crate::recording::read_csv_text(path)?;
     parse(&text, path)
 }
 
 /// Parse plain CSV text; `path` names it in errors.
 pub fn parse(text: &str, path: &Path) -> Result<Recording> {
-    let err = |line: u64, msg: String| CalibError::file(path, format!("line {line}: {msg}"));
+    let err = |line: u64, msg: String| RecordingError::file(path, format!("line {line}: {msg}"));
     let mut reader = csv::ReaderBuilder::new().comment(Some(b'#')).flexible(false).trim(csv::Trim::All).from_reader(text.as_bytes());
-    let header: Vec<String> = reader.headers().map_err(|e| CalibError::file(path, format!("cannot read the header: {e}")))?.iter().map(String::from).collect();
+    let header: Vec<String> = reader.headers().map_err(|e| RecordingError::file(path, format!("cannot read the header: {e}")))?.iter().map(String::from).collect();
     let col = |name: &str| header.iter().position(|h| h == name);
-    let time = col("time").ok_or_else(|| CalibError::file(path, format!("no `time` column; the header is: {}", dvrk_kin::text_file::excerpt(&header.join(","), 80))))?;
+    let time = col("time").ok_or_else(|| RecordingError::file(path, format!("no `time` column; the header is: {}", dvrk_kin::text_file::excerpt(&header.join(","), 80))))?;
     // Group columns.
     let mut bodies: BTreeMap<String, [Option<usize>; 7]> = BTreeMap::new();
     let mut markers: BTreeMap<String, BTreeMap<usize, [Option<usize>; 3]>> = BTreeMap::new();
@@ -72,20 +72,20 @@ pub fn parse(text: &str, path: &Path) -> Result<Recording> {
     }
     for (name, cols) in &bodies {
         if let Some(c) = cols.iter().position(|c| c.is_none()) {
-            return Err(CalibError::file(path, format!("rigid body `{name}` has pose columns but no `{name}.{}` column", POSE[c])));
+            return Err(RecordingError::file(path, format!("rigid body `{name}` has pose columns but no `{name}.{}` column", POSE[c])));
         }
     }
     for (name, ms) in &markers {
         for (k, cols) in ms {
             if let Some(c) = cols.iter().position(|c| c.is_none()) {
-                return Err(CalibError::file(path, format!("marker `{name}.m{k}` lacks its `{}` column", ["x", "y", "z"][c])));
+                return Err(RecordingError::file(path, format!("marker `{name}.m{k}` lacks its `{}` column", ["x", "y", "z"][c])));
             }
         }
     }
     joints.sort();
     for (n, (k, _)) in joints.iter().enumerate() {
         if *k != n + 1 {
-            return Err(CalibError::file(path, format!("joint columns must be q1..qN without gaps; q{} is missing", n + 1)));
+            return Err(RecordingError::file(path, format!("joint columns must be q1..qN without gaps; q{} is missing", n + 1)));
         }
     }
     let mut rec = Recording { source: path.display().to_string(), ..Default::default() };
@@ -163,7 +163,7 @@ pub fn parse(text: &str, path: &Path) -> Result<Recording> {
         }
     }
     if rows == 0 {
-        return Err(CalibError::file(path, "the header is followed by no data row"));
+        return Err(RecordingError::file(path, "the header is followed by no data row"));
     }
     if let Some(first) = jt.skipped_lines.first() {
         rec.warnings.push(format!("{}: {} row(s) without a finite value in every joint column (first: line {first}) left out of the joints", path.display(), jt.skipped_lines.len()));

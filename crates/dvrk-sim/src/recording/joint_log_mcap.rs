@@ -1,12 +1,12 @@
 //! The joint log in MCAP files and ROS 1 bags, in the dVRK's CRTK layout: `/<arm>/measured_js`
 //! and `/<arm>/setpoint_js` (sensor_msgs/JointState), the jaw or gripper on its own topic
-//! (merged by [`crate::recordings::read_arm`]) or every joint on one topic.
+//! (merged by [`crate::recording::read_arm`]) or every joint on one topic.
 
 use super::JointLog;
-use crate::error::{CalibError, Result};
-use crate::ros_msgs::{self, Header, JointState};
+use crate::recording::error::{RecordingError, Result};
+use crate::recording::ros_msgs::{self, Header, JointState};
 use dvrk_kin::Model;
-use dvrk_sim::recording::mcap_out::{ros2_schema, McapOut};
+use crate::recording::mcap_out::{ros2_schema, McapOut};
 use std::io::Cursor;
 use std::path::Path;
 
@@ -14,7 +14,7 @@ use std::path::Path;
 /// effort), sensor_msgs/msg/JointState in CDR; and the tracker's poses, if any, as
 /// geometry_msgs/msg/PoseStamped on their topic.
 pub fn write_mcap(log: &JointLog, arm: &str) -> Result<Vec<u8>> {
-    let io = |e: std::io::Error| CalibError::data("MCAP writer", e.to_string());
+    let io = |e: std::io::Error| RecordingError::data("MCAP writer", e.to_string());
     let mut w = McapOut::new(Cursor::new(Vec::new())).map_err(io)?;
     let (n, s) = ros_msgs::joint_state_schema();
     let sp = w.add_channel(&format!("/{arm}/setpoint_js"), ros2_schema(n, &s), "cdr").map_err(io)?;
@@ -54,9 +54,9 @@ pub fn write_mcap(log: &JointLog, arm: &str) -> Result<Vec<u8>> {
 pub fn read(path: &Path, model: &Model, arm: &str, setpoints: bool) -> Result<(JointLog, Vec<String>)> {
     let (set_kind, meas_kind) = ("setpoint_js", "measured_js");
     let kinds: &[&str] = if setpoints { &[meas_kind, set_kind] } else { &[meas_kind] };
-    let mut states = crate::recordings::joint_states::read_arm(path, arm, kinds)?;
+    let mut states = crate::recording::joint_states::read_arm(path, arm, kinds)?;
     let Some(mut meas) = states.kinds.remove(meas_kind) else {
-        return Err(CalibError::file(path, format!("no topic /{arm}/{meas_kind}; topics: {}", states.listing())));
+        return Err(RecordingError::file(path, format!("no topic /{arm}/{meas_kind}; topics: {}", states.listing())));
     };
     let source = states.sources.remove(meas_kind).unwrap_or_else(|| format!("/{arm}/{meas_kind}"));
     let mut notes = std::mem::take(&mut states.notes);
@@ -64,7 +64,7 @@ pub fn read(path: &Path, model: &Model, arm: &str, setpoints: bool) -> Result<(J
     let index_of = |names: &[String]| joints.iter().map(|j| names.iter().position(|x| x == j)).collect::<Option<Vec<usize>>>();
     let Some(index) = index_of(&meas.names) else {
         let missing = joints.iter().find(|j| !meas.names.contains(j)).map_or("", String::as_str);
-        return Err(CalibError::file(path, format!("{source} has no joint `{missing}` (joints: {})", meas.names.join(", "))));
+        return Err(RecordingError::file(path, format!("{source} has no joint `{missing}` (joints: {})", meas.names.join(", "))));
     };
     let set = match states.kinds.remove(set_kind) {
         Some(set) => match index_of(&set.names) {
@@ -97,17 +97,17 @@ pub fn read(path: &Path, model: &Model, arm: &str, setpoints: bool) -> Result<(J
     for i in 0..m {
         let t = log.t[i];
         if !without_efforts && meas.effort[i].len() != nr {
-            return Err(CalibError::file(path, format!("{source} at t = {t} s: {} efforts for {nr} joints (a message carries an effort for every joint or none)", meas.effort[i].len())));
+            return Err(RecordingError::file(path, format!("{source} at t = {t} s: {} efforts for {nr} joints (a message carries an effort for every joint or none)", meas.effort[i].len())));
         }
         // Velocities are optional message by message (a jaw merged from its own topic has them
         // only where both topics do), but a message that carries some carries one per joint.
         let nv = meas.velocity[i].len();
         if nv != 0 && nv != nr {
-            return Err(CalibError::file(path, format!("{source} at t = {t} s: {nv} velocities for {nr} joints (a message carries a velocity for every joint or none)")));
+            return Err(RecordingError::file(path, format!("{source} at t = {t} s: {nv} velocities for {nr} joints (a message carries a velocity for every joint or none)")));
         }
         let (q, tau, qd) = (pick(&mut meas.position[i]), pick(&mut meas.effort[i]), pick(&mut meas.velocity[i]));
         if let Some(x) = q.iter().chain(&tau).chain(&qd).find(|x| !x.is_finite()) {
-            return Err(CalibError::file(path, format!("{source} at t = {t} s: {x} is not finite")));
+            return Err(RecordingError::file(path, format!("{source} at t = {t} s: {x} is not finite")));
         }
         log.position.push(q);
         log.effort.push(tau);

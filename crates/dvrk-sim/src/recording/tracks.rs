@@ -1,7 +1,7 @@
 //! A motion-capture recording in memory, whatever file it came from: rigid-body pose tracks,
 //! raw marker tracks and joint states, in SI units (m, rad, s) and the tracker's own frame.
 
-use crate::error::{CalibError, Result};
+use crate::recording::error::{RecordingError, Result};
 use dvrk_kin::Pose;
 use nalgebra::Vector3;
 
@@ -127,8 +127,8 @@ impl Recording {
         let found: Vec<&BodyTrack> = self.bodies.iter().filter(|b| names(&b.name, name)).collect();
         match found.as_slice() {
             [b] => Ok(b),
-            [] => Err(CalibError::unknown("rigid body or topic", name, self.bodies.iter().map(|b| b.name.clone()))),
-            many => Err(CalibError::data(
+            [] => Err(RecordingError::unknown("rigid body or topic", name, self.bodies.iter().map(|b| b.name.clone()))),
+            many => Err(RecordingError::data(
                 format!("rigid body `{name}`"),
                 format!("ambiguous: it names {}", many.iter().map(|b| b.name.as_str()).collect::<Vec<_>>().join(", ")),
             )),

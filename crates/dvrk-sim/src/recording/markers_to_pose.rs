@@ -2,8 +2,8 @@
 //! that carries a cluster's layout onto the observed markers, with the per-frame residual; and a
 //! whole marker track to a pose track, dropping occluded and outlier frames with counts.
 
-use crate::error::{CalibError, Result};
-use crate::recordings::tracks::{BodyTrack, MarkerTrack, Recording};
+use crate::recording::error::{RecordingError, Result};
+use crate::recording::tracks::{BodyTrack, MarkerTrack, Recording};
 use dvrk_kin::Pose;
 use nalgebra::{Matrix3, Rotation3, Translation3, Vector3};
 
@@ -75,12 +75,12 @@ pub fn estimate_layout(track: &MarkerTrack) -> Result<Vec<Vector3<f64>>> {
     let k = track.markers();
     let what = || format!("rigid body `{}`", track.body);
     if k < MIN_MARKERS {
-        return Err(CalibError::data(what(), format!("has {k} marker(s); a pose needs {MIN_MARKERS} or more")));
+        return Err(RecordingError::data(what(), format!("has {k} marker(s); a pose needs {MIN_MARKERS} or more")));
     }
     let n = track.t.len();
     let complete = |i: usize| (0..k).all(|m| track.get(i, m).is_some());
     let first = (0..n).find(|&i| complete(i)).ok_or_else(|| {
-        CalibError::data(what(), format!("no frame of {n} shows all {k} markers, so the cluster layout is unknown"))
+        RecordingError::data(what(), format!("no frame of {n} shows all {k} markers, so the cluster layout is unknown"))
     })?;
     let pts: Vec<Vector3<f64>> = (0..k).map(|m| track.get(first, m).unwrap_or_default()).collect();
     let c = pts.iter().sum::<Vector3<f64>>() / k as f64;
@@ -100,7 +100,7 @@ pub fn estimate_layout(track: &MarkerTrack) -> Result<Vec<Vector3<f64>>> {
         }
     }
     if count == 0 {
-        return Err(CalibError::data(what(), "its markers lie on a line in every frame; a pose needs three not in a line"));
+        return Err(RecordingError::data(what(), "its markers lie on a line in every frame; a pose needs three not in a line"));
     }
     let mean: Vec<Vector3<f64>> = sum.iter().map(|s| s / count as f64).collect();
     let c = mean.iter().sum::<Vector3<f64>>() / k as f64;
@@ -119,7 +119,7 @@ pub fn poses_from_markers(track: &MarkerTrack, layout: Option<&[Vector3<f64>]>) 
     let layout = match layout {
         Some(l) => {
             if l.len() != k {
-                return Err(CalibError::data(
+                return Err(RecordingError::data(
                     what(),
                     format!("the recording has {k} markers for it, its definition has {}", l.len()),
                 ));
@@ -188,7 +188,7 @@ impl Recording {
                 Some(m) => Ok(std::borrow::Cow::Owned(poses_from_markers(m, layout)?)),
                 None => {
                     if self.bodies.is_empty() && !self.markers.is_empty() {
-                        return Err(CalibError::unknown("rigid body", name, self.markers.iter().map(|m| m.body.clone())));
+                        return Err(RecordingError::unknown("rigid body", name, self.markers.iter().map(|m| m.body.clone())));
                     }
                     Err(e)
                 }

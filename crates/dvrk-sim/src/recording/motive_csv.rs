@@ -8,9 +8,9 @@
 //! cells are occlusions. `Rigid Body Marker` columns (where the solver expected markers) and
 //! unlabelled markers are skipped; labelled markers `BODY:MarkerN` become BODY's raw markers.
 
-use crate::error::{CalibError, Result};
-use crate::recordings::plain_csv::unit_quaternion;
-use crate::recordings::tracks::{BodyTrack, MarkerTrack, Recording};
+use crate::recording::error::{RecordingError, Result};
+use crate::recording::plain_csv::unit_quaternion;
+use crate::recording::tracks::{BodyTrack, MarkerTrack, Recording};
 use dvrk_kin::Pose;
 use nalgebra::Translation3;
 use std::path::Path;
@@ -22,7 +22,7 @@ pub fn looks_like_motive(text: &str) -> bool {
 
 /// Read a Motive CSV export.
 pub fn read(path: &Path) -> Result<Recording> {
-    let text = crate::recordings::read_csv_text(path)?;
+    let text = crate::recording::read_csv_text(path)?;
     parse(&text, path)
 }
 
@@ -41,10 +41,10 @@ struct Marker {
 
 /// Parse Motive CSV text; `path` names it in errors.
 pub fn parse(text: &str, path: &Path) -> Result<Recording> {
-    let err = |line: usize, msg: String| CalibError::file(path, format!("line {line}: {msg}"));
+    let err = |line: usize, msg: String| RecordingError::file(path, format!("line {line}: {msg}"));
     let mut reader = csv::ReaderBuilder::new().has_headers(false).flexible(true).from_reader(text.trim_start_matches('\u{feff}').as_bytes());
-    let rows: Vec<csv::StringRecord> = reader.records().collect::<std::result::Result<_, _>>().map_err(|e| CalibError::file(path, format!("{e}")))?;
-    let meta = rows.first().ok_or_else(|| CalibError::file(path, "empty file"))?;
+    let rows: Vec<csv::StringRecord> = reader.records().collect::<std::result::Result<_, _>>().map_err(|e| RecordingError::file(path, format!("{e}")))?;
+    let meta = rows.first().ok_or_else(|| RecordingError::file(path, "empty file"))?;
     let value = |key: &str| -> Option<String> {
         let cells: Vec<&str> = meta.iter().collect();
         cells.iter().position(|c| c.trim() == key).and_then(|i| cells.get(i + 1)).map(|s| s.trim().to_string())
@@ -64,7 +64,7 @@ pub fn parse(text: &str, path: &Path) -> Result<Recording> {
     let frame_row = rows
         .iter()
         .position(|r| r.get(0).is_some_and(|c| c.trim() == "Frame"))
-        .ok_or_else(|| CalibError::file(path, "no `Frame,Time (Seconds),...` header row"))?;
+        .ok_or_else(|| RecordingError::file(path, "no `Frame,Time (Seconds),...` header row"))?;
     let is_type = |c: &str| ["Rigid Body", "Rigid Body Marker", "Marker", "Bone", "Bone Marker", "Skeleton"].contains(&c.trim());
     let type_row = rows[..frame_row]
         .iter()

@@ -1,11 +1,11 @@
 //! The joint log: one arm's recorded joints, with efforts, as every product reads it
 //! (identification fits its channels, the discrepancy workflow analyses it in the model's joints,
-//! `dvrk synth hidden-effect` writes it). [`crate::recordings::read_joint_log`] reads it as
+//! `dvrk synth hidden-effect` writes it). [`crate::recording::read_joint_log`] reads it as
 //! recorded, whatever the format (the WPI CSV `wpi_csv.rs`, the dVRK's topics in MCAP files and
 //! ROS 1 bags `joint_log_mcap.rs`, the plain CSV layout `joint_log_csv.rs`); each product then
 //! takes what it needs with the operations here.
 
-use crate::error::{CalibError, Result};
+use crate::recording::error::{RecordingError, Result};
 use nalgebra::{DMatrix, DVector};
 
 /// The note when the file has no setpoint columns.
@@ -106,7 +106,7 @@ impl JointLog {
     pub fn in_joint_space(&self, model: &dvrk_kin::Model) -> Result<JointLog> {
         let Some(to_joint) = &self.to_joint else { return Ok(self.clone()) };
         let effort_map =
-            to_joint.transpose().try_inverse().ok_or_else(|| CalibError::data(&self.source, "the tool coupling is singular: actuator efforts cannot be taken to joint space"))?;
+            to_joint.transpose().try_inverse().ok_or_else(|| RecordingError::data(&self.source, "the tool coupling is singular: actuator efforts cannot be taken to joint space"))?;
         let maps = |m: &DMatrix<f64>, rows: &[Vec<f64>]| -> Vec<Vec<f64>> { rows.iter().map(|v| if v.is_empty() { Vec::new() } else { (m * DVector::from_column_slice(v)).iter().copied().collect() }).collect() };
         Ok(JointLog {
             source: self.source.clone(),

@@ -107,7 +107,7 @@ pub fn encode_pose_in_frame_protobuf(p: &FoxglovePose) -> Vec<u8> {
     let [x, y, z] = p.position;
     let [qx, qy, qz, qw] = p.orientation;
     let m = PoseInFrame {
-        timestamp: Some(dvrk_sim::recording::frame_transform::timestamp(p.time)),
+        timestamp: Some(crate::recording::frame_transform::timestamp(p.time)),
         frame_id: p.frame_id.clone(),
         pose: Some(fox::Pose { position: Some(fox::Vector3 { x, y, z }), orientation: Some(fox::Quaternion { x: qx, y: qy, z: qz, w: qw }) }),
     };
@@ -154,7 +154,7 @@ mod tests {
         assert_eq!(decode_pose_in_frame_protobuf(&encode_pose_in_frame_protobuf(&p)).unwrap(), p);
         // The simulator's /tf writer, read back here (an independent reader: the SDK's decoder).
         let mut buf = Vec::new();
-        dvrk_sim::recording::frame_transform::encode(vec![dvrk_sim::recording::frame_transform::transform(1.5, "w", "b", [1.0, 2.0, 3.0], [0.0, 0.0, 0.0, 1.0])], &mut buf);
+        crate::recording::frame_transform::encode(vec![crate::recording::frame_transform::transform(1.5, "w", "b", [1.0, 2.0, 3.0], [0.0, 0.0, 0.0, 1.0])], &mut buf);
         let t = decode_frame_transforms_protobuf(&buf, true).unwrap();
         assert_eq!((t[0].time, t[0].frame_id.as_str(), t[0].child_frame_id.as_str(), t[0].position), (1.5, "w", "b", [1.0, 2.0, 3.0]));
         let mut one = Vec::new();

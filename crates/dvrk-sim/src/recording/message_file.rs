@@ -7,7 +7,7 @@
 //! ROS 2's spelling (`sensor_msgs/msg/JointState`) whatever the file used
 //! (`sensor_msgs/JointState` in a bag), with the wire [`Encoding`] beside them.
 
-use crate::error::{CalibError, Result};
+use crate::recording::error::{RecordingError, Result};
 use std::collections::BTreeMap;
 use std::path::Path;
 
@@ -84,7 +84,7 @@ pub fn container(path: &Path) -> Result<Option<Container>> {
     let mut head = [0u8; 13];
     // A regular file only: a FIFO would wait for a writer forever, a device never end.
     let mut f = dvrk_kin::text_file::open_input(path)?;
-    let n = f.read(&mut head).map_err(|e| CalibError::file(path, format!("cannot read: {e}")))?;
+    let n = f.read(&mut head).map_err(|e| RecordingError::file(path, format!("cannot read: {e}")))?;
     Ok(container_of(&head[..n]))
 }
 
@@ -124,14 +124,14 @@ pub fn for_each(path: &Path, visit: impl FnMut(&Message) -> Result<()>) -> Resul
     match container(path)? {
         Some(Container::Mcap) => {
             // Read as the reader asks, not whole: a 5-minute recording's file is 60 MB.
-            let cannot = |e: std::io::Error| CalibError::file(path, format!("cannot read: {e}"));
+            let cannot = |e: std::io::Error| RecordingError::file(path, format!("cannot read: {e}"));
             let file = dvrk_kin::text_file::open_input(path)?;
             let len = file.metadata().map_err(cannot)?.len();
             for_each_mcap_from(file, usize::try_from(len).unwrap_or(usize::MAX), path, visit)
         }
         Some(Container::Bag) => for_each_bag(path, visit),
-        None if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("bag")) => Err(CalibError::file(path, "not a ROS 1 bag (it does not start with `#ROSBAG V2.0`)")),
-        None => Err(CalibError::file(path, "not an MCAP file (it does not start with the MCAP magic bytes) nor a ROS 1 bag")),
+        None if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("bag")) => Err(RecordingError::file(path, "not a ROS 1 bag (it does not start with `#ROSBAG V2.0`)")),
+        None => Err(RecordingError::file(path, "not an MCAP file (it does not start with the MCAP magic bytes) nor a ROS 1 bag")),
     }
 }
 
@@ -158,9 +158,9 @@ fn for_each_mcap_from(mut source: impl std::io::Read, len: usize, path: &Path, m
     let mut count = 0usize;
     let damaged = |count: usize, head: &[u8], e: &dyn std::fmt::Display| {
         if head.starts_with(MCAP_MAGIC) {
-            CalibError::file(path, format!("truncated or damaged after {count} message(s): {e}; nothing was fitted (recover the file with `mcap recover`)"))
+            RecordingError::file(path, format!("truncated or damaged after {count} message(s): {e}; nothing was fitted (recover the file with `mcap recover`)"))
         } else {
-            CalibError::file(path, "not an MCAP file (it does not start with the MCAP magic bytes)")
+            RecordingError::file(path, "not an MCAP file (it does not start with the MCAP magic bytes)")
         }
     };
     // Schema names (normalised once) by id; channels' topic, encoding and schema id by id.
@@ -171,10 +171,10 @@ fn for_each_mcap_from(mut source: impl std::io::Read, len: usize, path: &Path, m
         let want = match reader.next_event() {
             None => break,
             Some(Err(mcap::McapError::BadChunkCrc { saved, calculated })) => {
-                return Err(CalibError::file(path, format!("a chunk ending by byte {fed} is damaged: its CRC is {saved:08x}, its content's {calculated:08x} ({count} message(s) read up to there); nothing was used (recover the rest with `mcap recover`)")));
+                return Err(RecordingError::file(path, format!("a chunk ending by byte {fed} is damaged: its CRC is {saved:08x}, its content's {calculated:08x} ({count} message(s) read up to there); nothing was used (recover the rest with `mcap recover`)")));
             }
             Some(Err(mcap::McapError::BadDataCrc { saved, calculated })) => {
-                return Err(CalibError::file(path, format!("the data section is damaged: its CRC is {saved:08x}, its content's {calculated:08x}; nothing was read (recover the file with `mcap recover`)")));
+                return Err(RecordingError::file(path, format!("the data section is damaged: its CRC is {saved:08x}, its content's {calculated:08x}; nothing was read (recover the file with `mcap recover`)")));
             }
             Some(Err(e)) => return Err(damaged(count, &head, &e)),
             Some(Ok(LinearReadEvent::ReadRequest(n))) => n,
@@ -215,7 +215,7 @@ fn for_each_mcap_from(mut source: impl std::io::Read, len: usize, path: &Path, m
         };
         // Never more than the file has left (a damaged length asks for more).
         let buf = reader.insert(want.min(len.saturating_sub(fed)));
-        let n = read_up_to(&mut source, buf).map_err(|e| CalibError::file(path, format!("cannot read: {e}")))?;
+        let n = read_up_to(&mut source, buf).map_err(|e| RecordingError::file(path, format!("cannot read: {e}")))?;
         let missing = (MCAP_MAGIC.len() - head.len()).min(n);
         head.extend_from_slice(&buf[..missing]);
         reader.notify_read(n);
@@ -283,7 +283,7 @@ fn record_length_limit(file_len: usize) -> usize {
 /// length: the `rosbag` crate slices the file there, and a cut or unclosed bag would make it
 /// panic.
 fn bag_index_pos(bytes: &[u8], file_len: usize, path: &Path) -> Result<usize> {
-    let damaged = || CalibError::file(path, "a ROS 1 bag whose header record is damaged");
+    let damaged = || RecordingError::file(path, "a ROS 1 bag whose header record is damaged");
     let u32_at = |at: usize| -> Option<usize> { bytes.get(at..at + 4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as usize) };
     let start = BAG_MAGIC.len();
     let header_len = u32_at(start).ok_or_else(damaged)?;
@@ -301,13 +301,13 @@ fn bag_index_pos(bytes: &[u8], file_len: usize, path: &Path) -> Result<usize> {
             let v: [u8; 8] = v.try_into().map_err(|_| damaged())?;
             let pos = u64::from_le_bytes(v) as usize;
             if pos == 0 {
-                return Err(CalibError::file(path, "a ROS 1 bag without an index (its recording was not closed); `rosbag reindex` repairs it"));
+                return Err(RecordingError::file(path, "a ROS 1 bag without an index (its recording was not closed); `rosbag reindex` repairs it"));
             }
             if pos < chunks_start {
-                return Err(CalibError::file(path, format!("a ROS 1 bag whose header record is damaged: its index at byte {pos} is inside the header record (which ends at byte {chunks_start})")));
+                return Err(RecordingError::file(path, format!("a ROS 1 bag whose header record is damaged: its index at byte {pos} is inside the header record (which ends at byte {chunks_start})")));
             }
             if pos > file_len {
-                return Err(CalibError::file(
+                return Err(RecordingError::file(
                     path,
                     format!("a truncated ROS 1 bag: its index should start at byte {pos} of {file_len} (was the copy or the recording cut short? `rosbag reindex` repairs a cut recording)"),
                 ));
@@ -324,17 +324,17 @@ fn for_each_bag(path: &Path, mut visit: impl FnMut(&Message) -> Result<()>) -> R
     {
         // The header record (4 kB in bags rosbag writes) is all the check needs.
         use std::io::Read;
-        let cannot = |e: std::io::Error| CalibError::file(path, format!("cannot read: {e}"));
+        let cannot = |e: std::io::Error| RecordingError::file(path, format!("cannot read: {e}"));
         let f = dvrk_kin::text_file::open_input(path)?;
         let file_len = f.metadata().map_err(cannot)?.len() as usize;
         let mut head = Vec::new();
         f.take(1 << 16).read_to_end(&mut head).map_err(cannot)?;
         bag_index_pos(&head, file_len, path)?;
     }
-    let bag = rosbag::RosBag::new(path).map_err(|e| CalibError::file(path, format!("not a readable ROS 1 bag: {e}")))?;
+    let bag = rosbag::RosBag::new(path).map_err(|e| RecordingError::file(path, format!("not a readable ROS 1 bag: {e}")))?;
     let mut connections: BTreeMap<u32, (String, String)> = BTreeMap::new();
     let mut count = 0usize;
-    let damaged = |count: usize, e: rosbag::Error| CalibError::file(path, format!("damaged after {count} message(s): {}", e.to_string().trim_start_matches("rosbag::Error: ")));
+    let damaged = |count: usize, e: rosbag::Error| RecordingError::file(path, format!("damaged after {count} message(s): {}", e.to_string().trim_start_matches("rosbag::Error: ")));
     for record in bag.chunk_records() {
         let rosbag::ChunkRecord::Chunk(chunk) = record.map_err(|e| damaged(count, e))? else {
             continue;
@@ -347,7 +347,7 @@ fn for_each_bag(path: &Path, mut visit: impl FnMut(&Message) -> Result<()>) -> R
                 rosbag::MessageRecord::MessageData(d) => {
                     count += 1;
                     let Some((topic, schema)) = connections.get(&d.conn_id) else {
-                        return Err(CalibError::file(path, format!("message {count} is on connection {} that no connection record announces", d.conn_id)));
+                        return Err(RecordingError::file(path, format!("message {count} is on connection {} that no connection record announces", d.conn_id)));
                     };
                     visit(&Message { index: count, topic, schema, encoding: Encoding::Ros1, log_time_ns: d.time, data: d.data })?;
                 }

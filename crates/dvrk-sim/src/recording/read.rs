@@ -2,38 +2,38 @@
 //! by their first bytes whatever the name, a Motive CSV export, recognised by its `Format Version`
 //! first line, or the plain CSV format) and joint logs with efforts ([`read_joint_log`]).
 
-use crate::error::{CalibError, Result};
-use crate::recordings::mcap_io::McapOptions;
-use crate::recordings::tracks::Recording;
+use crate::recording::error::{RecordingError, Result};
+use crate::recording::mcap_io::McapOptions;
+use crate::recording::tracks::Recording;
 use std::path::Path;
 
 /// Read `path`; `options` select MCAP topics (CSV files name their bodies in columns).
 pub fn read_recording(path: &Path, options: &McapOptions) -> Result<Recording> {
     if !path.exists() {
-        return Err(CalibError::file(path, "no such file"));
+        return Err(RecordingError::file(path, "no such file"));
     }
-    if crate::recordings::message_file::container(path)?.is_some() {
-        return crate::recordings::mcap_io::read(path, options);
+    if crate::recording::message_file::container(path)?.is_some() {
+        return crate::recording::mcap_io::read(path, options);
     }
     let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
     match ext.as_str() {
-        "mcap" | "bag" => crate::recordings::mcap_io::read(path, options),
+        "mcap" | "bag" => crate::recording::mcap_io::read(path, options),
         "csv" | "txt" => {
-            let text = crate::recordings::read_csv_text(path)?;
-            let rec = if crate::recordings::motive_csv::looks_like_motive(&text) { crate::recordings::motive_csv::parse(&text, path)? } else { crate::recordings::plain_csv::parse(&text, path)? };
+            let text = crate::recording::read_csv_text(path)?;
+            let rec = if crate::recording::motive_csv::looks_like_motive(&text) { crate::recording::motive_csv::parse(&text, path)? } else { crate::recording::plain_csv::parse(&text, path)? };
             if let Some(t) = &options.joint_topic {
                 if rec.joints.is_none() {
-                    return Err(CalibError::file(path, format!("joint states `{t}` asked for, but the file has no q1..qN columns")));
+                    return Err(RecordingError::file(path, format!("joint states `{t}` asked for, but the file has no q1..qN columns")));
                 }
             }
             Ok(rec)
         }
-        _ => Err(CalibError::file(path, format!("unknown recording format `.{ext}`; valid: .mcap, .bag (ROS 1), .csv (Motive export or plain)"))),
+        _ => Err(RecordingError::file(path, format!("unknown recording format `.{ext}`; valid: .mcap, .bag (ROS 1), .csv (Motive export or plain)"))),
     }
 }
 
 /// Read arm `arm`'s joint log from `path` in `format` (`auto`: told from the file,
-/// [`crate::recordings::resolve_format`]) for `model`, as recorded: `wpi-csv` in its channels
+/// [`crate::recording::resolve_format`]) for `model`, as recorded: `wpi-csv` in its channels
 /// (the tool's actuators, [`super::JointLog::to_joint`]) with its velocities and no setpoints;
 /// `mcap` and `bag` in the model's joints, velocities where the messages carry them, setpoints
 /// where the arm's topic has them; `csv` in the model's joints with its setpoint columns (the

@@ -18,7 +18,7 @@
 //! of the stream: 13% of WPI's MTM rows, none of the PSM's); it is filled by linear
 //! interpolation between its measured neighbours, keeping the 200 Hz grid, and said.
 
-use crate::error::{CalibError, Result};
+use crate::recording::error::{RecordingError, Result};
 use dvrk_kin::Model;
 use nalgebra::DMatrix;
 use super::JointLog;
@@ -35,7 +35,7 @@ pub fn read(path: &Path, model: &Model) -> Result<JointLog> {
 
 /// [`read`], with what the reader did (repeated rows filled) as notes.
 pub fn read_with_notes(path: &Path, model: &Model) -> Result<(JointLog, Vec<String>)> {
-    let text = crate::recordings::read_csv_text(path)?;
+    let text = crate::recording::read_csv_text(path)?;
     parse_with_notes(&text, path, model)
 }
 
@@ -49,11 +49,11 @@ pub fn parse(text: &str, path: &Path, model: &Model) -> Result<JointLog> {
 fn channel_map(path: &Path, model: &Model) -> Result<DMatrix<f64>> {
     let n = model.nq();
     if n != 7 {
-        return Err(CalibError::file(path, format!("wpi-csv holds a PSM's or an MTM's 7 joints; model `{}` has {n}", model.name)));
+        return Err(RecordingError::file(path, format!("wpi-csv holds a PSM's or an MTM's 7 joints; model `{}` has {n}", model.name)));
     }
     let coupling = model
         .coupling_matrix()
-        .ok_or_else(|| CalibError::file(path, format!("wpi-csv channels are actuators (a PSM's tool channels 5..7, an MTM's all), but model `{}` has no coupling", model.name)))?;
+        .ok_or_else(|| RecordingError::file(path, format!("wpi-csv channels are actuators (a PSM's tool channels 5..7, an MTM's all), but model `{}` has no coupling", model.name)))?;
     if model.spec.tool.is_none() {
         return Ok(coupling);
     }
@@ -81,13 +81,13 @@ pub fn parse_with_notes(text: &str, path: &Path, model: &Model) -> Result<(Joint
     for (line, row) in text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty()) {
         let cells: Vec<&str> = row.split(',').collect();
         if cells.len() != 3 * n {
-            return Err(CalibError::file(path, format!("line {}: {} columns; wpi-csv has {} (q, qd, tau of {n} joints)", line + 1, cells.len(), 3 * n)));
+            return Err(RecordingError::file(path, format!("line {}: {} columns; wpi-csv has {} (q, qd, tau of {n} joints)", line + 1, cells.len(), 3 * n)));
         }
         let mut v = Vec::with_capacity(3 * n);
         for (c, cell) in cells.iter().enumerate() {
-            let x: f64 = cell.trim().parse().map_err(|_| CalibError::file(path, format!("line {}, column {}: `{}` is not a number", line + 1, c + 1, cell.trim())))?;
+            let x: f64 = cell.trim().parse().map_err(|_| RecordingError::file(path, format!("line {}, column {}: `{}` is not a number", line + 1, c + 1, cell.trim())))?;
             if !x.is_finite() {
-                return Err(CalibError::file(path, format!("line {}, column {}: {x} is not finite", line + 1, c + 1)));
+                return Err(RecordingError::file(path, format!("line {}, column {}: {x} is not finite", line + 1, c + 1)));
             }
             v.push(x);
         }
@@ -97,7 +97,7 @@ pub fn parse_with_notes(text: &str, path: &Path, model: &Model) -> Result<(Joint
         rec.effort.push(v[2 * n..].to_vec());
     }
     if rec.len() < 100 {
-        return Err(CalibError::file(path, format!("{} samples; identification needs at least 100", rec.len())));
+        return Err(RecordingError::file(path, format!("{} samples; identification needs at least 100", rec.len())));
     }
     let mut notes = Vec::new();
     if model.spec.tool.is_none() {
