@@ -231,7 +231,9 @@ def test_measured_js_arrives_at_the_configured_rate(rate):
     domain = unique_domain(rate)
     peer = Peer(domain)
     peer.reader("/PSM1/measured_js")
-    proc = serve(domain, 13, "--rate", str(rate))
+    # 5 s of counting: 1,000 messages at 200 Hz resolve the rate to 0.1%, well inside the 5%
+    # asked (a twin publishing at 0.9 of --rate fails it: issue #60's check of this window).
+    proc = serve(domain, 8, "--rate", str(rate))
     try:
         _, first = first_sample(peer, "/PSM1/measured_js")
         assert list(first.name) == PSM_JOINTS
@@ -240,7 +242,7 @@ def test_measured_js_arrives_at_the_configured_rate(rate):
         time.sleep(0.5)
         peer.take("/PSM1/measured_js")
         start, count = time.time(), 0
-        while time.time() - start < 10.0:
+        while time.time() - start < 5.0:
             count += len(peer.take("/PSM1/measured_js"))
             time.sleep(0.002)
         measured = count / (time.time() - start)

@@ -60,12 +60,6 @@ impl CalibError {
     pub fn motion(what: impl Into<String>, message: impl Into<String>) -> Self {
         CalibError::Motion { what: what.into(), message: message.into() }
     }
-    /// A name that is not known, answered with the valid ones.
-    pub fn unknown(what: &str, name: &str, valid: impl IntoIterator<Item = impl AsRef<str>>) -> Self {
-        let valid: Vec<String> = valid.into_iter().map(|s| s.as_ref().to_string()).collect();
-        let list = if valid.is_empty() { "none".to_string() } else { valid.join(", ") };
-        CalibError::data(format!("{what} `{name}`"), format!("not in the recording; available: {list}"))
-    }
     /// Attach the file this error was found in (errors that already name a file keep it).
     pub fn in_file(self, path: impl Into<PathBuf>) -> Self {
         match self {
