@@ -26,37 +26,21 @@ py="$venv/bin/python"
 "$py" -m pip install --quiet --disable-pip-version-check mujoco \
     || echo "note: could not install mujoco from PyPI: the MuJoCo cross-check will skip"
 
-# Build first: every crate's tests (release: the simulation tests are heavy). `--workspace` puts
-# the Python binding, which has no Rust tests, into the feature resolution, so that the wheel's
-# build below reuses every dependency compiled here (see crates/dvrk-py/Cargo.toml).
-cargo test --release --workspace --no-run
+# Rust: every crate's tests (release: the simulation tests are heavy). `--workspace` puts the
+# Python binding, which has no Rust tests, into the feature resolution, so that the wheel's build
+# below reuses every dependency compiled here (see crates/dvrk-py/Cargo.toml). The venv comes
+# first on PATH so tests that write fixtures with Python's mcap packages find them.
+PATH="$venv/bin:$PATH" cargo test --release --workspace
 
-# The Python package: the wheel built as a user would, installed.
+# Python: build the wheel as a user would, install it, test it.
 rm -rf target/wheels
 "$venv/bin/maturin" build --release --quiet -m crates/dvrk-py/Cargo.toml -o target/wheels
 "$py" -m pip install --quiet --disable-pip-version-check --force-reinstall --no-deps target/wheels/*.whl
-
-# Then two streams side by side. The tests with wall-clock assertions (marked `realtime`,
-# tests/python/conftest.py) one at a time at normal priority; they mostly wait on the wall
-# clock. The rest at the lowest CPU priority (nice 19: the scheduler gives it a weight of 15
-# against their 1024, so a realtime test's twin gets a core the moment it wakes): the Rust tests,
-# with the venv first on PATH so tests that write fixtures with Python's mcap packages find them,
-# then the other Python tests on as many workers as there are cores (pytest-xdist). The rest's
-# output is printed when both are done.
-export DVRK_BIN="$PWD/target/release/dvrk"
-rest_log="$(mktemp)"
-trap 'rm -f "$rest_log"' EXIT
-(
-    PATH="$venv/bin:$PATH" nice -n 19 cargo test --release --workspace \
-        && nice -n 19 "$py" -m pytest tests/python -q -m "not realtime and not ray_cluster" -n auto
-) > "$rest_log" 2>&1 &
-rest=$!
-status=0
-"$py" -m pytest tests/python -q -m realtime || status=$?
-wait "$rest" || status=$?
-cat "$rest_log"
+# Two passes: the tests on as many workers as there are cores (pytest-xdist), then those with
+# wall-clock assertions (marked `realtime`, tests/python/conftest.py) alone, one at a time.
+DVRK_BIN="$PWD/target/release/dvrk" "$py" -m pytest tests/python -q -m "not realtime and not ray_cluster" -n auto
+DVRK_BIN="$PWD/target/release/dvrk" "$py" -m pytest tests/python -q -m realtime
 # `--ray`: also the two-node Ray cluster sweep (tests/python/test_sweep.py, two minutes).
-if [ "$status" -eq 0 ] && [ "${1:-}" = "--ray" ]; then
-    "$py" -m pytest tests/python -q -m ray_cluster || status=$?
+if [ "${1:-}" = "--ray" ]; then
+    "$py" -m pytest tests/python -q -m ray_cluster
 fi
-exit "$status"
