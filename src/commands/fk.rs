@@ -2,7 +2,7 @@
 
 use clap::Args;
 use std::path::PathBuf;
-use anyhow::{anyhow, bail, Context, Result};
+use anyhow::{anyhow, bail, Result};
 use dvrk_kin::{compute_frame_placements, pose_to_rows, Data, Model};
 use serde_json::json;
 
@@ -126,50 +126,16 @@ pub fn run(args: &FkArgs) -> Result<()> {
 /// with `strict`).
 fn batch(m: &Model, input: &std::path::Path, output: &std::path::Path, frame: usize, strict: bool) -> Result<()> {
     let name = input.display().to_string();
-    // Bounded like every text recording (a FIFO, a device or a giant line refused with one line).
-    use dvrk_kin::text_file::{read_recording_text, MAX_LINE_BYTES, MAX_RECORDING_TEXT_BYTES};
-    let text = read_recording_text(input, MAX_RECORDING_TEXT_BYTES, MAX_LINE_BYTES)?;
-    let mut reader = csv::Reader::from_reader(text.as_bytes());
-    let header = reader.headers().with_context(|| format!("{name}: cannot read the header"))?.clone();
-    let support = m.frame_support(frame);
-    let mut held = Vec::new();
-    let columns: Vec<Option<usize>> = (1..=m.nq())
-        .map(|k| {
-            let (col, joint) = (format!("q{k}"), &m.joints[k - 1].name);
-            match header.iter().position(|h| h.trim() == col || h.trim() == joint) {
-                Some(c) => Ok(Some(c)),
-                None if !support[k - 1] => {
-                    held.push(format!("{col} ({joint}) at its home {} {}", m.joints[k - 1].home, m.joints[k - 1].unit()));
-                    Ok(None)
-                }
-                None => Err(anyhow!(
-                    "{name}: missing column {col} or {joint} (frame {} of model {} depends on it; header: {})",
-                    m.frames[frame].name,
-                    m.name,
-                    dvrk_kin::text_file::excerpt(&header.iter().collect::<Vec<_>>().join(","), 120)
-                )),
-            }
-        })
-        .collect::<Result<_>>()?;
-    if !held.is_empty() {
-        eprintln!("note: {name}: frame {} does not depend on {}: held", m.frames[frame].name, held.join(", "));
+    let dependent = format!("frame {} of model {}", m.frames[frame].name, m.name);
+    let mut rows = dvrk_sim::recording::read_joint_rows(input, m, &m.frame_support(frame), &dependent)?;
+    if !rows.held.is_empty() {
+        eprintln!("note: {name}: frame {} does not depend on {}: held", m.frames[frame].name, rows.held.join(", "));
     }
     let mut tally = dvrk_kin::LimitTally::new(m);
     let mut data = Data::new(m);
     let mut q = m.home();
-    let mut out = String::from("x,y,z,qx,qy,qz,qw\n");
-    for (row, record) in reader.records().enumerate() {
-        let line = row + 2; // 1-based, after the header
-        let record = record.with_context(|| format!("{name}: line {line}: cannot read"))?;
-        for (k, c) in columns.iter().enumerate() {
-            let Some(c) = *c else { continue };
-            let text = record.get(c).unwrap_or("").trim();
-            let x: f64 = text.parse().map_err(|_| anyhow!("{name}: line {line}, column q{}: `{text}` is not a number", k + 1))?;
-            if !x.is_finite() {
-                bail!("{name}: line {line}, column q{} = {text}: not finite", k + 1);
-            }
-            q[k] = x;
-        }
+    let mut out = String::from(dvrk_sim::recording::POSE_ROWS_HEADER);
+    while let Some(line) = rows.next_into(&mut q)? {
         if strict {
             m.check_q(&q).map_err(|e| anyhow!("{name}: line {line}: {e} (--strict)"))?;
         }
@@ -178,7 +144,7 @@ fn batch(m: &Model, input: &std::path::Path, output: &std::path::Path, frame: us
         let t = &data.frames[frame];
         let p = t.translation.vector;
         let r = nalgebra::UnitQuaternion::from_rotation_matrix(&t.rotation);
-        out.push_str(&format!("{},{},{},{},{},{},{}\n", p.x, p.y, p.z, r.i, r.j, r.k, r.w));
+        dvrk_sim::recording::push_pose_row(&mut out, [p.x, p.y, p.z], [r.i, r.j, r.k, r.w]);
     }
     dvrk_kin::atomic::write_atomic(output, out.as_bytes())?;
     if let Some(s) = tally.summary(m) {

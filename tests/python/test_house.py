@@ -19,11 +19,12 @@ def test_the_only_import_loop_is_the_documented_one():
 
 
 def test_recorded_formats_are_decoded_in_the_recording_home_alone():
-    """ROS messages (ROS 1 and CDR), bags and MCAP are parsed in `crates/dvrk-sim/src/recording/`
-    only; everything else calls its readers (issue #60: one home for every format)."""
+    """ROS messages (ROS 1 and CDR), bags, MCAP and CSV are parsed in
+    `crates/dvrk-sim/src/recording/` only; everything else calls its readers (issue #60: one home
+    for every format)."""
     import re
     home = os.path.join(ROOT, "crates", "dvrk-sim", "src", "recording")
-    pattern = re.compile(r"\bfn decode(_ros1)?\b|\brosbag::|\bmcap::|\bCdrReader\b|\bfn read_cdr")
+    pattern = re.compile(r"\bfn decode(_ros1)?\b|\brosbag::|\bmcap::|\bcsv::|\bCdrReader\b|\bfn read_cdr")
     found = []
     roots = [os.path.join(ROOT, "src")] + [os.path.join(ROOT, "crates", c, "src") for c in os.listdir(os.path.join(ROOT, "crates"))]
     for top in roots:

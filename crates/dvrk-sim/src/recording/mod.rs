@@ -26,6 +26,8 @@
 //!   and bags `joint_log_mcap.rs`, its CSV layout `joint_log_csv.rs`), read as recorded; each
 //!   product prepares what it needs with [`JointLog`]'s operations. A tracked marker's poses:
 //!   `marker_log.rs`.
+//! - Joint configurations, one per CSV row, and the CSV of poses computed for them
+//!   (`joint_rows.rs`, `dvrk fk --input`).
 //! - An MTM's hand motion for teleoperation: pose, gripper, clutch pedal (`mtm_log.rs`).
 //! - The format of a file, told from its content when asked for `auto` (`format.rs`).
 //! - A simulation's run recorded as MCAP: the CRTK topics, every body's pose, the camera and the
@@ -50,6 +52,7 @@ mod format;
 mod joint_log;
 mod joint_log_csv;
 mod joint_log_mcap;
+mod joint_rows;
 mod joint_states;
 mod marker_log;
 mod markers_to_pose;
@@ -87,6 +90,8 @@ pub use joint_log::{JointLog, NO_SETPOINTS};
 pub use joint_log_mcap::write_mcap as write_joint_log_mcap;
 pub use joint_log_csv::{parse as parse_joint_log_csv, read as read_joint_log_csv, read_markers as read_marker_csv, write as write_joint_log_csv, CsvLog};
 pub use joint_states::{read_arm, read_arms, ArmStates, JointStates};
+// Joint configurations one per row (`dvrk fk --input`) and the poses written for them.
+pub use joint_rows::{push_pose_row, read_joint_rows, JointRows, POSE_ROWS_HEADER};
 // An MTM's hand motion (pose, gripper, clutch) for teleoperation.
 pub use mtm_log::{read_mtm, MtmLog, MtmTopics};
 pub use marker_log::{marker_frame, read_mcap as read_marker_mcap, synthetic_topic, MarkerLog};
