@@ -1,9 +1,8 @@
 //! A joint's cable torque measured on its own, as the prior of its configuration-dependent spring:
 //! the WPI authors' joint test of the MTM platform (`joint_test_cable.csv`: the joint swept slowly
-//! one way, then back), read as recorded.
+//! one way, then back), read as recorded ([`dvrk_sim::recording::read_joint_test`]).
 //!
-//! Layout: no header, 3 columns (the swept joint's position, rad; an unused 0; its effort, N·m);
-//! the first half of the rows one direction, the second half the other. As the authors did, 100
+//! The first half of the rows one direction, the second half the other. As the authors did, 100
 //! samples are dropped at each end of each half; the mean of the two directions at a position is
 //! the cable's torque there (friction changes sign with the direction, the cable does not), half
 //! their difference the friction.
@@ -61,23 +60,7 @@ pub struct CableTest {
 /// standard deviations are a quarter of each coefficient's magnitude plus its standard error: the
 /// test was made on another day than the recordings it serves (the cable's tension drifts).
 pub fn from_joint_test(path: &Path, joint: usize) -> Result<CableTest> {
-    let text = dvrk_sim::recording::read_csv_text(path)?;
-    let mut rows: Vec<(f64, f64)> = Vec::new();
-    for (line, row) in text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty()) {
-        let cells: Vec<&str> = row.split(',').map(str::trim).collect();
-        if cells.len() != 3 {
-            return Err(CalibError::file(path, format!("line {}: {} columns; a joint test has 3 (position rad, unused, effort N·m)", line + 1, cells.len())));
-        }
-        let parse = |c: usize| -> Result<f64> {
-            let x: f64 = cells[c].parse().map_err(|_| CalibError::file(path, format!("line {}, column {}: `{}` is not a number", line + 1, c + 1, cells[c])))?;
-            if x.is_finite() {
-                Ok(x)
-            } else {
-                Err(CalibError::file(path, format!("line {}, column {}: {x} is not finite", line + 1, c + 1)))
-            }
-        };
-        rows.push((parse(0)?, parse(2)?));
-    }
+    let rows = dvrk_sim::recording::read_joint_test(path)?;
     let half = rows.len() / 2;
     if half < 2 * DROPPED + 2 * BINS {
         return Err(CalibError::file(path, format!("{} rows; a joint test of two sweeps needs at least {}", rows.len(), 2 * (2 * DROPPED + 2 * BINS))));

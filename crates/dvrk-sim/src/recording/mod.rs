@@ -28,6 +28,7 @@
 //!   `marker_log.rs`.
 //! - Joint configurations, one per CSV row, and the CSV of poses computed for them
 //!   (`joint_rows.rs`, `dvrk fk --input`).
+//! - A joint swept on its own, the WPI MTM platform's cable test (`joint_test_csv.rs`).
 //! - An MTM's hand motion for teleoperation: pose, gripper, clutch pedal (`mtm_log.rs`).
 //! - The format of a file, told from its content when asked for `auto` (`format.rs`).
 //! - A simulation's run recorded as MCAP: the CRTK topics, every body's pose, the camera and the
@@ -53,6 +54,7 @@ mod joint_log;
 mod joint_log_csv;
 mod joint_log_mcap;
 mod joint_rows;
+mod joint_test_csv;
 mod joint_states;
 mod marker_log;
 mod markers_to_pose;
@@ -67,7 +69,7 @@ mod wpi_csv;
 
 /// A text (CSV) recording whole, bounded ([`dvrk_kin::text_file::read_recording_text`]: a
 /// regular file, at most 2 GiB, lines of at most 1 MiB, no NUL byte); errors name the file.
-pub fn read_csv_text(path: &std::path::Path) -> Result<String> {
+pub(crate) fn read_csv_text(path: &std::path::Path) -> Result<String> {
     use dvrk_kin::text_file::{read_recording_text, MAX_LINE_BYTES, MAX_RECORDING_TEXT_BYTES};
     Ok(read_recording_text(path, MAX_RECORDING_TEXT_BYTES, MAX_LINE_BYTES)?)
 }
@@ -96,3 +98,5 @@ pub use joint_rows::{push_pose_row, read_joint_rows, JointRows, POSE_ROWS_HEADER
 pub use mtm_log::{read_mtm, MtmLog, MtmTopics};
 pub use marker_log::{marker_frame, read_mcap as read_marker_mcap, synthetic_topic, MarkerLog};
 pub use wpi_csv::{parse as parse_wpi_csv, read as read_wpi_csv, WPI_RATE};
+// A joint swept on its own (the WPI MTM platform's cable test).
+pub use joint_test_csv::read_joint_test;
