@@ -26,21 +26,53 @@ py="$venv/bin/python"
 "$py" -m pip install --quiet --disable-pip-version-check mujoco \
     || echo "note: could not install mujoco from PyPI: the MuJoCo cross-check will skip"
 
-# Rust: every crate's tests (release: the simulation tests are heavy). `--workspace` puts the
-# Python binding, which has no Rust tests, into the feature resolution, so that the wheel's build
-# below reuses every dependency compiled here (see crates/dvrk-py/Cargo.toml). The venv comes
-# first on PATH so tests that write fixtures with Python's mcap packages find them.
-PATH="$venv/bin:$PATH" cargo test --release --workspace
+# Build the CLI first: every dependency, the three libraries and `dvrk`, which the Python tests
+# need. `--workspace` puts the Python binding into the feature resolution, so that this build,
+# the wheel's below and the tests' (`cargo test --workspace`) share every compiled dependency
+# (the binding pins the features the tests' dev-dependencies add: crates/dvrk-py/Cargo.toml).
+# Release: the simulation tests are heavy.
+cargo build --release --workspace --bin dvrk
 
-# Python: build the wheel as a user would, install it, test it.
+# The Python package: the wheel built as a user would, installed.
 rm -rf target/wheels
 "$venv/bin/maturin" build --release --quiet -m crates/dvrk-py/Cargo.toml -o target/wheels
 "$py" -m pip install --quiet --disable-pip-version-check --force-reinstall --no-deps target/wheels/*.whl
-# Two passes: the tests on as many workers as there are cores (pytest-xdist), then those with
-# wall-clock assertions (marked `realtime`, tests/python/conftest.py) alone, one at a time.
-DVRK_BIN="$PWD/target/release/dvrk" "$py" -m pytest tests/python -q -m "not realtime and not ray_cluster" -n auto
-DVRK_BIN="$PWD/target/release/dvrk" "$py" -m pytest tests/python -q -m realtime
+
+# Then three streams side by side; each one's output is printed when all have ended.
+# - The tests with wall-clock assertions (marked `realtime`, tests/python/conftest.py), one at a
+#   time at normal priority: they mostly wait on the wall clock.
+# - The other Python tests on as many workers as there are cores (pytest-xdist), and
+# - the Rust tests (their own build first: test harnesses, examples, dev-dependencies), with the
+#   venv first on PATH so tests that write fixtures with Python's mcap packages find them,
+#   both at the lowest CPU priority (nice 19: the scheduler weighs them 15 against a realtime
+#   test's 1024, so its twin gets a core the moment it wakes). The Rust tests run four at a time:
+#   beside the Python tests they then take about two thirds of the cores, and the Python tests,
+#   which end first, leave them all (each stream's last long tests otherwise leave a core idle).
+export DVRK_BIN="$PWD/target/release/dvrk"
+logs="$(mktemp -d)"
+trap 'rm -rf "$logs"' EXIT
+stream() {  # stream NAME COMMAND...: the command's output and its wall time in $logs/NAME
+    local name="$1" t0="$SECONDS" rc=0
+    shift
+    "$@" > "$logs/$name" 2>&1 || rc=$?
+    echo "($name: $((SECONDS - t0)) s, exit status $rc)" >> "$logs/$name"
+    return "$rc"
+}
+stream rust nice -n 19 env PATH="$venv/bin:$PATH" RUST_TEST_THREADS=4 \
+    sh -c 'cargo test --release --workspace --no-run && cargo test --release --workspace' &
+rust=$!
+stream python nice -n 19 "$py" -m pytest tests/python -q -m "not realtime and not ray_cluster" -n auto &
+python=$!
+status=0
+stream realtime "$py" -m pytest tests/python -q -m realtime || status=$?
+wait "$rust" || status=$?
+wait "$python" || status=$?
+for stream in rust python realtime; do
+    echo "=== $stream"
+    cat "$logs/$stream"
+done
 # `--ray`: also the two-node Ray cluster sweep (tests/python/test_sweep.py, two minutes).
-if [ "${1:-}" = "--ray" ]; then
-    "$py" -m pytest tests/python -q -m ray_cluster
+if [ "$status" -eq 0 ] && [ "${1:-}" = "--ray" ]; then
+    "$py" -m pytest tests/python -q -m ray_cluster || status=$?
 fi
+exit "$status"

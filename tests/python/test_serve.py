@@ -152,14 +152,18 @@ def dvrk_binary():
 
 
 def unique_domain(offset):
-    """A domain of this test run's own (RustDDS announces to 12 participant slots per domain)."""
-    return 100 + (os.getpid() * 7 + offset) % 120
+    """A domain of this test run's own (RustDDS announces to 12 participant slots per domain),
+    in 1..101: a domain's RTPS ports are 7400 + 250 domain + 0..33, so above 101 they fall in
+    Linux's ephemeral range (32768 and up), where any socket the other tests open beside these
+    may take one (ROS 2's advice for Linux is domains 0..101 for that reason). Not 0, ROS's own."""
+    return 1 + (os.getpid() * 7 + offset) % 101
 
 
 class Peer:
     """A Cyclone DDS participant on the twin's topics."""
 
     def __init__(self, domain):
+        self.domain = domain
         self.dp = DomainParticipant(domain)
         self.readers = {}
         self.writers = {}
@@ -182,9 +186,20 @@ def command(names, position=(), effort=(), velocity=()):
     return JointState_(Header_(Time_(0, 0), ""), list(names), list(position), list(velocity), list(effort))
 
 
-def serve(domain, seconds, *extra):
+# How long a twin may take to be discovered. RustDDS announces a new participant 100 ms after it
+# starts and then every 10 s; peers created before the twin learn of it from that announcement,
+# so one lost announcement (a loaded machine, the suite's other tests beside these) costs 10 s.
+# Two periods and some room: a test that waits for the twin's first sample waits this long, and
+# a twin it stops itself (`finish`) runs this much longer than the test needs.
+DISCOVERY_S = 25
+
+
+def serve(domain, seconds, *extra, stopped=True):
+    """`dvrk serve` on the PSM scene for at most `seconds`, plus the discovery allowance when the
+    test stops it (`stopped`: `finish(proc)`); a test that waits for its end gets `seconds`."""
+    duration = seconds + DISCOVERY_S if stopped else seconds
     return subprocess.Popen(
-        [dvrk_binary(), "serve", "--scene", "psm", "--domain", str(domain), "--duration", str(seconds), "--json", *extra],
+        [dvrk_binary(), "serve", "--scene", "psm", "--domain", str(domain), "--duration", str(duration), "--json", *extra],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
@@ -201,14 +216,14 @@ def finish(proc, stop=True):
     return json.loads(out), err
 
 
-def first_sample(peer, topic, cls=JointState_, timeout=10):
+def first_sample(peer, topic, cls=JointState_, timeout=DISCOVERY_S):
     deadline = time.time() + timeout
     while time.time() < deadline:
         got = peer.take(topic, cls)
         if got:
             return got[-1]
         time.sleep(0.002)
-    raise AssertionError(f"no {topic} within {timeout} s")
+    raise AssertionError(f"no {topic} within {timeout} s on domain {peer.domain}")
 
 
 def say(writer, text):
@@ -361,7 +376,7 @@ def test_a_servo_jp_step_responds_as_the_simulator_does_for_the_same_command(tmp
     peer.reader("/PSM1/measured_js")
     servo = peer.writer("/PSM1/servo_jp")
     out = tmp_path / "twin.mcap"
-    proc = serve(domain, 3, "--rate", "1000", "--out", str(out))
+    proc = serve(domain, 3, "--rate", "1000", "--out", str(out), stopped=False)
     step = 0.1
     try:
         first_sample(peer, "/PSM1/measured_js")
@@ -708,7 +723,7 @@ def test_a_flood_of_refused_commands_with_stderr_unread_never_stalls_the_twin():
     peer.reader("/PSM1/measured_js", qos=COUNT)
     peer.reader("/PSM1/setpoint_js")
     servo = peer.writer("/PSM1/servo_jp")
-    proc = serve(domain, 20, "--rate", str(rate))  # stderr=PIPE, not read until the run ends
+    proc = serve(domain, 20, "--rate", str(rate), stopped=False)  # stderr=PIPE, not read until the run ends
     bad = command(PSM_JOINTS[:5], [0.0] * 5)  # 5 values for 6 joints
     try:
         first_sample(peer, "/PSM1/measured_js")
@@ -873,7 +888,7 @@ def test_serve_meets_the_crtk_contract_table(scene, arms):
     assert len(rows) == 22  # the contract's items (docs/ros2.md)
     domain = unique_domain(20 + ["psm", "ecm", "2psm-ecm", "mtm"].index(scene))
     peer = Peer(domain)
-    proc = subprocess.Popen([dvrk_binary(), "serve", "--scene", scene, "--domain", str(domain), "--duration", "5", "--json"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen([dvrk_binary(), "serve", "--scene", scene, "--domain", str(domain), "--duration", str(5 + DISCOVERY_S), "--json"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     from cyclonedds.pub import DataWriter
     endpoints = []
     try:
