@@ -42,12 +42,12 @@ rm -rf target/wheels
 # - The tests with wall-clock assertions (marked `realtime`, tests/python/conftest.py), one at a
 #   time at normal priority: they mostly wait on the wall clock.
 # - The other Python tests on as many workers as there are cores (pytest-xdist), and
-# - the Rust tests (their own build first: test harnesses, examples, dev-dependencies), with the
-#   venv first on PATH so tests that write fixtures with Python's mcap packages find them,
+# - the Rust tests (scripts/rust_tests.sh: the longest binary beside the rest of the build and
+#   the other binaries), with the venv first on PATH so tests that write fixtures with Python's
+#   mcap packages find them,
 #   both at the lowest CPU priority (nice 19: the scheduler weighs them 15 against a realtime
-#   test's 1024, so its twin gets a core the moment it wakes). The Rust tests run four at a time:
-#   beside the Python tests they then take about two thirds of the cores, and the Python tests,
-#   which end first, leave them all (each stream's last long tests otherwise leave a core idle).
+#   test's 1024, so its twin gets a core the moment it wakes). Each fills the cores the others'
+#   last long tests leave idle.
 export DVRK_BIN="$PWD/target/release/dvrk"
 logs="$(mktemp -d)"
 trap 'rm -rf "$logs"' EXIT
@@ -58,8 +58,7 @@ stream() {  # stream NAME COMMAND...: the command's output and its wall time in 
     echo "($name: $((SECONDS - t0)) s, exit status $rc)" >> "$logs/$name"
     return "$rc"
 }
-stream rust nice -n 19 env PATH="$venv/bin:$PATH" RUST_TEST_THREADS=4 \
-    sh -c 'cargo test --release --workspace --no-run && cargo test --release --workspace' &
+stream rust nice -n 19 env PATH="$venv/bin:$PATH" bash scripts/rust_tests.sh "$py" &
 rust=$!
 stream python nice -n 19 "$py" -m pytest tests/python -q -m "not realtime and not ray_cluster" -n auto &
 python=$!

@@ -1,0 +1,48 @@
+#!/usr/bin/env bash
+# Every Rust test of the workspace (what `cargo test --release --workspace` runs), in two streams
+# so that neither waits for the other: scripts/test.sh runs this beside the Python tests.
+# - dvrk-calib's `calib` binary, the longest (about 200 s on 2 cores), starts as soon as it is
+#   built;
+# - meanwhile the rest of the build (the other harnesses, the examples; cargo's build lock puts
+#   it after the first one's), then every other test executable cargo lists, each from its
+#   package's directory as `cargo test` runs it, then the doc tests.
+# Each stream's output is printed when both have ended. Usage: bash scripts/rust_tests.sh PYTHON
+set -uo pipefail
+cd "$(dirname "$0")/.."
+py="${1:-python3}"
+
+out="$(mktemp -d)"
+trap 'rm -rf "$out"' EXIT
+cargo test --release --workspace --test calib > "$out/calib" 2>&1 &
+calib=$!
+
+# After the first stream's build, which then runs while this one builds.
+until grep -q "Running\|error" "$out/calib" || ! kill -0 "$calib" 2> /dev/null; do
+    sleep 1
+done
+status=0
+if cargo test --release --workspace --no-run --message-format=json-render-diagnostics > "$out/targets.json"; then
+    # One line per test executable: its package's directory, the executable, its source.
+    "$py" - "$out/targets.json" > "$out/targets.tsv" <<'EOF' || status=$?
+import json, os, sys
+for line in open(sys.argv[1]):
+    m = json.loads(line)
+    if m.get("reason") != "compiler-artifact" or not m.get("executable") or not m["profile"]["test"]:
+        continue
+    t = m["target"]
+    if t["name"] == "calib" and t["kind"] == ["test"]:
+        continue  # the other stream's
+    print(os.path.dirname(m["manifest_path"]), m["executable"], t["src_path"], sep="\t")
+EOF
+    while IFS=$'\t' read -r dir exe src; do
+        echo "     Running $src ($exe)"
+        (cd "$dir" && "$exe") || status=$?
+    done < "$out/targets.tsv"
+    cargo test --release --workspace --doc || status=$?
+else
+    status=1
+fi
+wait "$calib" || status=$?
+echo "=== dvrk-calib calib"
+cat "$out/calib"
+exit "$status"
