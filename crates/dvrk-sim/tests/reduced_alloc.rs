@@ -60,6 +60,11 @@ fn a_reduced_step_allocates_nothing() {
     let change = region.change();
     assert!(batch.q().iter().all(|x| x.is_finite()));
     // rayon's job queue (crossbeam's injector) takes a new 63-slot block every 63 jobs sent into
-    // the pool: one allocation per 63 calls of `step`, whatever their steps and copies.
-    assert!(change.allocations <= 100 / 63 + 1 && change.reallocations == 0, "batch of 4 PSMs with presliding, 2 threads: {change:?} in 100 calls of 10 steps");
+    // the pool: one allocation per 63 calls of `step`, whatever their steps and copies. A worker
+    // also sets up per-thread state (kept) the first time it takes part: the warm-up is there
+    // for that, but on a loaded machine a worker may not have been scheduled in it (CI beside the
+    // rest of the suite: 3 allocations of 5.3 kB, one block's 1.5 kB freed: a block and two
+    // such set-ups, it seems). At most one more per worker thread; an allocation per call
+    // counts 101 (checked with one put into `BatchSim::step`).
+    assert!(change.allocations <= 100 / 63 + 1 + 2 && change.reallocations == 0, "batch of 4 PSMs with presliding, 2 threads: {change:?} in 100 calls of 10 steps");
 }
