@@ -15,15 +15,7 @@ pub fn read_joint_test(path: &Path) -> Result<Vec<(f64, f64)>> {
         if cells.len() != 3 {
             return Err(RecordingError::file(path, format!("line {}: {} columns; a joint test has 3 (position rad, unused, effort N·m)", line + 1, cells.len())));
         }
-        let parse = |c: usize| -> Result<f64> {
-            let x: f64 = cells[c].parse().map_err(|_| RecordingError::file(path, format!("line {}, column {}: `{}` is not a number", line + 1, c + 1, cells[c])))?;
-            if x.is_finite() {
-                Ok(x)
-            } else {
-                Err(RecordingError::file(path, format!("line {}, column {}: {x} is not finite", line + 1, c + 1)))
-            }
-        };
-        rows.push((parse(0)?, parse(2)?));
+        rows.push((super::finite_cell(path, line + 1, 1, cells[0])?, super::finite_cell(path, line + 1, 3, cells[2])?));
     }
     Ok(rows)
 }

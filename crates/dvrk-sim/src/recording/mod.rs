@@ -74,6 +74,17 @@ pub(crate) fn read_csv_text(path: &std::path::Path) -> Result<String> {
     Ok(read_recording_text(path, MAX_RECORDING_TEXT_BYTES, MAX_LINE_BYTES)?)
 }
 
+/// Cell `column` (1-based) of line `line` (1-based) of the CSV `path`, `text` (trimmed), as a
+/// finite number; an error names the line, the column and the text.
+pub(crate) fn finite_cell(path: &std::path::Path, line: usize, column: usize, text: &str) -> Result<f64> {
+    let x: f64 = text.parse().map_err(|_| RecordingError::file(path, format!("line {line}, column {column}: `{text}` is not a number")))?;
+    if x.is_finite() {
+        Ok(x)
+    } else {
+        Err(RecordingError::file(path, format!("line {line}, column {column}: {x} is not finite")))
+    }
+}
+
 pub use error::{RecordingError, Result};
 // Writing a simulation's run.
 pub use writer::{sample_stride, Recorder, RecordOptions};

@@ -85,11 +85,7 @@ pub fn parse_with_notes(text: &str, path: &Path, model: &Model) -> Result<(Joint
         }
         let mut v = Vec::with_capacity(3 * n);
         for (c, cell) in cells.iter().enumerate() {
-            let x: f64 = cell.trim().parse().map_err(|_| RecordingError::file(path, format!("line {}, column {}: `{}` is not a number", line + 1, c + 1, cell.trim())))?;
-            if !x.is_finite() {
-                return Err(RecordingError::file(path, format!("line {}, column {}: {x} is not finite", line + 1, c + 1)));
-            }
-            v.push(x);
+            v.push(super::finite_cell(path, line + 1, c + 1, cell.trim())?);
         }
         rec.t.push(rec.t.len() as f64 / WPI_RATE);
         rec.position.push(v[..n].to_vec());
