@@ -16,8 +16,9 @@ trap 'rm -rf "$out"' EXIT
 cargo test --release --workspace --test calib > "$out/calib" 2>&1 &
 calib=$!
 
-# After the first stream's build, which then runs while this one builds.
-until grep -q "Running\|error" "$out/calib" || ! kill -0 "$calib" 2> /dev/null; do
+# After the first stream's build, which then runs while this one builds (cargo's own lines:
+# a dependency's name may hold `error`, as thiserror's does).
+until grep -qE "^ +Running|^error" "$out/calib" || ! kill -0 "$calib" 2> /dev/null; do
     sleep 1
 done
 status=0
