@@ -9,22 +9,30 @@ venv="${DVRK_VENV:-.venv}"
 [ -x "$venv/bin/python" ] || python3 -m venv "$venv"
 venv="$(cd "$venv" && pwd)"
 py="$venv/bin/python"
-"$py" -m pip install --quiet --disable-pip-version-check "maturin>=1.5,<2" "pytest>=7" pytest-xdist "numpy>=1.21" mcap mcap-ros2-support mcap-protobuf-support foxglove-schemas-protobuf rosbags websockets "gymnasium>=1.0"
-# Ray for the trial tables (dvrk_twin.sweep); optional: where it cannot be installed the sweep runs
-# serially and its Ray tests skip, saying so.
-"$py" -m pip install --quiet --disable-pip-version-check ray pyarrow \
-    || echo "note: could not install ray from PyPI: the Ray sweep tests will skip"
-# Pinocchio, the independent dynamics the Python dynamics are checked against (test_pinocchio.py).
-"$py" -m pip install --quiet --disable-pip-version-check pin \
-    || echo "note: could not install pin (Pinocchio) from PyPI: its cross-check will skip"
-# Eclipse Cyclone DDS, the independent ROS 2 peer of `dvrk serve`'s tests (tests/python/test_serve.py);
-# optional like MuJoCo: where no wheel installs, those tests say so and skip.
-"$py" -m pip install --quiet --disable-pip-version-check cyclonedds \
-    || echo "note: could not install cyclonedds from PyPI: the ROS 2 twin's tests will skip"
-# MuJoCo for the second-engine cross-check (tests/python/test_mujoco.py); optional: where it cannot
-# be installed the test says so and skips.
-"$py" -m pip install --quiet --disable-pip-version-check mujoco \
-    || echo "note: could not install mujoco from PyPI: the MuJoCo cross-check will skip"
+logs="$(mktemp -d)"
+trap 'rm -rf "$logs"' EXIT
+
+# The Python packages install while the CLI builds below (pip waits on the network and the disk,
+# cargo on the cores); a failure of the required ones fails the run once the build is done.
+(
+    "$py" -m pip install --quiet --disable-pip-version-check "maturin>=1.5,<2" "pytest>=7" pytest-xdist "numpy>=1.21" mcap mcap-ros2-support mcap-protobuf-support foxglove-schemas-protobuf rosbags websockets "gymnasium>=1.0"
+    # Ray for the trial tables (dvrk_twin.sweep); optional: where it cannot be installed the sweep runs
+    # serially and its Ray tests skip, saying so.
+    "$py" -m pip install --quiet --disable-pip-version-check ray pyarrow \
+        || echo "note: could not install ray from PyPI: the Ray sweep tests will skip"
+    # Pinocchio, the independent dynamics the Python dynamics are checked against (test_pinocchio.py).
+    "$py" -m pip install --quiet --disable-pip-version-check pin \
+        || echo "note: could not install pin (Pinocchio) from PyPI: its cross-check will skip"
+    # Eclipse Cyclone DDS, the independent ROS 2 peer of `dvrk serve`'s tests (tests/python/test_serve.py);
+    # optional like MuJoCo: where no wheel installs, those tests say so and skip.
+    "$py" -m pip install --quiet --disable-pip-version-check cyclonedds \
+        || echo "note: could not install cyclonedds from PyPI: the ROS 2 twin's tests will skip"
+    # MuJoCo for the second-engine cross-check (tests/python/test_mujoco.py); optional: where it cannot
+    # be installed the test says so and skips.
+    "$py" -m pip install --quiet --disable-pip-version-check mujoco \
+        || echo "note: could not install mujoco from PyPI: the MuJoCo cross-check will skip"
+) > "$logs/pip" 2>&1 &
+pips=$!
 
 # Build the CLI first: every dependency, the three libraries and `dvrk`, which the Python tests
 # need. `--workspace` puts the Python binding into the feature resolution, so that this build,
@@ -32,6 +40,10 @@ py="$venv/bin/python"
 # (the binding pins the features the tests' dev-dependencies add: crates/dvrk-py/Cargo.toml).
 # Release: the simulation tests are heavy.
 cargo build --release --workspace --bin dvrk
+pip_status=0
+wait "$pips" || pip_status=$?
+cat "$logs/pip"
+[ "$pip_status" -eq 0 ] || { echo "the Python packages did not install (pip exit status $pip_status)"; exit "$pip_status"; }
 
 # The Python package: the wheel built as a user would, installed.
 rm -rf target/wheels
@@ -49,8 +61,6 @@ rm -rf target/wheels
 #   test's 1024, so its twin gets a core the moment it wakes). Each fills the cores the others'
 #   last long tests leave idle.
 export DVRK_BIN="$PWD/target/release/dvrk"
-logs="$(mktemp -d)"
-trap 'rm -rf "$logs"' EXIT
 stream() {  # stream NAME COMMAND...: the command's output and its wall time in $logs/NAME
     local name="$1" t0="$SECONDS" rc=0
     shift

@@ -49,25 +49,6 @@ impl Model {
     }
 }
 
-#[cfg(test)]
-mod tests {
-    #[test]
-    fn mtm_elbow_and_psm_wrist_couplings() {
-        let mtm = crate::load("mtmr", None).unwrap();
-        // Elbow parallelogram: joint 3 = actuator 3 - actuator 2; platform: + 0.6697 (a2 - a3).
-        let q = mtm.joints_from_actuators(&[0.1, 0.2, 0.5, 0.3, 0.0, 0.0, 0.0]).unwrap();
-        assert!((q[2] - 0.3).abs() < 1e-15 && (q[3] - (0.3 + 0.6697 * (0.2 - 0.5))).abs() < 1e-15);
-        let back = mtm.actuators_from_joints(&q).unwrap();
-        assert!((back[2] - 0.5).abs() < 1e-12);
-        let psm = crate::load("psm", None).unwrap();
-        let q = psm.joints_from_actuators(&[0.1, 0.2, 0.1, 1.0, 0.5, 0.2, 0.4]).unwrap();
-        assert_eq!(&q[..3], &[0.1, 0.2, 0.1]);
-        assert!((q[3] + 1.5632).abs() < 1e-15, "roll = -1.5632 a4");
-        assert!((q[6] - 1.2177 * (0.4 - 0.2)).abs() < 1e-15, "jaw = 1.2177 (a7 - a6)");
-        assert!(crate::load("ecm", None).unwrap().joints_from_actuators(&[0.0; 4]).is_err());
-    }
-}
-
 /// The map a `coupling_error` puts between the joints the controller reads and the true ones:
 /// encoders read actuators `m`, the controller takes `q = C m` with the model's coupling `C`,
 /// while the mechanism moves by `q_true = (C + dC) m`; so `q_true = B q`, `B = (C + dC) C^-1`.

@@ -80,27 +80,3 @@ impl LimitTally {
         })
     }
 }
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn a_hair_past_is_counted_with_its_distance() {
-        let m = crate::load("psm", None).unwrap();
-        let mut tally = LimitTally::new(&m);
-        let mut q = m.home();
-        assert!(!tally.add(&m, &q));
-        let k = m.joint_id("outer_wrist_yaw").unwrap();
-        q[k] = m.joints[k].upper + 0.001;
-        assert!(tally.add(&m, &q));
-        q[k] = m.joints[k].lower - 0.0004;
-        assert!(tally.add(&m, &q));
-        assert_eq!((tally.samples, tally.samples_outside), (3, 2));
-        assert_eq!(tally.joints[k].0, 2);
-        assert!((tally.joints[k].1 - 0.001).abs() < 1e-12);
-        let s = tally.summary(&m).unwrap();
-        assert!(s.starts_with("2 of 3 measured configuration(s) outside the limits of model psm"), "{s}");
-        assert!(s.contains("outer_wrist_yaw: 2 of 3 sample(s) outside") && s.contains("at most 1.000e-3 rad past"), "{s}");
-    }
-}

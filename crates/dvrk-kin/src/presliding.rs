@@ -84,25 +84,3 @@ impl PreslidingState {
 pub fn effort_with_presliding(effects: &[Effect], q: &[f64], qd: &[f64], states: &PreslidingState, velocity_scale: f64, out: &mut [f64]) {
     effort_impl(effects, q, qd, Some(&states.z), velocity_scale, out)
 }
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// From rest, a ramp's state is the closed form `1 - exp(-q / sigma)`; after a reversal it
-    /// falls toward -1 from where it was, and never leaves [-1, 1] however large a step.
-    #[test]
-    fn the_state_is_the_closed_form_along_a_ramp_and_turns_over_at_a_reversal() {
-        let sigma = 0.01;
-        let q: Vec<f64> = (0..=100).map(|i| i as f64 * 1e-3).collect();
-        let z = dahl_state(&q, sigma);
-        for (x, zi) in q.iter().zip(&z) {
-            assert!((zi - (1.0 - (-x / sigma).exp())).abs() < 1e-12, "{x}: {zi}");
-        }
-        let top = *z.last().unwrap();
-        let back = dahl_step(top, -0.005, sigma);
-        assert!((back - (-1.0 + (top + 1.0) * (-0.5f64).exp())).abs() < 1e-12);
-        assert_eq!(dahl_step(0.3, 1e9, sigma), 1.0);
-        assert_eq!(dahl_step(0.3, 0.0, sigma), 0.3);
-    }
-}

@@ -141,39 +141,3 @@ pub fn read_recording_text(path: &Path, max_bytes: u64, max_line: usize) -> Resu
     }
     String::from_utf8(bytes).map_err(|e| file(format!("not UTF-8 text (byte {})", e.utf8_error().valid_up_to())))
 }
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn excerpts_are_cut_at_characters() {
-        assert_eq!(excerpt("abc", 5), "abc");
-        assert_eq!(excerpt("αβγδ", 2), "αβ…");
-    }
-
-    #[cfg(unix)]
-    #[test]
-    fn devices_and_fifos_are_refused_and_long_lines_named() {
-        let e = read_text(Path::new("/dev/zero")).unwrap_err().to_string();
-        assert!(e.contains("/dev/zero") && e.contains("a character device"), "{e}");
-        let dir = std::env::temp_dir().join(format!("dvrk-text-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let fifo = dir.join("f");
-        assert!(std::process::Command::new("mkfifo").arg(&fifo).status().unwrap().success());
-        let e = read_recording_text(&fifo, 1 << 20, 100).unwrap_err().to_string();
-        assert!(e.contains("a FIFO"), "{e}");
-        let long = dir.join("long.csv");
-        std::fs::write(&long, format!("a,b\n1,2\n{}\n", "x".repeat(500))).unwrap();
-        let e = read_recording_text(&long, 1 << 20, 100).unwrap_err().to_string();
-        assert!(e.contains("line 3 is longer than 100 bytes"), "{e}");
-        std::fs::write(&long, b"a,b\n\0\0").unwrap();
-        let e = read_recording_text(&long, 1 << 20, 100).unwrap_err().to_string();
-        assert!(e.contains("NUL byte at byte 4 (line 2)"), "{e}");
-        std::fs::write(&long, "a,b\n1,2\n").unwrap();
-        assert_eq!(read_recording_text(&long, 1 << 20, 100).unwrap(), "a,b\n1,2\n");
-        let e = read_recording_text(&long, 4, 100).unwrap_err().to_string();
-        assert!(e.contains("at most 4 bytes"), "{e}");
-        std::fs::remove_dir_all(&dir).unwrap();
-    }
-}

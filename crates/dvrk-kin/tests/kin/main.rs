@@ -5,8 +5,15 @@
 //! - `effects`: the `[[effects]]` section, its checks, and the friction / spring efforts.
 //! - `interchange`: URDF and SDF export and import.
 //! - `check`: `dvrk model check` on models no robot has.
+//! - `files`, `expressions`, `effect_laws`, `joints`: the library's small pieces (text inputs and
+//!   staged outputs, frame expressions, play and presliding, couplings and limits), through the
+//!   public API: the library has no unit tests of its own, so `cargo test` compiles it once.
 
 mod check;
 mod dynamics;
+mod effect_laws;
 mod effects;
+mod expressions;
+mod files;
 mod interchange;
+mod joints;
