@@ -38,7 +38,7 @@ def identified_model(binary, workdir):
     out = os.path.join(workdir, "base-identified.toml")
     if not os.path.exists(out):
         subprocess.run([binary, "identify", "--recording", pay.BASE, "--format", "wpi-csv",
-                        "--model", "psm", "-o", out], check=True, capture_output=True)
+                        "--model", "psm", "--no-ablation", "-o", out], check=True, capture_output=True)
     return out
 
 

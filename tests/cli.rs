@@ -262,6 +262,21 @@ fn identify_json_and_output_file() {
     assert!(model.spec.effects.iter().any(|e| e.name == "coulomb_friction" && e.parameters.get("fq").is_some_and(|x| *x != 0.0)));
     let sim: Value = serde_json::from_str(&dvrk_ok(&["sim", "--scene", "psm", "--model", &format!("PSM1={}", out.display()), "--duration", "0.5", "--json"])).unwrap();
     assert!(sim.is_object(), "{sim}");
+    // Without the ablation (most of the time): the same summary and model file, no
+    // `ablation`.
+    let quick = dir.path().join("quick.toml");
+    let mut w: Value = serde_json::from_str(&dvrk_ok(&[
+        "identify", "--recording", one.to_str().unwrap(), "--format", "wpi-csv", "--model", "psm", "--validate", two.to_str().unwrap(), "-o", quick.to_str().unwrap(), "--json", "--no-ablation",
+    ]))
+    .unwrap();
+    assert!(w.get("ablation").is_none());
+    let (mut v, text) = (v.clone(), std::fs::read_to_string(&out).unwrap());
+    v.as_object_mut().unwrap().remove("ablation");
+    for s in [&mut v, &mut w] {
+        s.as_object_mut().unwrap().remove("output");
+    }
+    assert_eq!(v, w);
+    assert_eq!(std::fs::read_to_string(&quick).unwrap(), text);
     // A CSV given as MCAP, and an unknown format, are named.
     let e = crate::util::dvrk_err(&["identify", "--recording", one.to_str().unwrap(), "--format", "mcap"]);
     assert!(e.contains("psm_one_results.csv: not an MCAP file"), "{e}");

@@ -1072,6 +1072,7 @@ def test_a_flood_of_valid_servo_jp_keeps_the_rate_and_the_memory_flat():
     assert summary["refused"] == 0 and summary["commands"] > 0.5 * sent, summary
 
 
+@pytest.mark.alone  # see conftest.py
 def test_two_flooding_peers_and_peers_coming_and_going_keep_the_rate_and_the_memory():
     """Issue #63's re-measure: one peer floods valid servo_jp, a second floods refused ones (5
     values for 6 joints), and a third joins, reads measured_js for a second and leaves, five

@@ -334,13 +334,16 @@ def read_recording(path: Union[str, "os.PathLike[str]"], topics: Optional[List[s
 def identify(
     recording: Union[str, "os.PathLike[str]"],
     model: str = "psm",
-    format: str = "wpi-csv",
+    format: str = "auto",
     validate: Optional[Union[str, "os.PathLike[str]"]] = None,
+    arm: str = "PSM1",
+    ablation: bool = True,
 ) -> Dict[str, Any]:
     """Dynamic identification (``dvrk identify``): inertial parameters (physically consistent),
     friction, offsets, motor inertia and springs; the JSON summary as a dict (relative torque
-    errors per channel, rigid-body-only baseline, ``validation`` on ``validate``, ``ablation``,
-    effects and bodies with standard deviations, ``warnings``). SI units."""
+    errors per channel, rigid-body-only baseline, ``validation`` on ``validate``, ``ablation``
+    unless ``ablation=False`` (most of the time: 12 of 14 s on the WPI PSM), effects and bodies with
+    standard deviations, ``warnings``). SI units."""
 
 def discrepancy(
     recording: Union[str, "os.PathLike[str]"],

@@ -19,8 +19,9 @@ A spec names a trial kind and its parameters; every combination of the listed va
 - ``detection``: ``synth_hidden_effect`` (effect, seed, duration, engine: the truth, reduced by
   default) then ``discrepancy`` on it: the hidden effects, the verdict, the named effects and
   whether the first hidden one was named.
-- ``identify``: ``dvrk_twin.identify`` (recording, model, format, validate): the relative torque
-  errors per channel, on the recording and on ``validate``.
+- ``identify``: ``dvrk_twin.identify`` (recording, model, format, validate), without its
+  ablation (a row holds none of it; it is most of an identification's time): the
+  relative torque errors per channel, on the recording and on ``validate``.
 
 Ray (PyPI ``ray``) is the engine: ``ray.init()`` on this machine by default, ``--address`` for a
 cluster. Ray retries a trial whose worker died (``max_retries``); a trial that raises is recorded
@@ -104,7 +105,7 @@ def run_trial(trial: Dict[str, Any]) -> Dict[str, Any]:
             row.update(hidden="; ".join(hidden) or "none", verdict=report["verdict"], named="; ".join(named) or "none")
             row["correct"] = (named[:1] == hidden[:1]) if hidden else report["verdict"] == "none"
         elif trial["kind"] == "identify":
-            r = dvrk_twin.identify(p["recording"], model=p.get("model", "psm"), format=p.get("format", "wpi-csv"), validate=p.get("validate"))
+            r = dvrk_twin.identify(p["recording"], model=p.get("model", "psm"), format=p.get("format", "wpi-csv"), validate=p.get("validate"), ablation=False)
             for c, e in zip(r["channels"], r["relative_error"]):
                 row[f"relative_error_{c}"] = e
             for c, e in zip(r["channels"], (r.get("validation") or {}).get("relative_error", [])):
