@@ -270,7 +270,7 @@ fn identify_json_and_output_file() {
     ]))
     .unwrap();
     assert!(w.get("ablation").is_none());
-    let (mut v, text) = (v.clone(), std::fs::read_to_string(&out).unwrap());
+    let (mut v, text) = (v, std::fs::read_to_string(&out).unwrap());
     v.as_object_mut().unwrap().remove("ablation");
     for s in [&mut v, &mut w] {
         s.as_object_mut().unwrap().remove("output");
