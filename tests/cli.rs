@@ -239,8 +239,12 @@ fn identify_json_and_output_file() {
     assert_eq!(published["relative_error"].as_array().unwrap().len(), 7);
     assert!((published["period_s"].as_f64().unwrap() - 6.48).abs() < 0.01, "{published}");
     assert!((published["window_s"][0].as_f64().unwrap() - 1.0).abs() < 1e-9, "{published}");
+    // The ablation: eleven rows from the rigid body alone to the chosen options, each validated
+    // on `two`, the last with the summary's own figures.
     let ablation = v["ablation"].as_array().unwrap();
+    assert_eq!(ablation.len(), 11);
     assert_eq!(ablation[0]["effects"], "rigid body only (CAD prior, one cut-off)");
+    assert_eq!(ablation[0]["validation"].as_array().unwrap().len(), 7);
     assert_eq!(ablation.last().unwrap()["validation"], v["validation"]["relative_error"]);
     // The output is a model file with the identified inertials and effects, which the simulator runs.
     let model = dvrk_kin::load(out.to_str().unwrap(), None).unwrap();

@@ -12,7 +12,10 @@ DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "externa
 
 @pytest.mark.skipif(not (DATA / "psm_one_results.csv").exists(), reason=f"external data absent: {DATA}")
 def test_identify_returns_the_summary_with_validation():
-    r = dvrk_twin.identify(DATA / "psm_one_results.csv", model="psm", validate=DATA / "psm_two_results.csv")
+    # Without the ablation (12 of its 14 s; `dvrk identify`'s test shows the summary is the same
+    # with it, and that its rows end at these figures).
+    r = dvrk_twin.identify(DATA / "psm_one_results.csv", model="psm", validate=DATA / "psm_two_results.csv", ablation=False)
+    assert "ablation" not in r
     assert r["physically_consistent"] is True
     held_out = r["validation"]["relative_error"]
     assert len(held_out) == 7
