@@ -320,16 +320,15 @@ fn identify_output_is_a_model_file_the_simulator_loads() {
 #[test]
 fn the_identified_model_leaves_less_discrepancy_than_cad_on_the_held_out_recording() {
     use dvrk_calib::discrepancy::read_log;
-    use dvrk_calib::discrepancy::{discrepancy, scene_for_arm, Options};
+    use dvrk_calib::discrepancy::{discrepancy, scene_for_arm};
     use dvrk_calib::identify::output::identified_model;
     let Some(Fitted { model, prior, r1, options, id, .. }) = fitted_on_one() else { return };
     let Some(two) = wpi("psm_two_results.csv") else { return };
     let identified = dvrk_kin::Model::compile(identified_model(&model, &id, &options.processing, &r1.joint_map(), &prior, "one").unwrap().spec).unwrap();
     let scene = scene_for_arm("PSM1").unwrap();
     // Only the residual before any effect is compared, which the search over the candidates
-    // does not change: one candidate is analysed (`Options::only`), not the forty.
-    let only = dvrk_kin::effects::EffectSpec { name: "viscous_friction".into(), joint: Some("outer_yaw".into()), link: None, actuator: None, parameters: Default::default(), source: String::new() };
-    let o = Options { tracking: false, only: Some(only), ..Default::default() };
+    // does not change: one candidate is analysed, not the forty.
+    let o = crate::util::residual_before_only();
     let band = |m: &dvrk_kin::Model| {
         let (log, _) = read_log(&two, "wpi-csv", m, "PSM1").unwrap();
         let r = discrepancy(m, &scene, "PSM1", &log, &o).unwrap().report;

@@ -6,6 +6,15 @@ use dvrk_kin::{FrameRef, Model, Pose};
 use nalgebra::{Point3, Vector3};
 use std::path::Path;
 
+/// Discrepancy options (no tracking replay) that analyse one candidate, the yaw's viscous
+/// friction, for tests that read only the residual before any effect: the model with its
+/// inertias refitted, which the search over the candidates leaves as it is (the same figures
+/// to the last digit, measured on the WPI PSM: `identify.rs`).
+pub fn residual_before_only() -> dvrk_calib::discrepancy::Options {
+    let only = dvrk_kin::effects::EffectSpec { name: "viscous_friction".into(), joint: Some("outer_yaw".into()), link: None, actuator: None, parameters: Default::default(), source: String::new() };
+    dvrk_calib::discrepancy::Options { tracking: false, only: Some(only), ..Default::default() }
+}
+
 pub fn psm() -> Model {
     dvrk_kin::load("psm", None).expect("built-in psm")
 }
