@@ -309,7 +309,7 @@ fn malformed_velocities_are_refused_as_efforts_are() {
 }
 
 /// The detection-rate table: TRIALS seeded trials per class at ENR drawn in [3, 8], and
-/// effect-free trials. `DVRK_TRIALS=60 cargo test --release -p dvrk-calib --test calib
+/// effect-free trials. `DVRK_TRIALS=60 cargo test --release -p dvrk-calib-tests --test calib
 /// detection_rate_table -- --ignored --nocapture` (about 16 s a trial on 2 cores).
 /// `DVRK_TRACKER=1` adds a tracked marker on the tool shaft (the kinematic channel; link_length joins the classes),
 /// `DVRK_KINDS=backlash,latency` picks classes (the tool's `actuator_coulomb_friction` and `actuator_viscous_friction` only this way), `DVRK_FREE=N` the number of effect-free trials,
@@ -584,7 +584,7 @@ fn named_effects_are_refitted_given_each_other() {
 }
 
 /// Two-effect trials: TRIALS random pairs at ENR drawn in [3, 8] each, analysed by the repeated
-/// workflow. `DVRK_TRIALS=40 cargo test --release -p dvrk-calib --test calib two_effect_table --
+/// workflow. `DVRK_TRIALS=40 cargo test --release -p dvrk-calib-tests --test calib two_effect_table --
 /// --ignored --nocapture` (`DVRK_FIRST_SEED`: the first trial's seed, 7000 and up).
 #[test]
 #[ignore]
@@ -811,7 +811,7 @@ fn a_payload_on_a_translating_link_has_the_cranks_first_moment() {
 /// it: the robot identified first (`dvrk identify` on the same seed's effect-free recording: the
 /// same truth and motion), then the weighted recording analysed with that model (one round). Is
 /// the payload named, on its body or one the report gives as equivalent, with its mass within
-/// 20%? `DVRK_TRIALS=30 DVRK_FIRST_SEED=2000 cargo test --release -p dvrk-calib --test calib
+/// 20%? `DVRK_TRIALS=30 DVRK_FIRST_SEED=2000 cargo test --release -p dvrk-calib-tests --test calib
 /// payload_anywhere_table -- --ignored --nocapture` (about a minute a trial). `DVRK_CAD=1`
 /// analyses with the CAD model instead (its relative inertia prior).
 #[test]

@@ -27,7 +27,7 @@ fn fixtures() -> Option<&'static Path> {
             return None;
         }
         let dir = tempfile::tempdir().unwrap();
-        let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/calib/writers/dvrk_layouts.py");
+        let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("calib/writers/dvrk_layouts.py");
         let out = Command::new("python3").arg(&script).arg(&wpi).arg(dir.path()).arg("12").output().expect("python3 runs");
         assert!(out.status.success(), "the fixture writer failed: {}", String::from_utf8_lossy(&out.stderr));
         Some(dir)

@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 /// `file` of the WPI recordings (`insertion-payload/...` for the second data set), or `None` with
 /// a message when the external data are absent.
 pub(crate) fn wpi(file: &str) -> Option<PathBuf> {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/external/wpi-dvrk-dynamics").join(file);
+    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../../shared/data/external/wpi-dvrk-dynamics").join(file);
     if p.exists() {
         Some(p)
     } else {

@@ -160,7 +160,7 @@ fn affine_coupled_arm_maps_torques_by_the_transpose() {
 }
 
 fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..")
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../..")
 }
 
 /// The inertials file of a model (models/inertials/NAME.toml), read here without dvrk-sim: one

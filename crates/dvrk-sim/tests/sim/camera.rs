@@ -267,7 +267,7 @@ fn a_model_file_mesh_replaces_a_body_s_solids_and_bad_meshes_are_named() {
     let mut f = std::fs::File::create(dir.path().join("cube.stl")).unwrap();
     stl_io::write_stl(&mut f, tris.iter()).unwrap();
     drop(f);
-    let psm = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../../models/psm.toml")).unwrap();
+    let psm = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../models/psm.toml")).unwrap();
     let write = |extra: &str| {
         let p = dir.path().join("psm-mesh.toml");
         std::fs::write(&p, format!("{psm}\n{extra}")).unwrap();

@@ -1,5 +1,5 @@
 //! Integration tests of dvrk-sim: one binary, one module per concern (run in release:
-//! `cargo test -p dvrk-sim --release`). The allocation count is its own binary
+//! `cargo test --release -p dvrk-sim-tests`). The allocation count is its own binary
 //! (`tests/reduced_alloc.rs`: a process-wide counting allocator).
 //!
 //! - `sim`: the engine's commands, limits, gains and loop modes.

@@ -1,4 +1,4 @@
-//! Simulation checks (run in release: `cargo test -p dvrk-sim --release`).
+//! Simulation checks (run in release: `cargo test --release -p dvrk-sim-tests`).
 
 use dvrk_sim::run::TrajectoryKind;
 use dvrk_sim::{run, ClosingLinks, Gains, LoopMode, Mode, RunOptions, Scene, Sim, SimOptions};
