@@ -25,8 +25,13 @@ fn identified_on(path: &Path) -> dvrk_kin::Model {
 
 /// One round of the workflow (no tracking replay) of `model` on `path`.
 fn analyse(model: &dvrk_kin::Model, path: &Path) -> Report {
+    analyse_with(model, path, &Options { tracking: false, ..Default::default() })
+}
+
+/// [`analyse`] with options `o`.
+fn analyse_with(model: &dvrk_kin::Model, path: &Path, o: &Options) -> Report {
     let (log, _) = read_log(path, "wpi-csv", model, "PSM1").unwrap();
-    discrepancy(model, &scene_for_arm("PSM1").unwrap(), "PSM1", &log, &Options { tracking: false, ..Default::default() }).unwrap().report
+    discrepancy(model, &scene_for_arm("PSM1").unwrap(), "PSM1", &log, o).unwrap().report
 }
 
 /// [`identified_on`] the no-weight recording, once for every test here.
@@ -104,11 +109,7 @@ fn a_real_205_g_weight_is_named_on_the_insertion_stage() {
     let mut spec = model.spec.clone();
     spec.effects.retain(|e| e.actuator.is_none());
     // (Only its residual before any effect is read: one candidate analysed.)
-    let without = {
-        let m = dvrk_kin::Model::compile(spec).unwrap();
-        let (log, _) = read_log(&loaded, "wpi-csv", &m, "PSM1").unwrap();
-        discrepancy(&m, &scene_for_arm("PSM1").unwrap(), "PSM1", &log, &crate::util::residual_before_only()).unwrap().report
-    };
+    let without = analyse_with(&dvrk_kin::Model::compile(spec).unwrap(), &loaded, &crate::util::residual_before_only());
     for joint in ["outer_wrist_pitch", "outer_wrist_yaw", "jaw"] {
         let rms = |r: &Report| r.joints.iter().find(|j| j.joint == joint).unwrap().band_rms_before;
         eprintln!("{joint}: band residual {:.4} N·m with the actuator effects, {:.4} without", rms(&r), rms(&without));
