@@ -2,8 +2,8 @@
 # Every Rust test of the workspace (what `cargo test --release --workspace` runs), in two streams
 # so that neither waits for the other: scripts/test.sh runs this beside the Python tests.
 # - dvrk-calib's `calib` binary, the longest (about 150 s on 2 cores), starts as soon as it is
-#   built, in two processes: its `payload_real` module (the WPI insertion recordings: six tests,
-#   70 CPU-s, one of them 38 s) beside the rest. libtest starts a binary's tests in name order,
+#   built, in two processes: its `payload_real` module (the WPI insertion recordings: five tests,
+#   68 CPU-s, one of them 38 s) beside the rest. libtest starts a binary's tests in name order,
 #   and in one process that 38 s test, among the last to start, ran on by itself for 27 s at
 #   the end while the other core had nothing left to do;
 # - meanwhile the rest of the build (the other harnesses, the examples; cargo's build lock puts
