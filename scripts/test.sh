@@ -91,8 +91,20 @@ for stream in rust python realtime; do
 done
 # The realtime test that must run by itself (tests/python/conftest.py, `alone`).
 echo "=== alone"
-stream alone "$py" -m pytest tests/python -q -m alone || status=$?
+alone=0
+stream alone "$py" -m pytest tests/python -q -m alone || alone=$?
 cat "$logs/alone"
+# Once more when, and only when, its twin was never discovered: that failure (no sample in the
+# whole 25 s allowance) came back once in ten runs by itself (session 53's ci29), its cause not
+# found (docs/testing.md); the test is about the rate and memory under flooding peers, and a
+# failure of those, or a second discovery failure, fails the run.
+if [ "$alone" -ne 0 ] && grep -q "no /PSM1/measured_js within" "$logs/alone"; then
+    echo "=== alone, once more: its twin was not discovered (the known discovery failure above)"
+    alone=0
+    stream alone_again "$py" -m pytest tests/python -q -m alone || alone=$?
+    cat "$logs/alone_again"
+fi
+[ "$alone" -eq 0 ] || status=$alone
 # On two cores the run is as fast as its CPU time allows when the CPU is near twice the wall time.
 times > "$logs/times"
 echo "(everything: $SECONDS s, CPU $(cpu_of "$logs/times") s)"
